@@ -1,0 +1,202 @@
+"""The ``cmarl-cd`` command line: run the paper's experiments, re-render reports."""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import typer
+from rich.console import Console
+
+from cmarlcd import __version__
+from cmarlcd.errors import ConfigError, require
+from cmarlcd.experiments import repeated as rep
+from cmarlcd.learners.coordination import RepeatedConfig
+from cmarlcd.runner import SweepInterrupted, run_sweep
+from cmarlcd.store import DEFAULT_STORE, ResultStore
+
+app = typer.Typer(
+    help="CMARL-CD: cooperative multi-agent RL by coordination degree — paper reproduction.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+DEFAULT_FIGURES = Path("results") / "figures"
+F = TypeVar("F", bound=Callable[..., Any])
+
+StoreOption = Annotated[Path, typer.Option("--store", help="SQLite results store.")]
+FiguresOption = Annotated[Path, typer.Option("--figures", help="Folder for PNG figures.")]
+WorkersOption = Annotated[
+    int | None, typer.Option("--workers", help="Worker processes [default: all cores].")
+]
+JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON document to stdout.")]
+ProgressOption = Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bar.")]
+
+
+def fails_cleanly(command: F) -> F:
+    """Turn bad input into one line on stderr and exit status 2; Ctrl-C into exit 130."""
+
+    @functools.wraps(command)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return command(*args, **kwargs)
+        except ConfigError as err:
+            option = "--" + err.parameter.replace("_", "-")
+            print(f"error: {option}: {err.message}", file=sys.stderr)
+            raise typer.Exit(2) from None
+        except SweepInterrupted as err:
+            print(str(err), file=sys.stderr)
+            raise typer.Exit(130) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def parse_range(text: str, parameter: str) -> tuple[int, ...]:
+    """``"2-7"`` -> (2, ..., 7); ``"3"`` -> (3,); ``"2,4,6"`` -> (2, 4, 6)."""
+    values: list[int] = []
+    for part in text.replace(" ", "").split(","):
+        low, sep, high = part.partition("-")
+        try:
+            lo = int(low)
+            hi = int(high) if sep else lo
+        except ValueError:
+            message = f"expected N, LOW-HIGH or a comma list (got {text!r})"
+            raise ConfigError(parameter, message) from None
+        require(lo <= hi, parameter, f"range {part} is reversed; write LOW-HIGH, e.g. {hi}-{lo}")
+        values.extend(range(lo, hi + 1))
+    return tuple(sorted(set(values)))
+
+
+def _stdout(as_json: bool) -> Console:
+    return Console(stderr=as_json)
+
+
+@app.command()
+@fails_cleanly
+def repeated(
+    case: Annotated[int, typer.Option(help="1: unique component actions; 2: 0.1·m^n optima.")] = 1,
+    agents: Annotated[
+        str | None, typer.Option(help="Agents n: N, LOW-HIGH or list [default: the paper's].")
+    ] = None,
+    actions: Annotated[
+        str | None, typer.Option(help="Actions m: N, LOW-HIGH or list [default: the paper's].")
+    ] = None,
+    runs: Annotated[int, typer.Option(help="Runs per cell.")] = rep.PAPER_RUNS,
+    seed: Annotated[int, typer.Option(help="Root seed of the sweep.")] = 0,
+    temperature: Annotated[float, typer.Option(help="T of eq. (5).")] = 1.0,
+    delta: Annotated[float, typer.Option(help="δ of eqs. (2)-(3).")] = 0.04,
+    max_games: Annotated[int, typer.Option(help="Cap on games per run (a failure).")] = 10**7,
+    workers: WorkersOption = None,
+    as_json: JsonOption = False,
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    progress: ProgressOption = True,
+) -> None:
+    """Tables 1-2: CMARL-CD on random cooperative repeated games (Section IV-C)."""
+    require(case in (1, 2), "case", f"must be 1 or 2 (got {case})")
+    sweep = rep.RepeatedSweep(
+        case=case,
+        agents=parse_range(agents, "agents") if agents else rep.PAPER_AGENTS[case],
+        actions=parse_range(actions, "actions") if actions else rep.PAPER_ACTIONS[case],
+        runs=runs,
+        seed=seed,
+        learner=RepeatedConfig(temperature=temperature, delta=delta, max_games=max_games),
+    )
+    require(workers is None or workers >= 1, "workers", f"must be >= 1 (got {workers})")
+    doc = _run_repeated(sweep, store, figures, workers, progress, as_json)
+    if as_json:
+        print(json.dumps(doc, indent=2))
+
+
+def _run_repeated(
+    sweep: rep.RepeatedSweep,
+    store_path: Path,
+    figures: Path,
+    workers: int | None,
+    progress: bool,
+    as_json: bool,
+) -> dict[str, Any]:
+    """Run (or resume) one sweep, print its tables, draw its figure; return the JSON doc."""
+    from cmarlcd import figures as figs
+    from cmarlcd import report
+
+    specs = sweep.specs()
+    with ResultStore(store_path) as store:
+        err = Console(stderr=True)
+        label = f"case {sweep.case}: {len(specs)} runs"
+        done = run_sweep(
+            specs,
+            store,
+            workers=workers,
+            version=__version__,
+            console=err,
+            description=label,
+            show_progress=progress,
+        )
+        records = store.get(s.key for s in specs)
+    cells = rep.summarize(records)
+    title = rep.table_title(records)
+    path = figs.repeated_heatmap(cells, title, figures / _figure_name(sweep.case, sweep.seed))
+    out = _stdout(as_json)
+    out.print(report.success_table(cells, title))
+    out.print(report.games_table(cells, "Median games to convergence"))
+    out.print(
+        f"{done.computed} runs computed, {done.reused} from the store in "
+        f"{done.wall_seconds:.1f} s; figure: {path}"
+    )
+    return {
+        "experiment": rep.EXPERIMENT,
+        "case": sweep.case,
+        "seed": sweep.seed,
+        "learner": rep.asdict(sweep.learner),
+        "runs_computed": done.computed,
+        "runs_reused": done.reused,
+        "wall_seconds": done.wall_seconds,
+        "store": str(store_path),
+        "figure": str(path),
+        "cells": [c.to_dict() for c in cells],
+    }
+
+
+def _figure_name(case: int, seed: int) -> str:
+    return f"repeated-case{case}-seed{seed}.png"
+
+
+@app.command()
+@fails_cleanly
+def report(
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    as_json: JsonOption = False,
+) -> None:
+    """Re-render every table and figure from the results store (computes nothing)."""
+    from cmarlcd import figures as figs
+    from cmarlcd import report as rpt
+
+    require(store.exists(), "store", f"no results store at {store}; run an experiment first")
+    with ResultStore(store) as db:
+        tables = rep.stored_tables(db.records(rep.EXPERIMENT))
+    out = _stdout(as_json)
+    docs = []
+    for records in tables.values():
+        cells = rep.summarize(records)
+        title = rep.table_title(records)
+        cfg, seed = records[0].config, records[0].key.root_seed
+        path = figs.repeated_heatmap(cells, title, figures / _figure_name(cfg["case"], seed))
+        out.print(rpt.success_table(cells, title))
+        out.print(rpt.games_table(cells, "Median games to convergence"))
+        out.print(f"figure: {path}")
+        docs.append({"title": title, "figure": str(path), "cells": [c.to_dict() for c in cells]})
+    if not tables:
+        out.print(f"the store {store} holds no finished runs")
+    if as_json:
+        print(json.dumps({"store": str(store), "tables": docs}, indent=2))
+
+
+def main() -> None:  # pragma: no cover - console entry point
+    app()

@@ -1,0 +1,186 @@
+"""The repeated-game experiment of Section IV-C (Tables 1 and 2).
+
+Each run draws a fresh random cooperative game of the requested case, size and seed,
+lets CMARL-CD (Algorithm 1) play it until every strategy is pure, and records whether
+the greedy joint action is optimal and how many games it took.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections import defaultdict
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cmarlcd.errors import require
+from cmarlcd.games.matrix import climbing_game, random_game
+from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
+from cmarlcd.paper import repeated_success
+from cmarlcd.runner import Experiment, RunSpec, register
+from cmarlcd.store import RunRecord
+
+EXPERIMENT = "repeated"
+ALGORITHM = "cmarl-cd"
+#: Largest payoff tensor a cell may ask for (entries); ~0.8 GB of float64.
+MAX_JOINT_ACTIONS = 100_000_000
+#: The paper's protocol: Table 1 (case 1) and Table 2 (case 2).
+PAPER_AGENTS = {1: (2, 3, 4, 5, 6, 7), 2: (4, 5, 6, 7)}
+PAPER_ACTIONS = {1: (2, 3, 4, 5), 2: (3, 4, 5)}
+PAPER_RUNS = 50
+
+_GRID_FIELDS = ("agents", "actions")
+
+
+@dataclass(frozen=True)
+class RepeatedSweep:
+    """A grid of (agents, actions) cells for one case, each played ``runs`` times."""
+
+    case: int
+    agents: tuple[int, ...]
+    actions: tuple[int, ...]
+    runs: int = PAPER_RUNS
+    seed: int = 0
+    learner: RepeatedConfig = field(default_factory=RepeatedConfig)
+
+    def __post_init__(self) -> None:
+        require(self.case in (1, 2), "case", f"must be 1 or 2 (got {self.case})")
+        require(len(self.agents) > 0, "agents", "needs at least one value")
+        require(len(self.actions) > 0, "actions", "needs at least one value")
+        require(min(self.agents) >= 2, "agents", f"must be >= 2 (got {min(self.agents)})")
+        require(min(self.actions) >= 2, "actions", f"must be >= 2 (got {min(self.actions)})")
+        require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
+        require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
+        size = max(self.actions) ** max(self.agents)
+        require(
+            size <= MAX_JOINT_ACTIONS,
+            "agents",
+            f"{max(self.actions)}^{max(self.agents)} joint actions exceed the limit of "
+            f"{MAX_JOINT_ACTIONS:,}",
+        )
+
+    def cells(self) -> list[dict[str, Any]]:
+        """One config per (agents, actions), learner settings included."""
+        learner = asdict(self.learner)
+        return [
+            {"case": self.case, "agents": n, "actions": m, **learner}
+            for m in self.actions
+            for n in self.agents
+        ]
+
+    def specs(self) -> list[RunSpec]:
+        return [
+            RunSpec.make(EXPERIMENT, ALGORITHM, cell, self.seed, r)
+            for cell in self.cells()
+            for r in range(self.runs)
+        ]
+
+
+def paper_sweep(case: int, runs: int = PAPER_RUNS, seed: int = 0) -> RepeatedSweep:
+    """The full protocol of Table ``case``."""
+    return RepeatedSweep(case, PAPER_AGENTS[case], PAPER_ACTIONS[case], runs, seed)
+
+
+def learner_config(config: Mapping[str, Any]) -> RepeatedConfig:
+    """The learner settings stored in a cell config."""
+    names = RepeatedConfig.__dataclass_fields__
+    return RepeatedConfig(**{k: v for k, v in config.items() if k in names})
+
+
+def run_cell(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+    """One run: a fresh random game, CMARL-CD until pure, the paper's success test."""
+    game_seed, learner_seed = seed.spawn(2)
+    game = random_game(
+        config["case"], config["agents"], config["actions"], np.random.default_rng(game_seed)
+    )
+    learner = CMARLCD(game.action_counts, learner_config(config), seed=learner_seed)
+    result = learner.fit(game)
+    return {
+        "success": result.success,
+        "converged": result.converged,
+        "games": result.games,
+        "greedy_payoff": result.greedy_payoff,
+        "optima": len(game.optimal_joint_actions),
+    }
+
+
+def _warm_up() -> None:
+    game = climbing_game()
+    CMARLCD(game.action_counts, seed=0).fit(game, max_games=10)
+
+
+def _cost(config: Mapping[str, Any]) -> float:
+    """Case 1 needs about m^(n-1) games to meet an optimum; case 2 is quick."""
+    if config["case"] == 1:
+        return float(config["actions"]) ** (config["agents"] - 1)
+    return float(config["agents"] * config["actions"])
+
+
+REPEATED = register(Experiment(EXPERIMENT, run_cell, _warm_up, _cost))
+
+
+@dataclass(frozen=True)
+class CellSummary:
+    """The runs of one (case, agents, actions) cell, aggregated as the paper reports them."""
+
+    case: int
+    agents: int
+    actions: int
+    runs: int
+    success_rate: float
+    converged_rate: float
+    median_games: float | None
+    """Median games to convergence over the converged runs (None if none converged)."""
+    paper_success_rate: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def summarize(records: Iterable[RunRecord]) -> list[CellSummary]:
+    """Aggregate stored runs per cell (runs of other settings must be filtered first)."""
+    groups: dict[tuple[int, int, int], list[dict[str, Any]]] = defaultdict(list)
+    for rec in records:
+        cfg = rec.config
+        groups[(cfg["case"], cfg["agents"], cfg["actions"])].append(rec.metrics)
+    out = []
+    for (case, n, m), metrics in sorted(groups.items(), key=lambda kv: (kv[0][2], kv[0][1])):
+        games = [x["games"] for x in metrics if x["converged"]]
+        out.append(
+            CellSummary(
+                case=case,
+                agents=n,
+                actions=m,
+                runs=len(metrics),
+                success_rate=sum(bool(x["success"]) for x in metrics) / len(metrics),
+                converged_rate=sum(bool(x["converged"]) for x in metrics) / len(metrics),
+                median_games=float(statistics.median(games)) if games else None,
+                paper_success_rate=repeated_success(case, n, m),
+            )
+        )
+    return out
+
+
+def group_key(config: Mapping[str, Any], root_seed: int) -> tuple:
+    """Runs that belong to one table: same settings apart from the cell coordinates."""
+    rest = tuple(sorted((k, v) for k, v in config.items() if k not in _GRID_FIELDS))
+    return (root_seed, *rest)
+
+
+def stored_tables(records: Iterable[RunRecord]) -> dict[tuple, list[RunRecord]]:
+    """Group every stored repeated-game run into tables (one per case/settings/seed)."""
+    tables: dict[tuple, list[RunRecord]] = defaultdict(list)
+    for rec in records:
+        tables[group_key(rec.config, rec.key.root_seed)].append(rec)
+    return dict(tables)
+
+
+def table_title(records: Sequence[RunRecord]) -> str:
+    cfg = records[0].config
+    table = {1: "Table 1", 2: "Table 2"}[cfg["case"]]
+    return (
+        f"{table} — success rate, case {cfg['case']} (T={cfg['temperature']:g}, "
+        f"δ={cfg['delta']:g}, seed {records[0].key.root_seed})"
+    )

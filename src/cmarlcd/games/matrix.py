@@ -1,0 +1,183 @@
+"""Repeated (one-stage, common-payoff) games: random generators and classic games.
+
+A repeated game is a payoff tensor of shape ``(|A_1|, ..., |A_n|)``; entry ``a`` is the
+global reward every agent receives when the joint action ``a`` is played (Section III-B).
+
+The random generators follow Section IV-C of the paper and SPEC §1:
+
+* **case 1** -- the component action of every optimal joint action is unique: agent
+  ``i``'s component actions across the ``m`` optima are a random permutation of its
+  ``m`` actions;
+* **case 2** -- ``round(0.1 m^n)`` optimal joint actions drawn uniformly without
+  replacement.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from cmarlcd.errors import ConfigError, require
+
+#: [choice] payoff of every optimal joint action in the random games.
+OPTIMAL_PAYOFF = 1.0
+#: [choice] non-optimal payoffs are ``SUBOPTIMAL_SCALE * U[0, 1)``, so strictly below optimal.
+SUBOPTIMAL_SCALE = 0.9
+#: case 2: the fraction of joint actions that are optimal (the paper's 0.1).
+CASE2_OPTIMAL_FRACTION = 0.1
+
+
+@dataclass(frozen=True, eq=False)
+class MatrixGame:
+    """A common-payoff repeated game.
+
+    Attributes:
+        payoffs: read-only float64 array, shape ``(|A_1|, ..., |A_n|)``.
+        name: a label for reports.
+    """
+
+    payoffs: np.ndarray
+    name: str = "custom"
+    _flat: np.ndarray = field(init=False, repr=False)
+    _strides: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        payoffs = validate_payoffs(self.payoffs)
+        payoffs.setflags(write=False)
+        object.__setattr__(self, "payoffs", payoffs)
+        object.__setattr__(self, "_flat", payoffs.reshape(-1))
+        strides = np.array(payoffs.strides, dtype=np.int64) // payoffs.itemsize
+        object.__setattr__(self, "_strides", strides)
+
+    @property
+    def n_agents(self) -> int:
+        return self.payoffs.ndim
+
+    @property
+    def action_counts(self) -> tuple[int, ...]:
+        return tuple(int(k) for k in self.payoffs.shape)
+
+    @property
+    def max_payoff(self) -> float:
+        return float(self.payoffs.max())
+
+    @property
+    def optimal_joint_actions(self) -> list[tuple[int, ...]]:
+        """Every joint action whose payoff equals the game's maximum."""
+        hits = np.argwhere(self.payoffs == self.payoffs.max())
+        return [tuple(int(a) for a in row) for row in hits]
+
+    @property
+    def flat_payoffs(self) -> np.ndarray:
+        """The payoffs as a flat C-order vector (what the compiled kernels index)."""
+        return self._flat
+
+    @property
+    def strides(self) -> np.ndarray:
+        """Element strides: ``flat_payoffs[joint @ strides] == payoffs[tuple(joint)]``."""
+        return self._strides
+
+    def payoff(self, joint_action: Sequence[int]) -> float:
+        """The global reward of ``joint_action``."""
+        return float(self.payoffs[tuple(int(a) for a in joint_action)])
+
+    def is_optimal(self, joint_action: Sequence[int]) -> bool:
+        """True when ``joint_action`` attains the game's maximal payoff."""
+        return self.payoff(joint_action) == self.max_payoff
+
+
+def validate_payoffs(payoffs: object) -> np.ndarray:
+    """Return ``payoffs`` as a fresh float64 array, or raise :class:`ConfigError`.
+
+    A valid payoff tensor has at least two axes (agents) of at least two entries
+    (actions) each, and only finite real values.
+    """
+    try:
+        array = np.array(payoffs, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError("payoffs", f"must be a numeric array ({exc})") from None
+    require(array.ndim >= 2, "payoffs", f"needs one axis per agent, at least 2 (got {array.ndim})")
+    require(
+        min(array.shape) >= 2,
+        "payoffs",
+        f"every agent needs at least 2 actions (got shape {array.shape})",
+    )
+    require(bool(np.isfinite(array).all()), "payoffs", "must contain only finite values")
+    return np.ascontiguousarray(array)
+
+
+def _check_size(n_agents: int, n_actions: int) -> None:
+    require(n_agents >= 2, "agents", f"must be >= 2 (got {n_agents})")
+    require(n_actions >= 2, "actions", f"must be >= 2 (got {n_actions})")
+
+
+def _random_background(shape: tuple[int, ...], rng: np.random.Generator) -> np.ndarray:
+    return SUBOPTIMAL_SCALE * rng.random(shape)
+
+
+def random_case1(n_agents: int, n_actions: int, rng: np.random.Generator) -> MatrixGame:
+    """Case 1 of Section IV-C: ``m = n_actions`` optima with unique component actions.
+
+    Agent ``i``'s component actions across the ``m`` optima are a random permutation of
+    its ``m`` actions, so every action of every agent belongs to exactly one optimum.
+    """
+    _check_size(n_agents, n_actions)
+    shape = (n_actions,) * n_agents
+    payoffs = _random_background(shape, rng)
+    components = np.stack([rng.permutation(n_actions) for _ in range(n_agents)])
+    payoffs[tuple(components)] = OPTIMAL_PAYOFF
+    return MatrixGame(payoffs, name=f"case1-n{n_agents}-m{n_actions}")
+
+
+def case2_optimum_count(n_agents: int, n_actions: int) -> int:
+    """``round(0.1 m^n)``, rounding halves up, in exact arithmetic (SPEC §1).
+
+    [choice] The paper's ``[ ]`` rounds to an integer; for ``m = 5`` every cell is a
+    tie (``0.1 * 5^n = x.5``), which we round up. At least one optimum is kept.
+    """
+    exact = Fraction(str(CASE2_OPTIMAL_FRACTION)) * n_actions**n_agents
+    return max(1, int(exact + Fraction(1, 2)))
+
+
+def random_case2(n_agents: int, n_actions: int, rng: np.random.Generator) -> MatrixGame:
+    """Case 2 of Section IV-C: ``round(0.1 m^n)`` optima drawn without replacement."""
+    _check_size(n_agents, n_actions)
+    shape = (n_actions,) * n_agents
+    payoffs = _random_background(shape, rng)
+    total = n_actions**n_agents
+    chosen = rng.choice(total, size=case2_optimum_count(n_agents, n_actions), replace=False)
+    payoffs.reshape(-1)[chosen] = OPTIMAL_PAYOFF
+    return MatrixGame(payoffs, name=f"case2-n{n_agents}-m{n_actions}")
+
+
+def random_game(case: int, n_agents: int, n_actions: int, rng: np.random.Generator) -> MatrixGame:
+    """Dispatch to :func:`random_case1` or :func:`random_case2`."""
+    if case == 1:
+        return random_case1(n_agents, n_actions, rng)
+    if case == 2:
+        return random_case2(n_agents, n_actions, rng)
+    raise ConfigError("case", f"must be 1 or 2 (got {case})")
+
+
+def climbing_game() -> MatrixGame:
+    """The climbing game (Claus & Boutilier, 1998): optimum 11 at ``(0, 0)``."""
+    payoffs = [[11.0, -30.0, 0.0], [-30.0, 7.0, 6.0], [0.0, 0.0, 5.0]]
+    return MatrixGame(np.array(payoffs), name="climbing")
+
+
+def penalty_game(k: float = -10.0) -> MatrixGame:
+    """The penalty game with penalty ``k <= 0``: optima 10 at ``(0, 0)`` and ``(2, 2)``.
+
+    Miscoordinating between the two optima, ``(0, 2)`` or ``(2, 0)``, pays ``k``.
+    """
+    require(np.isfinite(k) and k <= 0, "k", f"must be a finite number <= 0 (got {k})")
+    payoffs = [[10.0, 0.0, k], [0.0, 2.0, 0.0], [k, 0.0, 10.0]]
+    return MatrixGame(np.array(payoffs), name=f"penalty(k={k:g})")
+
+
+def from_payoffs(payoffs: object, name: str = "custom") -> MatrixGame:
+    """A game from a user-supplied payoff array (validated: shape, finite values)."""
+    return MatrixGame(validate_payoffs(payoffs), name=name)

@@ -1,0 +1,231 @@
+"""Fan runs out over worker processes and commit each result to the store.
+
+A *run* is a :class:`RunSpec`: (experiment, algorithm, config, root seed, run index).
+Its random streams come from :meth:`RunSpec.seed_sequence`, a
+:class:`numpy.random.SeedSequence` built from the root seed, a digest of the experiment
+and config, and the run index, so a run's result never depends on which worker ran it,
+how many workers there were, or which other runs were in the same sweep. The algorithm
+name is deliberately left out of the seed: algorithms compared under the same config
+see the same random games (common random numbers).
+
+Backends: ``workers == 1`` runs in-process; otherwise a pool of forked local processes
+(spawned where fork is unavailable). Results come back to the parent, which alone
+writes to the store, one transaction per run, as each finishes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import multiprocessing
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+
+from cmarlcd.errors import require
+from cmarlcd.store import ResultStore, RunKey, canonical_json
+
+RunFunction = Callable[[dict[str, Any], np.random.SeedSequence], dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """What the runner needs to know about an experiment.
+
+    Attributes:
+        name: the store's experiment name.
+        run: computes one run's metrics from its config and seed sequence.
+        warm_up: compiles the kernels once in the parent before workers fork.
+        cost: a rough relative cost of a config, used to start expensive runs first.
+    """
+
+    name: str
+    run: RunFunction
+    warm_up: Callable[[], None] = lambda: None
+    cost: Callable[[Mapping[str, Any]], float] = lambda config: 1.0
+
+
+_REGISTRY: dict[str, Experiment] = {}
+
+
+def register(experiment: Experiment) -> Experiment:
+    """Make ``experiment`` runnable by name (also inside worker processes)."""
+    _REGISTRY[experiment.name] = experiment
+    return experiment
+
+
+def get_experiment(name: str) -> Experiment:
+    return _REGISTRY[name]
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run: everything needed to compute it, and its identity in the store."""
+
+    experiment: str
+    algorithm: str
+    config_json: str
+    root_seed: int
+    run_index: int
+
+    @classmethod
+    def make(
+        cls, experiment: str, algorithm: str, config: Mapping[str, Any], root_seed: int, index: int
+    ) -> RunSpec:
+        return cls(experiment, algorithm, canonical_json(config), int(root_seed), int(index))
+
+    @property
+    def key(self) -> RunKey:
+        return RunKey(
+            self.experiment, self.algorithm, self.config_json, self.root_seed, self.run_index
+        )
+
+    @property
+    def config(self) -> dict[str, Any]:
+        import json
+
+        return json.loads(self.config_json)
+
+    def seed_sequence(self) -> np.random.SeedSequence:
+        """The run's root of randomness: (root seed; digest of experiment+config, index)."""
+        digest = hashlib.sha256(f"{self.experiment}\n{self.config_json}".encode()).digest()
+        words = [int.from_bytes(digest[i : i + 4], "little") for i in range(0, 16, 4)]
+        return np.random.SeedSequence(self.root_seed, spawn_key=(*words, self.run_index))
+
+
+def execute(spec: RunSpec) -> tuple[RunSpec, dict[str, Any], float]:
+    """Compute one run (in whatever process calls it)."""
+    start = time.perf_counter()
+    metrics = get_experiment(spec.experiment).run(spec.config, spec.seed_sequence())
+    return spec, metrics, time.perf_counter() - start
+
+
+def default_workers() -> int:
+    """All cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@dataclass
+class SweepResult:
+    """How a sweep went: how many runs were computed now and how many came from the store."""
+
+    total: int
+    computed: int = 0
+    reused: int = 0
+    wall_seconds: float = 0.0
+    interrupted: bool = False
+    run_seconds: list[float] = field(default_factory=list)
+
+
+class SweepInterrupted(RuntimeError):
+    """The sweep was stopped (Ctrl-C); finished runs are in the store."""
+
+    def __init__(self, result: SweepResult) -> None:
+        self.result = result
+        left = result.total - result.reused - result.computed
+        super().__init__(
+            f"interrupted: {result.reused + result.computed} of {result.total} runs are stored,"
+            f" {left} left; run the same command again to resume"
+        )
+
+
+def run_sweep(
+    specs: Sequence[RunSpec],
+    store: ResultStore,
+    *,
+    workers: int | None = None,
+    version: str = "",
+    console: Console | None = None,
+    description: str = "runs",
+    show_progress: bool = True,
+) -> SweepResult:
+    """Compute every spec not yet in ``store`` and commit each as it finishes."""
+    workers = default_workers() if workers is None else workers
+    require(workers >= 1, "workers", f"must be >= 1 (got {workers})")
+    todo = _order_by_cost(store_missing(store, specs))
+    result = SweepResult(total=len(specs), reused=len(specs) - len(todo))
+    start = time.perf_counter()
+    progress = _progress(console, show_progress)
+    with progress:
+        task = progress.add_task(description, total=len(specs), completed=result.reused)
+
+        def commit(spec: RunSpec, metrics: dict[str, Any], seconds: float) -> None:
+            store.put(spec.key, metrics, seconds, version)
+            result.computed += 1
+            result.run_seconds.append(seconds)
+            progress.advance(task)
+
+        try:
+            if todo:
+                _dispatch(todo, min(workers, len(todo)), commit)
+        except KeyboardInterrupt:
+            result.interrupted = True
+            result.wall_seconds = time.perf_counter() - start
+            raise SweepInterrupted(result) from None
+    result.wall_seconds = time.perf_counter() - start
+    return result
+
+
+def store_missing(store: ResultStore, specs: Sequence[RunSpec]) -> list[RunSpec]:
+    missing = set(store.missing(s.key for s in specs))
+    return [s for s in specs if s.key in missing]
+
+
+def _order_by_cost(specs: list[RunSpec]) -> list[RunSpec]:
+    """Longest first, so the slowest runs do not start last (results are unaffected)."""
+    return sorted(specs, key=lambda s: -get_experiment(s.experiment).cost(s.config))
+
+
+def _dispatch(
+    todo: list[RunSpec], workers: int, commit: Callable[[RunSpec, dict[str, Any], float], None]
+) -> None:
+    for name in {s.experiment for s in todo}:
+        get_experiment(name).warm_up()
+    if workers == 1:
+        for spec in todo:
+            commit(*execute(spec))
+        return
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(method))
+    try:
+        pending: set[Future] = {pool.submit(execute, spec) for spec in todo}
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                commit(*future.result())
+    except BaseException:
+        # Ctrl-C reaches the workers too and ends them; do not wait for queued runs.
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _progress(console: Console | None, show: bool) -> Progress:
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("elapsed"),
+        TimeElapsedColumn(),
+        TextColumn("eta"),
+        TimeRemainingColumn(),
+        console=console or Console(stderr=True),
+        disable=not show,
+        transient=False,
+    )
