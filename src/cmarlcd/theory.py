@@ -1,6 +1,6 @@
 """Theorem 1 of the paper, checked numerically: every optimal joint action is stable.
 
-Setting (Section III, eqs. 5-13). ``n >= 2`` agents play a common-payoff repeated game with
+Setting (eqs. 5 and 8-13). ``n >= 2`` agents play a common-payoff repeated game with
 ``m >= 2`` optimal joint actions whose component actions are unique: agent ``i`` has ``m``
 actions and optimum ``j`` is the joint action in which every agent plays its action ``j``.
 Agent ``i`` plays ``p_i = softmax(c_i / T)`` (eq. 5) and the mean-field learner follows
@@ -24,7 +24,8 @@ Two facts used below and in the tests, both read off eq. (8):
   along every trajectory (the log-odds differences between agents are invariants);
 * for ``n = m = 2`` the reduced field is ``(x', y') = (2/T) (x+y-1) (x(1-x), y(1-y))`` with
   ``x = p_bar_11, y = p_bar_21``, so the whole anti-diagonal ``x + y = 1`` (where
-  ``D_1 = D_2``) is a line of repelling equilibria separating the two basins.
+  ``D_1 = D_2``) is a line of equilibria separating the two basins; transversally it repels (at
+  ``(x, 1-x)`` the Jacobian has eigenvalues ``0`` and ``(4/T) x (1-x)``).
 """
 
 from __future__ import annotations
@@ -53,6 +54,21 @@ T_END_FACTOR = 1e4
 #: [choice] RK45 tolerances for eq. (8); ``c`` grows only linearly, so absolute is fine.
 RTOL = 1e-8
 ATOL = 1e-10
+
+
+def _require_temperature(temperature: float) -> None:
+    require(
+        isinstance(temperature, int | float | np.floating)
+        and not isinstance(temperature, bool)
+        and temperature > 0
+        and math.isfinite(temperature),
+        "temperature",
+        f"must be > 0 and finite (got {temperature!r})",
+    )
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
 
 
 def strategies(c: np.ndarray, temperature: float) -> np.ndarray:
@@ -182,7 +198,7 @@ def trajectory(
 
 
 def classify(p: np.ndarray, tol: float = CLASSIFY_TOL) -> int | None:
-    """The optimum ``j`` (0-based) that ``p`` sits at, or ``None``.
+    """The optimum ``j`` (0-based) that strategies ``p`` (shape ``(n, m)``) sit at, or ``None``.
 
     ``p`` sits at optimum ``j`` when every agent's most likely action is ``j`` and has
     probability at least ``1 - tol``.
@@ -209,7 +225,8 @@ class StabilityReport:
     Attributes:
         n_agents, n_optima, temperature, starts, seed, t_end: the inputs (``t_end`` resolved).
         converged_to: per optimum, how many random starts ended at it (:func:`classify`).
-        unconverged: starts that ended at no optimum by ``t_end`` (e.g. near a saddle).
+        unconverged: starts that ended at no optimum by ``t_end`` (e.g. stuck near the
+            non-optimal equilibria, where the ``D_j`` tie).
         max_integration_time: the latest time at which a start's integration stopped.
         eigenvalues: per optimum, the eigenvalues of the finite-difference Jacobian of eq. (12),
             sorted (complex; the imaginary parts should be ~0).
@@ -263,21 +280,6 @@ class StabilityReport:
             "jacobian_confirmed": self.jacobian_confirmed,
             "confirmed": self.confirmed,
         }
-
-
-def _require_temperature(temperature: float) -> None:
-    require(
-        isinstance(temperature, int | float | np.floating)
-        and not isinstance(temperature, bool)
-        and temperature > 0
-        and math.isfinite(temperature),
-        "temperature",
-        f"must be > 0 and finite (got {temperature!r})",
-    )
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, int | np.integer) and not isinstance(value, bool)
 
 
 def _validate(n_agents: int, n_optima: int, temperature: float, starts: int, seed: int) -> None:

@@ -14,9 +14,11 @@ The random generators follow Section IV-C of the paper and SPEC §1:
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
+from pathlib import Path
 
 import numpy as np
 
@@ -98,7 +100,9 @@ def validate_payoffs(payoffs: object) -> np.ndarray:
     try:
         array = np.array(payoffs, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ConfigError("payoffs", f"must be a numeric array ({exc})") from None
+        raise ConfigError(
+            "payoffs", f"must be a rectangular numeric array ({type(exc).__name__})"
+        ) from None
     require(array.ndim >= 2, "payoffs", f"needs one axis per agent, at least 2 (got {array.ndim})")
     require(
         min(array.shape) >= 2,
@@ -181,3 +185,28 @@ def penalty_game(k: float = -10.0) -> MatrixGame:
 def from_payoffs(payoffs: object, name: str = "custom") -> MatrixGame:
     """A game from a user-supplied payoff array (validated: shape, finite values)."""
     return MatrixGame(validate_payoffs(payoffs), name=name)
+
+
+def load_payoffs(path: str | Path) -> MatrixGame:
+    """A game from a file: ``.npy`` (any number of agents), ``.json`` (nested lists) or
+    ``.csv`` / ``.txt`` (a 2-agent matrix, comma separated)."""
+    path = Path(path)
+    require(path.is_file(), "payoffs", f"no such file: {path}")
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".npy":
+            data = np.load(path, allow_pickle=False)
+        elif suffix == ".json":
+            data = json.loads(path.read_text())
+        elif suffix in (".csv", ".txt"):
+            data = np.loadtxt(path, delimiter=",", ndmin=2)
+        else:
+            raise ConfigError(
+                "payoffs", f"unsupported file type {suffix!r}; use .npy, .json or .csv"
+            )
+    except (OSError, ValueError) as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError("payoffs", f"cannot read {path.name}: {reason}") from None
+    return from_payoffs(data, name=path.stem)

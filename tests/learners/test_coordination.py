@@ -1,0 +1,209 @@
+"""CMARL-CD for repeated games (Algorithm 1, eqs. 2-5)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from cmarlcd import CMARLCD, ConfigError, RepeatedConfig
+from cmarlcd.games.matrix import climbing_game, from_payoffs, penalty_game, random_case1
+from cmarlcd.learners import coordination as cd
+
+
+def softmax(values: list[float], temperature: float) -> list[float]:
+    weights = [math.exp(v / temperature) for v in values]
+    return [w / sum(weights) for w in weights]
+
+
+def test_update_matches_a_hand_computed_example() -> None:
+    """Two agents with 3 actions, T = 1, δ = 0.04, all degrees 0 (eqs. 2-5)."""
+    learner = CMARLCD([3, 3], RepeatedConfig(temperature=1.0, delta=0.04), seed=0)
+    assert learner.update((0, 2), 5.0)  # first game: 5 >= -inf, I = 1
+    assert learner.degrees[0].tolist() == pytest.approx([0.04, -0.04, -0.04])
+    assert learner.degrees[1].tolist() == pytest.approx([-0.04, -0.04, 0.04])
+    # p = e^0.04 / (e^0.04 + 2 e^-0.04) = 1.040811 / 2.962389 = 0.351342
+    assert learner.strategy(0)[0] == pytest.approx(0.351342, abs=1e-6)
+    assert learner.strategy(1).tolist() == pytest.approx([0.324329, 0.324329, 0.351342], abs=1e-6)
+    assert not learner.update((1, 1), 4.0)  # 4 < r_max = 5: I = 0, nothing moves
+    assert learner.degrees[0].tolist() == pytest.approx([0.04, -0.04, -0.04])
+    assert learner.update((1, 2), 5.0)  # a tie counts (eq. 4: r >= r_max)
+    assert learner.degrees[0].tolist() == pytest.approx([0.0, 0.0, -0.08])
+    assert learner.degrees[1].tolist() == pytest.approx([-0.08, -0.08, 0.08])
+    assert learner.max_reward == 5.0
+
+
+def test_temperature_scales_the_softmax() -> None:
+    learner = CMARLCD([2, 2], RepeatedConfig(temperature=0.5, delta=0.25), seed=0)
+    learner.update((0, 1), 1.0)  # c_0 = (0.25, -0.25): p = softmax((0.5, -0.5))
+    assert learner.strategy(0).tolist() == pytest.approx(softmax([0.5, -0.5], 1.0))
+    assert learner.strategy(0)[0] == pytest.approx(1 / (1 + math.exp(-1)))
+
+
+def test_sample_action_is_an_inverse_cdf() -> None:
+    p = np.array([0.25, 0.5, 0.25])
+    draws = {u: cd.sample_action(p, 3, u) for u in (0.0, 0.2, 0.25, 0.6, 0.74, 0.75, 0.99)}
+    assert draws == {0.0: 0, 0.2: 0, 0.25: 1, 0.6: 1, 0.74: 1, 0.75: 2, 0.99: 2}
+
+
+def test_stopping_rule_and_greedy_ties() -> None:
+    p = np.array([[0.9995, 0.0005, 0.0], [0.5, 0.5, 0.0]])
+    counts = np.array([2, 2])
+    assert not cd.is_pure(p, counts, 0.999)
+    p[1] = [0.0004, 0.9996, 0.0]
+    assert cd.is_pure(p, counts, 0.999)
+    degrees = np.array([[1.0, 1.0, 9.0], [0.0, 2.0, 2.0]])  # padding (9.0) is ignored
+    assert cd.greedy_actions(degrees, counts).tolist() == [0, 1]
+
+
+def reference_fit(payoffs: np.ndarray, rng: np.random.Generator, delta: float, max_games: int):
+    """Algorithm 1 in plain Python, written from the paper, consuming the same stream:
+    one U[0, 1) per agent per game, actions drawn by inverse CDF."""
+    degrees = [[0.0] * k for k in payoffs.shape]
+    strategies = [softmax(c, 1.0) for c in degrees]
+    r_max = -math.inf
+    for game in range(1, max_games + 1):
+        joint = []
+        for p in strategies:
+            u, acc, action = rng.random(), 0.0, len(p) - 1
+            for a in range(len(p) - 1):
+                acc += p[a]
+                if u < acc:
+                    action = a
+                    break
+            joint.append(action)
+        reward = payoffs[tuple(joint)]
+        if reward >= r_max:
+            r_max = reward
+            for i, chosen in enumerate(joint):
+                degrees[i] = [
+                    c + delta if a == chosen else c - delta for a, c in enumerate(degrees[i])
+                ]
+                strategies[i] = softmax(degrees[i], 1.0)
+            if all(max(p) > 0.999 for p in strategies):
+                return game, degrees
+    return max_games, degrees
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_compiled_loop_equals_a_plain_python_algorithm_1(seed: int) -> None:
+    game = random_case1(3, 3, np.random.default_rng(seed))
+    stream = np.random.default_rng(100 + seed)
+    expected_games, expected = reference_fit(game.payoffs, stream, 0.04, 10**6)
+    learner = CMARLCD(game.action_counts, seed=np.random.default_rng(100 + seed))
+    result = learner.fit(game)
+    assert result.games == expected_games
+    assert np.allclose(learner.degrees, expected, atol=1e-12, rtol=0)
+
+
+SCRIPT = """
+import json, numpy as np
+from cmarlcd import CMARLCD
+from cmarlcd.games.matrix import random_case1
+game = random_case1(4, 3, np.random.default_rng(3))
+learner = CMARLCD(game.action_counts, seed=11)
+r = learner.fit(game)
+print(json.dumps({"games": r.games, "degrees": learner.degrees.tolist()}))
+"""
+
+
+def test_compiled_kernels_equal_the_same_code_interpreted() -> None:
+    """NUMBA_DISABLE_JIT runs the very same functions as plain Python."""
+    runs = {}
+    for jit_off in ("0", "1"):
+        env = {**os.environ, "NUMBA_DISABLE_JIT": jit_off}
+        out = subprocess.run(
+            [sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, check=True
+        )
+        runs[jit_off] = json.loads(out.stdout)
+    assert runs["0"]["games"] == runs["1"]["games"]
+    assert np.allclose(runs["0"]["degrees"], runs["1"]["degrees"], atol=1e-12, rtol=0)
+
+
+def test_act_update_loop_equals_fit() -> None:
+    game = random_case1(3, 4, np.random.default_rng(5))
+    stepwise = CMARLCD(game.action_counts, seed=9)
+    games = 0
+    while not stepwise.is_pure():
+        joint = stepwise.act()
+        stepwise.update(joint, game.payoff(joint))
+        games += 1
+    fitted = CMARLCD(game.action_counts, seed=9)
+    assert fitted.fit(game).games == games
+    assert np.array_equal(fitted.degrees, stepwise.degrees)
+
+
+def test_same_seed_same_result_and_different_seed_differs() -> None:
+    game = random_case1(4, 4, np.random.default_rng(0))
+    first = CMARLCD(game.action_counts, seed=1).fit(game)
+    again = CMARLCD(game.action_counts, seed=1).fit(game)
+    other = CMARLCD(game.action_counts, seed=2).fit(game)
+    assert first == again
+    assert other.games != first.games
+
+
+@pytest.mark.parametrize("game", [climbing_game(), penalty_game(-10.0), penalty_game(-100.0)])
+def test_converges_to_an_optimum_of_classic_games(game) -> None:
+    for seed in range(20):
+        result = CMARLCD(game.action_counts, seed=seed).fit(game)
+        assert result.converged and result.success, (game.name, seed, result)
+
+
+def test_agents_with_different_action_counts() -> None:
+    rng = np.random.default_rng(4)
+    successes = 0
+    for seed in range(20):
+        payoffs = 0.9 * rng.random((2, 3, 5))
+        payoffs[1, 2, 4] = 1.0
+        game = from_payoffs(payoffs)
+        learner = CMARLCD(game.action_counts, seed=seed)
+        result = learner.fit(game)
+        assert result.converged
+        assert learner.strategies[0, 2:].tolist() == [0.0, 0.0, 0.0]  # padding stays empty
+        successes += result.success
+    assert successes >= 19  # 30 joint actions: the optimum is met long before convergence
+
+
+def test_cap_ends_an_unconverged_run_as_failure() -> None:
+    game = random_case1(6, 5, np.random.default_rng(0))
+    result = CMARLCD(game.action_counts, seed=0).fit(game, max_games=50)
+    assert result.games == 50 and not result.converged and not result.success
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "parameter"),
+    [
+        ({"temperature": 0.0}, "temperature"),
+        ({"temperature": -1.0}, "temperature"),
+        ({"temperature": float("nan")}, "temperature"),
+        ({"delta": 0.0}, "delta"),
+        ({"delta": 1.0}, "delta"),
+        ({"purity_threshold": 1.0}, "purity_threshold"),
+        ({"max_games": 0}, "max_games"),
+    ],
+)
+def test_bad_config_names_the_parameter(kwargs: dict, parameter: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        RepeatedConfig(**kwargs)
+    assert info.value.parameter == parameter
+
+
+def test_bad_learner_input_is_rejected() -> None:
+    with pytest.raises(ConfigError, match="agents"):
+        CMARLCD([3])
+    with pytest.raises(ConfigError, match="actions"):
+        CMARLCD([3, 1])
+    learner = CMARLCD([2, 2], seed=0)
+    with pytest.raises(ConfigError, match="joint_action"):
+        learner.update((0, 2), 1.0)
+    with pytest.raises(ConfigError, match="joint_action"):
+        learner.update((0,), 1.0)
+    with pytest.raises(ConfigError, match="reward"):
+        learner.update((0, 1), float("nan"))
+    with pytest.raises(ConfigError, match="game"):
+        learner.fit(climbing_game())
