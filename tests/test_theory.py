@@ -208,9 +208,9 @@ def test_same_seed_same_report_and_json() -> None:
 @pytest.mark.parametrize(
     ("kwargs", "parameter"),
     [
-        ({"n_agents": 1}, "n_agents"),
-        ({"n_agents": 2.5}, "n_agents"),
-        ({"n_optima": 1}, "n_optima"),
+        ({"n_agents": 1}, "agents"),
+        ({"n_agents": 2.5}, "agents"),
+        ({"n_optima": 1}, "optima"),
         ({"temperature": -1.0}, "temperature"),
         ({"temperature": 0.0}, "temperature"),
         ({"temperature": math.inf}, "temperature"),
@@ -226,6 +226,7 @@ def test_bad_input_names_the_parameter(kwargs: dict[str, object], parameter: str
     with pytest.raises(ValueError, match=parameter) as info:
         check_theorem1(**arguments)  # type: ignore[arg-type]
     assert "\n" not in str(info.value)
+    assert info.value.parameter == parameter
 
 
 def test_phase_portrait_writes_png(tmp_path) -> None:

@@ -11,6 +11,7 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 from rich.console import Console
+from rich.table import Table
 
 from cmarlcd import __version__
 from cmarlcd.errors import ConfigError, require
@@ -253,6 +254,56 @@ def play(
             f"after {r.games:,} games{'' if r.converged else ' (cap reached)'}"
         )
     out.print(f"success rate {100 * doc['success_rate']:.0f}% over {runs} runs")
+
+
+@app.command()
+@fails_cleanly
+def theory(
+    agents: Annotated[int, typer.Option(help="Agents n.")] = 2,
+    optima: Annotated[int, typer.Option(help="Optimal joint actions m (unique components).")] = 2,
+    temperature: Annotated[float, typer.Option(help="T of eq. (5).")] = 1.0,
+    starts: Annotated[int, typer.Option(help="Random interior starting points.")] = 100,
+    seed: Annotated[int, typer.Option(help="Seed of the starting points.")] = 0,
+    as_json: JsonOption = False,
+    figures: FiguresOption = DEFAULT_FIGURES,
+) -> None:
+    """Theorem 1: integrate the mean-field ODE (8) and check the Jacobian (13) is -(2/T)·I."""
+    from cmarlcd.theory import check_theorem1, plot_phase_portrait
+
+    result = check_theorem1(agents, optima, temperature, starts=starts, seed=seed)
+    doc = result.to_dict()
+    if agents == 2 and optima == 2:
+        path = figures / f"theorem1-phase-T{temperature:g}.png"
+        doc["figure"] = str(plot_phase_portrait(path, temperature=temperature, seed=seed))
+    if as_json:
+        print(json.dumps(doc, indent=2))
+        return
+    _print_theory(doc)
+
+
+def _print_theory(doc: dict[str, Any]) -> None:
+    out = Console()
+    n, m, t = doc["n_agents"], doc["n_optima"], doc["temperature"]
+    out.print(f"[bold]Theorem 1[/]: {n} agents, {m} optimal joint actions, T = {t:g}")
+    reached = ", ".join(f"optimum {j}: {k}" for j, k in enumerate(doc["converged_to"]))
+    out.print(
+        f"ODE (8) from {doc['starts']} random interior starts -> {reached}; "
+        f"elsewhere: {doc['unconverged']}"
+    )
+    table = Table(
+        title="Jacobian of the reduced system (12) at each optimum, by finite differences"
+    )
+    for column in ("optimum", "eigenvalues (min .. max)", "paper, eq. (13)"):
+        table.add_column(column, justify="right")
+    for j, values in enumerate(doc["eigenvalues_real"]):
+        table.add_row(
+            str(j), f"{min(values):.8f} .. {max(values):.8f}", f"{doc['expected_eigenvalue']:g}"
+        )
+    out.print(table)
+    verdict = "[green]confirmed[/]" if doc["confirmed"] else "[red]NOT confirmed[/]"
+    out.print(f"max |eigenvalue + 2/T| = {doc['max_eigen_error']:.2e}: {verdict}")
+    if "figure" in doc:
+        out.print(f"phase portrait: {doc['figure']}")
 
 
 def main() -> None:  # pragma: no cover - console entry point

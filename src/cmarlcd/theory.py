@@ -285,12 +285,12 @@ class StabilityReport:
 def _validate(n_agents: int, n_optima: int, temperature: float, starts: int, seed: int) -> None:
     require(
         _is_int(n_agents) and n_agents >= 2,
-        "n_agents",
+        "agents",
         f"must be an integer >= 2 (got {n_agents!r})",
     )
     require(
         _is_int(n_optima) and n_optima >= 2,
-        "n_optima",
+        "optima",
         f"must be an integer >= 2 (got {n_optima!r})",
     )
     _require_temperature(temperature)
