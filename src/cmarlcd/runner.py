@@ -68,6 +68,9 @@ def register(experiment: Experiment) -> Experiment:
 
 
 def get_experiment(name: str) -> Experiment:
+    """The registered experiment ``name`` (the built-in ones register on import)."""
+    if name not in _REGISTRY:
+        import cmarlcd.experiments  # noqa: F401  (a spawned worker starts with an empty registry)
     return _REGISTRY[name]
 
 

@@ -32,7 +32,7 @@ def test_case1_has_m_optima_whose_components_are_permutations(n: int, m: int) ->
     assert game.max_payoff == matrix.OPTIMAL_PAYOFF
     others = game.payoffs[game.payoffs != matrix.OPTIMAL_PAYOFF]
     assert others.size == m**n - m
-    assert 0.0 <= others.min() and others.max() < matrix.SUBOPTIMAL_SCALE
+    assert others.min() >= 0.0 and others.max() < matrix.SUBOPTIMAL_SCALE
 
 
 # round(0.1 * m^n) by hand, halves rounded up: 8.1 -> 8, 24.3 -> 24, 72.9 -> 73,

@@ -1,0 +1,100 @@
+"""The runner: seeds derived from data, resumable sweeps, worker-independent results."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cmarlcd.runner import Experiment, RunSpec, SweepInterrupted, register, run_sweep
+from cmarlcd.store import ResultStore
+
+FAIL_AT: dict[str, int] = {}
+
+
+def draw(config: dict, seed: np.random.SeedSequence) -> dict:
+    """A toy experiment: a few numbers from the run's own stream."""
+    if FAIL_AT.get("index") == config["scale"] * 1000 + int(seed.spawn_key[-1]):
+        raise KeyboardInterrupt
+    rng = np.random.default_rng(seed)
+    return {"values": (config["scale"] * rng.random(3)).tolist()}
+
+
+register(Experiment("toy", draw))
+
+
+def specs(scales=(1, 2), runs=4, root_seed=0) -> list[RunSpec]:
+    return [
+        RunSpec.make("toy", "alg", {"scale": s}, root_seed, r) for s in scales for r in range(runs)
+    ]
+
+
+def sweep(store: ResultStore, todo: list[RunSpec], workers: int = 1):
+    return run_sweep(todo, store, workers=workers, show_progress=False)
+
+
+def stored(store: ResultStore, todo: list[RunSpec]) -> list:
+    return [r.metrics for r in store.get(s.key for s in todo)]
+
+
+def test_seed_depends_on_root_config_and_index_only() -> None:
+    a = RunSpec.make("toy", "alg", {"scale": 1, "x": 2}, 7, 3)
+    same = RunSpec.make("toy", "other-alg", {"x": 2, "scale": 1}, 7, 3)
+    assert (
+        a.seed_sequence().generate_state(4).tolist()
+        == same.seed_sequence().generate_state(4).tolist()
+    )
+    for other in (
+        RunSpec.make("toy", "alg", {"scale": 1, "x": 2}, 8, 3),
+        RunSpec.make("toy", "alg", {"scale": 1, "x": 2}, 7, 4),
+        RunSpec.make("toy", "alg", {"scale": 2, "x": 2}, 7, 3),
+    ):
+        assert (
+            other.seed_sequence().generate_state(4) != a.seed_sequence().generate_state(4)
+        ).any()
+
+
+def test_results_do_not_depend_on_workers_or_on_the_rest_of_the_sweep(tmp_path) -> None:
+    todo = specs()
+    with ResultStore(tmp_path / "one.sqlite") as one, ResultStore(tmp_path / "two.sqlite") as two:
+        sweep(one, todo, workers=1)
+        sweep(two, todo, workers=2)
+        assert stored(one, todo) == stored(two, todo)
+    alone = specs(scales=(2,), runs=4)
+    with ResultStore(tmp_path / "alone.sqlite") as store:
+        sweep(store, alone)
+        assert stored(store, alone) == stored(ResultStore(tmp_path / "one.sqlite"), alone)
+
+
+def test_rerun_recomputes_nothing(tmp_path) -> None:
+    todo = specs()
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        first = sweep(store, todo)
+        again = sweep(store, todo)
+    assert (first.computed, first.reused) == (8, 0)
+    assert (again.computed, again.reused) == (0, 8)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_interrupted_sweep_resumes_where_it_stopped(tmp_path, workers: int) -> None:
+    todo = specs(scales=(1,), runs=6)
+    reference = tmp_path / "ref.sqlite"
+    with ResultStore(reference) as store:
+        sweep(store, todo)
+    FAIL_AT["index"] = 1000 + 3  # scale 1, run 3 raises KeyboardInterrupt (as Ctrl-C)
+    try:
+        with ResultStore(tmp_path / "s.sqlite") as store, pytest.raises(SweepInterrupted) as info:
+            sweep(store, todo, workers=workers)
+    finally:
+        FAIL_AT.clear()
+    assert "run the same command again" in str(info.value)
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        kept = store.count()
+        assert kept < 6
+        resumed = sweep(store, todo, workers=workers)
+        assert (resumed.reused, resumed.computed) == (kept, 6 - kept)
+        assert stored(store, todo) == stored(ResultStore(reference), todo)
+
+
+def test_workers_must_be_positive(tmp_path) -> None:
+    with ResultStore(tmp_path / "s.sqlite") as store, pytest.raises(ValueError, match="workers"):
+        sweep(store, specs(), workers=0)

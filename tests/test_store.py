@@ -1,0 +1,49 @@
+"""The SQLite results store."""
+
+from __future__ import annotations
+
+import sqlite3
+
+from cmarlcd.store import ResultStore, RunKey, canonical_json
+
+
+def key(index: int, config: str = '{"a":1}') -> RunKey:
+    return RunKey("exp", "alg", config, 0, index)
+
+
+def test_canonical_json_ignores_key_order() -> None:
+    assert canonical_json({"b": 1, "a": [1, 2]}) == canonical_json({"a": [1, 2], "b": 1})
+
+
+def test_put_get_missing_roundtrip(tmp_path) -> None:
+    path = tmp_path / "sub" / "store.sqlite"
+    with ResultStore(path) as store:
+        store.put(key(0), {"success": True, "games": 12}, 0.5, "1.0")
+        store.put(key(1), {"success": False, "games": 99}, 0.25, "1.0")
+        assert store.missing([key(0), key(2), key(1), key(3)]) == [key(2), key(3)]
+    with ResultStore(path) as store:  # durable: a new connection sees the runs
+        records = store.get([key(1), key(0), key(5)])
+        assert [r.key for r in records] == [key(1), key(0)]
+        assert records[0].metrics == {"success": False, "games": 99}
+        assert records[0].config == {"a": 1}
+        assert store.count() == 2
+
+
+def test_same_key_replaces_and_other_config_is_a_different_run(tmp_path) -> None:
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        store.put(key(0), {"v": 1}, 0.1, "x")
+        store.put(key(0), {"v": 2}, 0.1, "x")
+        store.put(key(0, '{"a":2}'), {"v": 3}, 0.1, "x")
+        assert store.count() == 2
+        assert store.get([key(0)])[0].metrics == {"v": 2}
+
+
+def test_each_put_is_committed_immediately(tmp_path) -> None:
+    path = tmp_path / "s.sqlite"
+    store = ResultStore(path)
+    store.put(key(0), {"v": 1}, 0.1, "x")
+    # another connection (as after a crash of this process) already sees the run
+    other = sqlite3.connect(path)
+    assert other.execute("SELECT COUNT(*) FROM runs").fetchone()[0] == 1
+    other.close()
+    store.close()
