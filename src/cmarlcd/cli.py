@@ -168,6 +168,54 @@ def _figure_name(case: int, seed: int) -> str:
     return f"repeated-case{case}-seed{seed}.png"
 
 
+#: Runs per cell of each preset of ``reproduce``.
+PRESETS = {"quick": 20, "paper": rep.PAPER_RUNS}
+
+
+@app.command()
+@fails_cleanly
+def reproduce(
+    preset: Annotated[
+        str, typer.Option(help="quick: 20 runs per cell; paper: the full protocol (50 runs).")
+    ] = "quick",
+    seed: Annotated[int, typer.Option(help="Root seed.")] = 0,
+    workers: WorkersOption = None,
+    as_json: JsonOption = False,
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    progress: ProgressOption = True,
+) -> None:
+    """Reproduce the paper: Tables 1-2 and the Theorem 1 check (resumable)."""
+    from cmarlcd.theory import check_theorem1, plot_phase_portrait
+
+    require(preset in PRESETS, "preset", f"must be one of {', '.join(PRESETS)} (got {preset!r})")
+    require(workers is None or workers >= 1, "workers", f"must be >= 1 (got {workers})")
+    tables = [
+        _run_repeated(
+            rep.paper_sweep(case, PRESETS[preset], seed), store, figures, workers, progress, as_json
+        )
+        for case in (1, 2)
+    ]
+    checks = [check_theorem1(n, m, 1.0, seed=seed).to_dict() for n, m in ((2, 2), (7, 5))]
+    portrait = plot_phase_portrait(figures / "theorem1-phase-T1.png", temperature=1.0, seed=seed)
+    if as_json:
+        print(
+            json.dumps(
+                {
+                    "preset": preset,
+                    "tables": tables,
+                    "theorem1": checks,
+                    "phase_portrait": str(portrait),
+                },
+                indent=2,
+            )
+        )
+        return
+    for doc in checks:
+        _print_theory(doc)
+    Console().print(f"phase portrait: {portrait}")
+
+
 @app.command()
 @fails_cleanly
 def report(

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from cmarlcd.errors import require
-from cmarlcd.games.matrix import climbing_game, random_game
+from cmarlcd.games.matrix import MatrixGame, climbing_game, random_game
 from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
 from cmarlcd.paper import repeated_success
 from cmarlcd.runner import Experiment, RunSpec, register
@@ -89,13 +89,20 @@ def learner_config(config: Mapping[str, Any]) -> RepeatedConfig:
     return RepeatedConfig(**{k: v for k, v in config.items() if k in names})
 
 
-def run_cell(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
-    """One run: a fresh random game, CMARL-CD until pure, the paper's success test."""
+def prepare_run(
+    config: Mapping[str, Any], seed: np.random.SeedSequence
+) -> tuple[MatrixGame, CMARLCD]:
+    """A run's fresh random game and its untrained learners (independent streams)."""
     game_seed, learner_seed = seed.spawn(2)
     game = random_game(
         config["case"], config["agents"], config["actions"], np.random.default_rng(game_seed)
     )
-    learner = CMARLCD(game.action_counts, learner_config(config), seed=learner_seed)
+    return game, CMARLCD(game.action_counts, learner_config(config), seed=learner_seed)
+
+
+def run_cell(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+    """One run: a fresh random game, CMARL-CD until pure, the paper's success test."""
+    game, learner = prepare_run(config, seed)
     result = learner.fit(game)
     return {
         "success": result.success,
