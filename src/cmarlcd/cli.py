@@ -73,10 +73,6 @@ def parse_range(text: str, parameter: str) -> tuple[int, ...]:
     return tuple(sorted(set(values)))
 
 
-def _stdout(as_json: bool) -> Console:
-    return Console(stderr=as_json)
-
-
 @app.command()
 @fails_cleanly
 def repeated(
@@ -143,13 +139,14 @@ def _run_repeated(
     cells = rep.summarize(records)
     title = rep.table_title(records)
     path = figs.repeated_heatmap(cells, title, figures / _figure_name(sweep.case, sweep.seed))
-    out = _stdout(as_json)
-    out.print(report.success_table(cells, title))
-    out.print(report.games_table(cells, "Median games to convergence"))
-    out.print(
-        f"{done.computed} runs computed, {done.reused} from the store in "
-        f"{done.wall_seconds:.1f} s; figure: {path}"
-    )
+    if not as_json:
+        out = Console()
+        out.print(report.success_table(cells, title))
+        out.print(report.games_table(cells, "Median games to convergence"))
+        out.print(
+            f"{done.computed} runs computed, {done.reused} from the store in "
+            f"{done.wall_seconds:.1f} s; figure: {path}"
+        )
     return {
         "experiment": rep.EXPERIMENT,
         "case": sweep.case,
@@ -219,32 +216,41 @@ def reproduce(
 @app.command()
 @fails_cleanly
 def report(
+    case: Annotated[int | None, typer.Option(help="Only this case (1 or 2).")] = None,
+    seed: Annotated[int | None, typer.Option(help="Only sweeps with this root seed.")] = None,
     store: StoreOption = DEFAULT_STORE,
     figures: FiguresOption = DEFAULT_FIGURES,
     as_json: JsonOption = False,
 ) -> None:
-    """Re-render every table and figure from the results store (computes nothing)."""
+    """Re-render the tables and figures from the results store (computes nothing)."""
     from cmarlcd import figures as figs
     from cmarlcd import report as rpt
 
     require(store.exists(), "store", f"no results store at {store}; run an experiment first")
     with ResultStore(store) as db:
         tables = rep.stored_tables(db.records(rep.EXPERIMENT))
-    out = _stdout(as_json)
     docs = []
     for records in tables.values():
+        wanted = (
+            case or records[0].config["case"],
+            records[0].key.root_seed if seed is None else seed,
+        )
+        if wanted != (records[0].config["case"], records[0].key.root_seed):
+            continue
         cells = rep.summarize(records)
         title = rep.table_title(records)
         cfg, seed = records[0].config, records[0].key.root_seed
         path = figs.repeated_heatmap(cells, title, figures / _figure_name(cfg["case"], seed))
-        out.print(rpt.success_table(cells, title))
-        out.print(rpt.games_table(cells, "Median games to convergence"))
-        out.print(f"figure: {path}")
         docs.append({"title": title, "figure": str(path), "cells": [c.to_dict() for c in cells]})
-    if not tables:
-        out.print(f"the store {store} holds no finished runs")
+        if not as_json:
+            out = Console()
+            out.print(rpt.success_table(cells, title))
+            out.print(rpt.games_table(cells, "Median games to convergence"))
+            out.print(f"figure: {path}")
     if as_json:
         print(json.dumps({"store": str(store), "tables": docs}, indent=2))
+    elif not docs:
+        print(f"the store {store} holds no finished runs matching the filters")
 
 
 @app.command()

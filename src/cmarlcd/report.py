@@ -26,10 +26,13 @@ def _grid(cells: Sequence[CellSummary]) -> tuple[list[int], list[int], dict]:
 def success_table(cells: Sequence[CellSummary], title: str) -> Table:
     """Success rate per cell, ours beside the paper's: rows actions, columns agents."""
     agents, actions, by_cell = _grid(cells)
-    table = Table(title=title, caption="success % per cell: ours (paper)")
-    table.add_column("actions")
+    table = Table(
+        title=title,
+        caption="success % per cell: ours (the paper's); rows: actions m, columns: agents n",
+    )
+    table.add_column("", no_wrap=True)
     for n in agents:
-        table.add_column(f"n={n}", justify="right")
+        table.add_column(f"n={n}", justify="right", no_wrap=True)
     for m in actions:
         row = [f"m={m}"]
         for n in agents:
@@ -48,9 +51,9 @@ def games_table(cells: Sequence[CellSummary], title: str) -> Table:
     """Median games to convergence per cell (the paper does not report it)."""
     agents, actions, by_cell = _grid(cells)
     table = Table(title=title)
-    table.add_column("actions")
+    table.add_column("", no_wrap=True)
     for n in agents:
-        table.add_column(f"n={n}", justify="right")
+        table.add_column(f"n={n}", justify="right", no_wrap=True)
     for m in actions:
         row = [f"m={m}"]
         for n in agents:
