@@ -109,6 +109,7 @@ def run_cell(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, 
         "converged": result.converged,
         "games": result.games,
         "greedy_payoff": result.greedy_payoff,
+        "max_reward_seen": learner.max_reward,
         "optima": len(game.optimal_joint_actions),
     }
 
