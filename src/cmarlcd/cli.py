@@ -231,11 +231,10 @@ def report(
         tables = rep.stored_tables(db.records(rep.EXPERIMENT))
     docs = []
     for records in tables.values():
-        wanted = (
-            case or records[0].config["case"],
-            records[0].key.root_seed if seed is None else seed,
-        )
-        if wanted != (records[0].config["case"], records[0].key.root_seed):
+        first = records[0]
+        if case is not None and first.config["case"] != case:
+            continue
+        if seed is not None and first.key.root_seed != seed:
             continue
         cells = rep.summarize(records)
         title = rep.table_title(records)

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from rich.table import Table
 
 from cmarlcd.experiments.repeated import CellSummary
+
+#: Success rates below this are shown in red (the acceptance bar for Tables 1-2).
+SUCCESS_BAR = 0.96
 
 
 def percent(rate: float | None) -> str:
@@ -17,19 +20,17 @@ def percent(rate: float | None) -> str:
     return f"{value:.0f}" if abs(value - round(value)) < 1e-9 else f"{value:.1f}"
 
 
-def _grid(cells: Sequence[CellSummary]) -> tuple[list[int], list[int], dict]:
+def _grid_table(
+    cells: Sequence[CellSummary],
+    title: str,
+    render: Callable[[CellSummary], str],
+    caption: str | None = None,
+) -> Table:
+    """The paper's layout: one row per action count m, one column per agent count n."""
     agents = sorted({c.agents for c in cells})
     actions = sorted({c.actions for c in cells})
-    return agents, actions, {(c.agents, c.actions): c for c in cells}
-
-
-def success_table(cells: Sequence[CellSummary], title: str) -> Table:
-    """Success rate per cell, ours beside the paper's: rows actions, columns agents."""
-    agents, actions, by_cell = _grid(cells)
-    table = Table(
-        title=title,
-        caption="success % per cell: ours (the paper's); rows: actions m, columns: agents n",
-    )
+    by_cell = {(c.agents, c.actions): c for c in cells}
+    table = Table(title=title, caption=caption)
     table.add_column("", no_wrap=True)
     for n in agents:
         table.add_column(f"n={n}", justify="right", no_wrap=True)
@@ -37,28 +38,26 @@ def success_table(cells: Sequence[CellSummary], title: str) -> Table:
         row = [f"m={m}"]
         for n in agents:
             cell = by_cell.get((n, m))
-            if cell is None:
-                row.append("")
-                continue
-            ours = percent(cell.success_rate)
-            style = "green" if cell.success_rate >= (cell.paper_success_rate or 0.96) else "red"
-            row.append(f"[{style}]{ours}[/] [dim]({percent(cell.paper_success_rate)})[/]")
+            row.append("" if cell is None else render(cell))
         table.add_row(*row)
     return table
+
+
+def _success(cell: CellSummary) -> str:
+    style = "green" if cell.success_rate >= SUCCESS_BAR else "red"
+    return f"[{style}]{percent(cell.success_rate)}[/] [dim]({percent(cell.paper_success_rate)})[/]"
+
+
+def _median_games(cell: CellSummary) -> str:
+    return "—" if cell.median_games is None else f"{cell.median_games:,.0f}"
+
+
+def success_table(cells: Sequence[CellSummary], title: str) -> Table:
+    """Success rate per cell, ours beside the paper's."""
+    caption = "success % per cell: ours (the paper's); rows: actions m, columns: agents n"
+    return _grid_table(cells, title, _success, caption)
 
 
 def games_table(cells: Sequence[CellSummary], title: str) -> Table:
     """Median games to convergence per cell (the paper does not report it)."""
-    agents, actions, by_cell = _grid(cells)
-    table = Table(title=title)
-    table.add_column("", no_wrap=True)
-    for n in agents:
-        table.add_column(f"n={n}", justify="right", no_wrap=True)
-    for m in actions:
-        row = [f"m={m}"]
-        for n in agents:
-            cell = by_cell.get((n, m))
-            games = None if cell is None else cell.median_games
-            row.append("—" if games is None else f"{games:,.0f}")
-        table.add_row(*row)
-    return table
+    return _grid_table(cells, title, _median_games)
