@@ -64,7 +64,7 @@ def test_repeated_json_then_resume_then_report(paths) -> None:
     assert again["cells"] == doc["cells"]
     report = invoke("report", *where, "--json")
     assert report.exit_code == 0, report.output
-    tables = json.loads(report.stdout)["tables"]
+    tables = json.loads(report.stdout)["repeated"]
     assert len(tables) == 1 and tables[0]["cells"] == doc["cells"]
 
 
@@ -211,3 +211,66 @@ def test_console_script_runs_a_sweep_over_worker_processes(tmp_path) -> None:
     )
     doc = json.loads(out.stdout)
     assert doc["runs_computed"] == 8 and len(doc["cells"]) == 2
+
+
+def test_dsn_json_tables_figures_and_resume(paths) -> None:
+    _, figures, where = paths
+    args = [
+        "dsn",
+        "--episodes",
+        "200,400",
+        "--runs",
+        "2",
+        "--eval-episodes",
+        "100",
+        "--workers",
+        "1",
+        "--json",
+        *where,
+    ]
+    first = invoke(*args)
+    assert first.exit_code == 0, first.output
+    doc = json.loads(first.stdout)
+    rows = {(r["algorithm"], r["episodes"]): r for r in doc["rows"]}
+    assert set(rows) == {(a, e) for a in ("cmarl-cd", "la-oca") for e in (200, 400)}
+    keys = {
+        "success_rate",
+        "mean_return",
+        "std_return",
+        "mean_steps",
+        "std_steps",
+        "min_return",
+        "max_steps",
+    }
+    assert all(keys <= set(r) and r["runs"] == 2 for r in rows.values())
+    assert "trains once" in doc["note"]
+    for path in doc["figures"].values():
+        assert (figures / path.split("/")[-1]).stat().st_size > 10_000
+    again = json.loads(invoke(*args).stdout)
+    assert again["runs_computed"] == 0 and again["rows"] == doc["rows"]
+    text = invoke("report", *where)
+    assert text.exit_code == 0 and "Table 3" in text.stdout and "Table 1" not in text.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["--algorithms", "cmarl-cd,dqn"], "--algorithms"),
+        (["--episodes", "0"], "--episodes"),
+        (["--episodes", "-5"], "--episodes"),
+        (["--episodes", "many"], "--episodes"),
+        (["--runs", "0"], "--runs"),
+        (["--eval-episodes", "0"], "--eval-episodes"),
+        (["--c-min", "2", "--c-max", "1"], "--c-max"),
+        (["--gamma", "0"], "--gamma"),
+        (["--gamma", "1.01"], "--gamma"),
+        (["--rate", "1"], "--rate"),
+    ],
+)
+def test_dsn_bad_input(paths, args, option) -> None:
+    store, figures, where = paths
+    result = invoke("dsn", "--episodes", "10", "--runs", "1", *where, *args)
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {option}:"), result.stderr
+    assert not store.exists() and not figures.exists()

@@ -5,10 +5,11 @@ from __future__ import annotations
 import functools
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
@@ -16,8 +17,9 @@ from rich.table import Table
 from cmarlcd import __version__
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.experiments import repeated as rep
+from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.learners.coordination import RepeatedConfig
-from cmarlcd.runner import SweepInterrupted, run_sweep
+from cmarlcd.runner import SweepInterrupted, SweepResult, run_sweep
 from cmarlcd.store import DEFAULT_STORE, ResultStore
 
 app = typer.Typer(
@@ -119,43 +121,62 @@ def _run_repeated(
     as_json: bool,
 ) -> dict[str, Any]:
     """Run (or resume) one sweep, print its tables, draw its figure; return the JSON doc."""
-    from cmarlcd import figures as figs
-    from cmarlcd import report
-
     specs = sweep.specs()
+    records, done = _sweep(specs, store_path, workers, progress, f"case {sweep.case}")
+    doc = _render_repeated(records, figures, as_json)
+    return {**doc, "learner": rep.asdict(sweep.learner), **_run_counts(done, store_path, as_json)}
+
+
+def _sweep(
+    specs: list, store_path: Path, workers: int | None, progress: bool, label: str
+) -> tuple[list, SweepResult]:
+    """Compute what the store lacks of ``specs``; return their records and the tally."""
     with ResultStore(store_path) as store:
-        err = Console(stderr=True)
-        label = f"case {sweep.case}: {len(specs)} runs"
         done = run_sweep(
             specs,
             store,
             workers=workers,
             version=__version__,
-            console=err,
-            description=label,
+            console=Console(stderr=True),
+            description=f"{label}: {len(specs)} runs",
             show_progress=progress,
         )
-        records = store.get(s.key for s in specs)
-    cells = rep.summarize(records)
-    title = rep.table_title(records)
-    path = figs.repeated_heatmap(cells, title, figures / _figure_name(sweep.case, sweep.seed))
+        return store.get(s.key for s in specs), done
+
+
+def _run_counts(done: SweepResult, store_path: Path, as_json: bool) -> dict[str, Any]:
     if not as_json:
-        out = Console()
-        out.print(report.success_table(cells, title))
-        out.print(report.games_table(cells, "Median games to convergence"))
-        out.print(
+        Console().print(
             f"{done.computed} runs computed, {done.reused} from the store in "
-            f"{done.wall_seconds:.1f} s; figure: {path}"
+            f"{done.wall_seconds:.1f} s"
         )
     return {
-        "experiment": rep.EXPERIMENT,
-        "case": sweep.case,
-        "seed": sweep.seed,
-        "learner": rep.asdict(sweep.learner),
         "runs_computed": done.computed,
         "runs_reused": done.reused,
         "wall_seconds": done.wall_seconds,
         "store": str(store_path),
+    }
+
+
+def _render_repeated(records: list, figures: Path, as_json: bool) -> dict[str, Any]:
+    """Table 1 or 2 and its heatmap from the records of one sweep."""
+    from cmarlcd import figures as figs
+    from cmarlcd import report as rpt
+
+    cells = rep.summarize(records)
+    title = rep.table_title(records)
+    case, seed = records[0].config["case"], records[0].key.root_seed
+    path = figs.repeated_heatmap(cells, title, figures / _figure_name(case, seed))
+    if not as_json:
+        out = Console()
+        out.print(rpt.success_table(cells, title))
+        out.print(rpt.games_table(cells, "Median games to convergence"))
+        out.print(f"figure: {path}")
+    return {
+        "experiment": rep.EXPERIMENT,
+        "title": title,
+        "case": case,
+        "seed": seed,
         "figure": str(path),
         "cells": [c.to_dict() for c in cells],
     }
@@ -163,6 +184,121 @@ def _run_repeated(
 
 def _figure_name(case: int, seed: int) -> str:
     return f"repeated-case{case}-seed{seed}.png"
+
+
+def parse_names(text: str) -> tuple[str, ...]:
+    """``"cmarl-cd, la-oca"`` -> ("cmarl-cd", "la-oca")."""
+    return tuple(dict.fromkeys(p.strip().lower() for p in text.split(",") if p.strip()))
+
+
+def parse_budgets(text: str, parameter: str) -> tuple[int, ...]:
+    """``"100000,300000"`` or ``"100k,300k"`` -> (100000, 300000)."""
+    values = []
+    for part in text.replace("_", "").split(","):
+        part = part.strip().lower()
+        scale = 1000 if part.endswith("k") else 1
+        try:
+            values.append(int(part.removesuffix("k")) * scale)
+        except ValueError:
+            raise ConfigError(
+                parameter, f"expected comma-separated integers (got {text!r})"
+            ) from None
+    return tuple(sorted(set(values)))
+
+
+@app.command()
+@fails_cleanly
+def dsn(
+    algorithms: Annotated[
+        str, typer.Option(help="Comma list: cmarl-cd, la-oca.")
+    ] = "cmarl-cd,la-oca",
+    episodes: Annotated[
+        str, typer.Option(help="Learning budgets L (comma list; 100k allowed).")
+    ] = "100000,300000,500000",
+    runs: Annotated[int, typer.Option(help="Runs per algorithm.")] = dsn_exp.PAPER_RUNS,
+    eval_episodes: Annotated[
+        int, typer.Option(help="Greedy evaluation episodes at each L.")
+    ] = dsn_exp.PAPER_EVAL_EPISODES,
+    seed: Annotated[int, typer.Option(help="Root seed.")] = 0,
+    delta: Annotated[float, typer.Option(help="CMARL-CD δ (eqs. 14-15).")] = 0.05,
+    delta_reset: Annotated[float, typer.Option(help="CMARL-CD step after a new record.")] = 0.5,
+    temperature: Annotated[float, typer.Option(help="CMARL-CD T (eq. 17).")] = 1.0,
+    c_min: Annotated[float, typer.Option(help="CMARL-CD lower clip.")] = 0.5,
+    c_max: Annotated[float, typer.Option(help="CMARL-CD upper clip.")] = 3.0,
+    c_init: Annotated[float, typer.Option(help="CMARL-CD initial / reset degree.")] = 1.5,
+    rate: Annotated[float, typer.Option(help="LA-OCA λ.")] = 0.1,
+    gamma: Annotated[float, typer.Option(help="Discount γ (both learners).")] = 0.9,
+    workers: WorkersOption = None,
+    as_json: JsonOption = False,
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    progress: ProgressOption = True,
+) -> None:
+    """Tables 3-7 and Fig. 4: the distributed sensor network task (Section V-A)."""
+    from cmarlcd.learners.stochastic import AutomatonConfig, StochasticConfig
+
+    sweep = dsn_exp.DsnSweep(
+        algorithms=parse_names(algorithms),
+        episodes=parse_budgets(episodes, "episodes"),
+        runs=runs,
+        eval_episodes=eval_episodes,
+        seed=seed,
+        cmarlcd=StochasticConfig(delta, delta_reset, temperature, c_min, c_max, c_init, gamma),
+        laoca=AutomatonConfig(rate=rate, gamma=gamma),
+    )
+    require(workers is None or workers >= 1, "workers", f"must be >= 1 (got {workers})")
+    records, done = _sweep(sweep.specs(), store, workers, progress, "DSN")
+    doc = _render_dsn(records, figures, as_json)
+    doc.update(_run_counts(done, store, as_json))
+    if as_json:
+        print(json.dumps(doc, indent=2))
+
+
+TRAIN_ONCE_NOTE = (
+    "CMARL-CD and LA-OCA do not depend on L: each run trains once to the largest L and is "
+    "evaluated at every L on the way."
+)
+
+
+def _render_dsn(records: list, figures: Path, as_json: bool) -> dict[str, Any]:
+    """Tables 3-7, the learning curves and Fig. 4 of one set of DSN runs."""
+    from cmarlcd import figures as figs
+    from cmarlcd import report as rpt
+
+    rows = dsn_exp.summarize(records)
+    seed = records[0].key.root_seed
+    largest = max(records[0].config["checkpoints"])
+    paths = {
+        "learning_curves": str(
+            figs.learning_curves(
+                dsn_exp.learning_curves(records), figures / f"dsn-learning-curves-seed{seed}.png"
+            )
+        )
+    }
+    for rec in records:
+        if rec.key.run_index == 0:
+            label = dsn_exp.row_label(rec.key.algorithm, rec.config["learner"])
+            title = (
+                f"Fig. 4 — greedy joint action of {label} in each of the 42 states "
+                f"(L = {largest:,}, seed {seed}, run 0)"
+            )
+            name = f"dsn-fig4-{rec.key.algorithm}-L{largest}-seed{seed}.png"
+            path = figs.dsn_policy_grid(np.array(rec.metrics["policy"]), title, figures / name)
+            paths[f"fig4_{rec.key.algorithm}"] = str(path)
+    if not as_json:
+        out = Console()
+        out.print(TRAIN_ONCE_NOTE)
+        for table in rpt.dsn_tables(rows):
+            out.print(table)
+        for path in paths.values():
+            out.print(f"figure: {path}")
+    return {
+        "experiment": dsn_exp.EXPERIMENT,
+        "seed": seed,
+        "note": TRAIN_ONCE_NOTE,
+        "rows": [r.to_dict() for r in rows],
+        "figures": paths,
+    }
 
 
 #: Runs per cell of each preset of ``reproduce``.
@@ -216,40 +352,35 @@ def reproduce(
 @app.command()
 @fails_cleanly
 def report(
-    case: Annotated[int | None, typer.Option(help="Only this case (1 or 2).")] = None,
+    case: Annotated[int | None, typer.Option(help="Only Table 1 or 2 of this case.")] = None,
     seed: Annotated[int | None, typer.Option(help="Only sweeps with this root seed.")] = None,
     store: StoreOption = DEFAULT_STORE,
     figures: FiguresOption = DEFAULT_FIGURES,
     as_json: JsonOption = False,
 ) -> None:
     """Re-render the tables and figures from the results store (computes nothing)."""
-    from cmarlcd import figures as figs
-    from cmarlcd import report as rpt
-
     require(store.exists(), "store", f"no results store at {store}; run an experiment first")
     with ResultStore(store) as db:
-        tables = rep.stored_tables(db.records(rep.EXPERIMENT))
-    docs = []
-    for records in tables.values():
-        first = records[0]
-        if case is not None and first.config["case"] != case:
-            continue
-        if seed is not None and first.key.root_seed != seed:
-            continue
-        cells = rep.summarize(records)
-        title = rep.table_title(records)
-        cfg, seed = records[0].config, records[0].key.root_seed
-        path = figs.repeated_heatmap(cells, title, figures / _figure_name(cfg["case"], seed))
-        docs.append({"title": title, "figure": str(path), "cells": [c.to_dict() for c in cells]})
-        if not as_json:
-            out = Console()
-            out.print(rpt.success_table(cells, title))
-            out.print(rpt.games_table(cells, "Median games to convergence"))
-            out.print(f"figure: {path}")
+        repeated_groups = rep.stored_tables(db.records(rep.EXPERIMENT))
+        dsn_groups = _groups(db.records(dsn_exp.EXPERIMENT), dsn_exp.protocol_key)
+    docs: dict[str, list] = {"repeated": [], "dsn": []}
+    for records in repeated_groups.values():
+        if case in (None, records[0].config["case"]) and seed in (None, records[0].key.root_seed):
+            docs["repeated"].append(_render_repeated(records, figures, as_json))
+    for records in dsn_groups.values():
+        if case is None and seed in (None, records[0].key.root_seed):
+            docs["dsn"].append(_render_dsn(records, figures, as_json))
     if as_json:
-        print(json.dumps({"store": str(store), "tables": docs}, indent=2))
-    elif not docs:
+        print(json.dumps({"store": str(store), **docs}, indent=2))
+    elif not any(docs.values()):
         print(f"the store {store} holds no finished runs matching the filters")
+
+
+def _groups(records: Iterable[Any], key: Callable[[Any], Any]) -> dict[Any, list]:
+    groups: dict[Any, list] = {}
+    for rec in records:
+        groups.setdefault(key(rec), []).append(rec)
+    return groups
 
 
 @app.command()

@@ -54,7 +54,89 @@ def repeated_heatmap(cells: Sequence[CellSummary], title: str, path: Path) -> Pa
             ax.text(k, r, text[which], ha="center", va="center", fontsize=8, path_effects=halo)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
+    return _save(fig, path)
+
+
+def learning_curves(curves: dict[str, np.ndarray], path: Path) -> Path:
+    """Success rate of the greedy policy vs learning episodes: mean over runs, 10-90 % band.
+
+    ``curves[name]`` has shape (runs, points, 4): [episodes, success, return, steps].
+    """
+    plt = _pyplot()
+    fig, (ax_success, ax_steps) = plt.subplots(1, 2, figsize=(11, 4))
+    for name, data in curves.items():
+        x = data[0, :, 0]
+        for ax, column, scale in ((ax_success, 1, 100.0), (ax_steps, 3, 1.0)):
+            values = scale * data[:, :, column]
+            lo, hi = np.percentile(values, [10, 90], axis=0)
+            (line,) = ax.plot(x, values.mean(axis=0), label=f"{name} ({len(data)} runs)")
+            ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.2)
+    ax_success.set_ylabel("success rate of the greedy policy (%)")
+    ax_steps.set_ylabel("average steps per episode")
+    for ax in (ax_success, ax_steps):
+        ax.set_xlabel("learning episodes")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle("DSN learning curves: mean over runs, band = 10th-90th percentile", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def dsn_policy_grid(policy: np.ndarray, title: str, path: Path) -> Path:
+    """Fig. 4: the greedy joint action in each of the 42 non-terminal DSN states.
+
+    Each panel is the 2 × 3 grid with the targets (0 red, 1 blue; a captured target is
+    absent) and a line from every focusing sensor to the cell it watches. A panel is
+    titled in green when its joint action is optimal: exactly three sensors on each live
+    target and no other sensor focusing.
+    """
+    from cmarlcd.games import sensor_network as dsn
+
+    plt = _pyplot()
+    fig, axes = plt.subplots(6, 7, figsize=(14, 9.5))
+    for state, ax in enumerate(axes.flat):
+        _draw_state(ax, state, policy[state], dsn)
+    fig.suptitle(title, fontsize=11)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _draw_state(ax, state: int, joint: np.ndarray, dsn) -> None:
+    targets = dsn.decode_state(state)
+    colours = {targets[0]: "tab:red", targets[1]: "tab:blue"}
+    for r in range(dsn.N_ROWS + 1):
+        ax.plot([0, dsn.N_COLS], [-r, -r], color="0.7", lw=0.8)
+    for c in range(dsn.N_COLS + 1):
+        ax.plot([c, c], [0, -dsn.N_ROWS], color="0.7", lw=0.8)
+    watchers = np.zeros(dsn.N_CELLS, dtype=int)
+    for sensor, action in enumerate(joint):
+        row, col = divmod(sensor, dsn.N_COLS + 1)
+        ax.plot(col, -row, "o", color="0.3", ms=2.5)
+        if action == 0:
+            continue
+        cell = int(dsn.SENSOR_CELLS[sensor, action - 1])
+        watchers[cell] += 1
+        cr, cc = divmod(cell, dsn.N_COLS)
+        ax.plot([col, cc + 0.5], [-row, -cr - 0.5], color=colours.get(cell, "0.5"), lw=1.2)
+    for k, cell in enumerate(targets):
+        if cell >= 0:
+            cr, cc = divmod(cell, dsn.N_COLS)
+            ax.plot(cc + 0.5, -cr - 0.5, "o", color=colours[cell], ms=9)
+            ax.text(
+                cc + 0.5, -cr - 0.5, str(k), color="white", ha="center", va="center", fontsize=7
+            )
+    live = [cell for cell in targets if cell >= 0]
+    optimal = all(watchers[c] == 3 for c in live) and watchers.sum() == 3 * len(live)
+    ax.set_title(f"state {state}", fontsize=7, color="tab:green" if optimal else "tab:red")
+    ax.set_xlim(-0.2, dsn.N_COLS + 0.2)
+    ax.set_ylim(-dsn.N_ROWS - 0.2, 0.2)
+    ax.set_aspect("equal")
+    ax.axis("off")
+
+
+def _save(fig, path: Path) -> Path:
+    """Write ``fig`` as a PNG (creating folders) and release it."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _pyplot().close(fig)
     return path

@@ -83,12 +83,24 @@ class RunSpec:
     config_json: str
     root_seed: int
     run_index: int
+    stream_json: str = ""
+    """The part of the config that defines the random streams (default: all of it)."""
 
     @classmethod
     def make(
-        cls, experiment: str, algorithm: str, config: Mapping[str, Any], root_seed: int, index: int
+        cls,
+        experiment: str,
+        algorithm: str,
+        config: Mapping[str, Any],
+        root_seed: int,
+        index: int,
+        stream: Mapping[str, Any] | None = None,
     ) -> RunSpec:
-        return cls(experiment, algorithm, canonical_json(config), int(root_seed), int(index))
+        """A run of ``config``; ``stream`` (a sub-config) seeds it when given, so settings
+        outside it (e.g. evaluation budgets) leave the run's random streams unchanged."""
+        config_json = canonical_json(config)
+        stream_json = config_json if stream is None else canonical_json(stream)
+        return cls(experiment, algorithm, config_json, int(root_seed), int(index), stream_json)
 
     @property
     def key(self) -> RunKey:
@@ -103,8 +115,9 @@ class RunSpec:
         return json.loads(self.config_json)
 
     def seed_sequence(self) -> np.random.SeedSequence:
-        """The run's root of randomness: (root seed; digest of experiment+config, index)."""
-        digest = hashlib.sha256(f"{self.experiment}\n{self.config_json}".encode()).digest()
+        """The run's root of randomness: (root seed; digest of experiment+stream, index)."""
+        stream = self.stream_json or self.config_json
+        digest = hashlib.sha256(f"{self.experiment}\n{stream}".encode()).digest()
         words = [int.from_bytes(digest[i : i + 4], "little") for i in range(0, 16, 4)]
         return np.random.SeedSequence(self.root_seed, spawn_key=(*words, self.run_index))
 

@@ -13,7 +13,8 @@ import pytest
 
 from cmarlcd import CMARLCD, ConfigError, RepeatedConfig
 from cmarlcd.games.matrix import climbing_game, from_payoffs, penalty_game, random_case1
-from cmarlcd.learners import coordination as cd
+from cmarlcd.learners import policy
+from cmarlcd.learners.coordination import is_pure
 
 
 def softmax(values: list[float], temperature: float) -> list[float]:
@@ -47,18 +48,21 @@ def test_temperature_scales_the_softmax() -> None:
 
 def test_sample_action_is_an_inverse_cdf() -> None:
     p = np.array([0.25, 0.5, 0.25])
-    draws = {u: cd.sample_action(p, 3, u) for u in (0.0, 0.2, 0.25, 0.6, 0.74, 0.75, 0.99)}
+    draws = {u: policy.sample_action(p, 3, u) for u in (0.0, 0.2, 0.25, 0.6, 0.74, 0.75, 0.99)}
     assert draws == {0.0: 0, 0.2: 0, 0.25: 1, 0.6: 1, 0.74: 1, 0.75: 2, 0.99: 2}
 
 
 def test_stopping_rule_and_greedy_ties() -> None:
     p = np.array([[0.9995, 0.0005, 0.0], [0.5, 0.5, 0.0]])
     counts = np.array([2, 2])
-    assert not cd.is_pure(p, counts, 0.999)
+    assert not is_pure(p, counts, 0.999)
     p[1] = [0.0004, 0.9996, 0.0]
-    assert cd.is_pure(p, counts, 0.999)
+    assert is_pure(p, counts, 0.999)
     degrees = np.array([[1.0, 1.0, 9.0], [0.0, 2.0, 2.0]])  # padding (9.0) is ignored
-    assert cd.greedy_actions(degrees, counts).tolist() == [0, 1]
+    legal = np.array([[True, True, False], [True, True, False]])
+    assert policy.greedy_actions(degrees, legal, counts).tolist() == [0, 1]
+    legal[1, 1] = False  # an illegal action is never greedy
+    assert policy.greedy_actions(degrees, legal, counts).tolist() == [0, 0]
 
 
 def reference_fit(payoffs: np.ndarray, rng: np.random.Generator, delta: float, max_games: int):

@@ -1,4 +1,4 @@
-"""CMARL-CD: learning by the coordination degree (Section IV, Algorithm 1).
+"""CMARL-CD: learning by the coordination degree (Section IV, Algorithms 1 and 2).
 
 Each agent ``i`` keeps a coordination degree ``c_i[a]`` per action and plays the
 Boltzmann strategy ``p_i = softmax(c_i / T)`` (eq. 5). After every game the global
@@ -14,6 +14,9 @@ real.
 
 Every agent observes the same global reward, so the per-agent maxima ``r_i_max`` of
 Algorithm 1 are always equal; they are kept as one shared value.
+
+For stochastic games (Algorithm 2) the same rules apply per state; the per-state rule is
+:func:`coordination_rule`, driven by the backward pass in :mod:`cmarlcd.learners.stochastic`.
 """
 
 from __future__ import annotations
@@ -26,19 +29,23 @@ from numba import njit
 
 from cmarlcd.errors import require
 from cmarlcd.games.matrix import MatrixGame
+from cmarlcd.learners.policy import greedy_actions, sample_joint_action
 
 # --------------------------------------------------------------------------- rules
 
 
 @njit(cache=True)
-def softmax_strategy(c_row: np.ndarray, count: int, temperature: float, p_row: np.ndarray) -> None:
-    """Eq. (5): ``p_row[:count] = softmax(c_row[:count] / T)``, computed stably."""
-    top = c_row[0]
-    for a in range(1, count):
-        top = max(top, c_row[a])
+def softmax_strategy(
+    c_row: np.ndarray, legal_row: np.ndarray, count: int, temperature: float, p_row: np.ndarray
+) -> None:
+    """Eqs. (5) and (17): ``p = softmax(c / T)`` over the legal actions (others get 0)."""
+    top = -np.inf
+    for a in range(count):
+        if legal_row[a]:
+            top = max(top, c_row[a])
     total = 0.0
     for a in range(count):
-        p_row[a] = np.exp((c_row[a] - top) / temperature)
+        p_row[a] = np.exp((c_row[a] - top) / temperature) if legal_row[a] else 0.0
         total += p_row[a]
     for a in range(count):
         p_row[a] /= total
@@ -55,27 +62,44 @@ def reinforce(c_row: np.ndarray, count: int, action: int, step: float) -> None:
 
 
 @njit(cache=True)
-def sample_action(p_row: np.ndarray, count: int, u: float) -> int:
-    """Inverse-CDF draw of an action from ``p_row[:count]`` with ``u ~ U[0, 1)``."""
-    acc = 0.0
-    for a in range(count - 1):
-        acc += p_row[a]
-        if u < acc:
-            return a
-    return count - 1
+def clip_degrees(c_row: np.ndarray, count: int, c_min: float, c_max: float) -> None:
+    """Section IV-D: confine every coordination degree to ``[c_min, c_max]``."""
+    for a in range(count):
+        c_row[a] = min(max(c_row[a], c_min), c_max)
 
 
 @njit(cache=True)
-def sample_joint_action(p: np.ndarray, counts: np.ndarray, rng, joint: np.ndarray) -> None:
-    """Algorithm 1, lines 3-5: every agent draws ``a_i ~ p_i`` (one uniform each, in order)."""
-    for i in range(counts.shape[0]):
-        joint[i] = sample_action(p[i], counts[i], rng.random())
+def coordination_rule(
+    c_row: np.ndarray,
+    p_row: np.ndarray,
+    legal_row: np.ndarray,
+    count: int,
+    action: int,
+    new_record: bool,
+    params,
+) -> None:
+    """Algorithm 2, lines 16-19, for one agent at one visited state (eqs. 14-17).
+
+    On a new record of the return from this state the degrees are first reset to
+    ``c_init`` and the large step ``delta_reset`` is used (the paper's "exploration near
+    local optima" rule, Section V-A); on a tie the step is ``delta``. Then the degrees are
+    clipped to ``[c_min, c_max]`` and the strategy recomputed by eq. (17).
+    """
+    step = params.delta
+    if new_record:
+        for a in range(count):
+            c_row[a] = params.c_init
+        step = params.delta_reset
+    reinforce(c_row, count, action, step)
+    clip_degrees(c_row, count, params.c_min, params.c_max)
+    softmax_strategy(c_row, legal_row, count, params.temperature, p_row)
 
 
 @njit(cache=True)
 def repeated_update(
     c: np.ndarray,
     p: np.ndarray,
+    legal: np.ndarray,
     counts: np.ndarray,
     joint: np.ndarray,
     reward: float,
@@ -93,7 +117,7 @@ def repeated_update(
     r_max[0] = reward
     for i in range(counts.shape[0]):
         reinforce(c[i], counts[i], joint[i], delta)
-        softmax_strategy(c[i], counts[i], temperature, p[i])
+        softmax_strategy(c[i], legal[i], counts[i], temperature, p[i])
     return True
 
 
@@ -126,6 +150,7 @@ def play_repeated(
     strides: np.ndarray,
     c: np.ndarray,
     p: np.ndarray,
+    legal: np.ndarray,
     counts: np.ndarray,
     r_max: np.ndarray,
     delta: float,
@@ -143,23 +168,10 @@ def play_repeated(
     for game in range(max_games):
         sample_joint_action(p, counts, rng, joint)
         reward = flat_payoffs[flat_index(joint, strides)]
-        fired = repeated_update(c, p, counts, joint, reward, r_max, delta, temperature)
+        fired = repeated_update(c, p, legal, counts, joint, reward, r_max, delta, temperature)
         if fired and is_pure(p, counts, threshold):  # p changes only when eq. (4) fires
             return game + 1, True
     return max_games, False
-
-
-@njit(cache=True)
-def greedy_actions(c: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Execution: each agent's ``argmax_a c_i[a]`` (lowest index on ties)."""
-    out = np.zeros(counts.shape[0], dtype=np.int64)
-    for i in range(counts.shape[0]):
-        best = 0
-        for a in range(1, counts[i]):
-            if c[i, a] > c[i, best]:
-                best = a
-        out[i] = best
-    return out
 
 
 # ---------------------------------------------------------------------- object API
@@ -231,9 +243,12 @@ class CMARLCD:
         self.counts = np.array(counts, dtype=np.int64)
         self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
         self.degrees = np.full((len(counts), max(counts)), self.config.initial_degree)
+        self.legal = np.arange(max(counts))[None, :] < self.counts[:, None]
         self.strategies = np.zeros_like(self.degrees)
         for i, count in enumerate(counts):
-            softmax_strategy(self.degrees[i], count, self.config.temperature, self.strategies[i])
+            softmax_strategy(
+                self.degrees[i], self.legal[i], count, self.config.temperature, self.strategies[i]
+            )
         self._r_max = np.array([-np.inf])
 
     @property
@@ -260,6 +275,7 @@ class CMARLCD:
             repeated_update(
                 self.degrees,
                 self.strategies,
+                self.legal,
                 self.counts,
                 joint,
                 float(reward),
@@ -275,7 +291,7 @@ class CMARLCD:
 
     def greedy_joint_action(self) -> tuple[int, ...]:
         """Each agent's action with the largest coordination degree."""
-        return tuple(int(a) for a in greedy_actions(self.degrees, self.counts))
+        return tuple(int(a) for a in greedy_actions(self.degrees, self.legal, self.counts))
 
     def strategy(self, agent: int) -> np.ndarray:
         """Agent ``agent``'s current strategy ``p_i`` (a copy)."""
@@ -296,6 +312,7 @@ class CMARLCD:
             game.strides,
             self.degrees,
             self.strategies,
+            self.legal,
             self.counts,
             self._r_max,
             cfg.delta,

@@ -1,0 +1,268 @@
+"""The distributed sensor network protocol of Section V-A (Tables 3-7, Fig. 4).
+
+Each run trains a learner on the DSN and evaluates its fixed greedy joint policy for
+``eval_episodes`` episodes after each budget ``L`` of learning episodes. The tabular
+learners' schedules do not depend on ``L``, so one run trains once to the largest ``L``
+and is evaluated at every checkpoint on the way; evaluation draws from its own stream
+(keyed by ``L``), so a checkpoint's numbers do not depend on which others were asked for.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from collections.abc import Iterable, Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cmarlcd.errors import require
+from cmarlcd.games import sensor_network as dsn
+from cmarlcd.learners.stochastic import AutomatonConfig, RuleParams, StochasticConfig
+from cmarlcd.paper import DSN_ALGORITHMS, DSN_EPISODES, dsn_value
+from cmarlcd.rollouts import dsn_evaluate, dsn_tables, greedy_policy, train_dsn
+from cmarlcd.runner import Experiment, RunSpec, register
+from cmarlcd.store import RunRecord
+
+EXPERIMENT = "dsn"
+#: Learners available to this protocol, with their display names and config types.
+ALGORITHMS: dict[str, tuple[str, type]] = {
+    "cmarl-cd": ("CMARL-CD", StochasticConfig),
+    "la-oca": ("LA-OCA", AutomatonConfig),
+}
+PAPER_RUNS = 50
+PAPER_EVAL_EPISODES = 50_000
+#: [choice] Learning-curve resolution: greedy evaluations at this many evenly spaced
+#: points up to the largest L, each over CURVE_EVAL_EPISODES episodes.
+CURVE_POINTS = 20
+CURVE_EVAL_EPISODES = 2_000
+#: [choice] Tables 4-5 report the population standard deviation over runs (ddof = 0).
+STD_DDOF = 0
+#: The per-(algorithm, L) quantities of Tables 3-7, in the order of the JSON output.
+TABLE_METRICS = (
+    "success_rate",
+    "mean_return",
+    "std_return",
+    "mean_steps",
+    "std_steps",
+    "min_return",
+    "max_steps",
+)
+
+
+@dataclass(frozen=True)
+class DsnSweep:
+    """Algorithms × runs on the DSN, each evaluated after every budget in ``episodes``."""
+
+    algorithms: tuple[str, ...] = ("cmarl-cd", "la-oca")
+    episodes: tuple[int, ...] = DSN_EPISODES
+    runs: int = PAPER_RUNS
+    eval_episodes: int = PAPER_EVAL_EPISODES
+    seed: int = 0
+    cmarlcd: StochasticConfig = field(default_factory=StochasticConfig)
+    laoca: AutomatonConfig = field(default_factory=AutomatonConfig)
+    curve_points: int = CURVE_POINTS
+    curve_eval_episodes: int = CURVE_EVAL_EPISODES
+
+    def __post_init__(self) -> None:
+        require(len(self.algorithms) > 0, "algorithms", "needs at least one algorithm")
+        for name in self.algorithms:
+            known = ", ".join(ALGORITHMS)
+            require(name in ALGORITHMS, "algorithms", f"unknown {name!r}; available: {known}")
+        require(len(self.episodes) > 0, "episodes", "needs at least one budget")
+        require(min(self.episodes) >= 1, "episodes", f"must be >= 1 (got {min(self.episodes)})")
+        require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
+        require(
+            self.eval_episodes >= 1, "eval_episodes", f"must be >= 1 (got {self.eval_episodes})"
+        )
+        require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
+        require(self.curve_points >= 0, "curve_points", f"must be >= 0 (got {self.curve_points})")
+        require(
+            self.curve_eval_episodes >= 1,
+            "curve_eval_episodes",
+            f"must be >= 1 (got {self.curve_eval_episodes})",
+        )
+
+    def learner_config(self, algorithm: str) -> StochasticConfig | AutomatonConfig:
+        return self.cmarlcd if algorithm == "cmarl-cd" else self.laoca
+
+    def config(self, algorithm: str) -> dict[str, Any]:
+        """The stored config of one algorithm's runs."""
+        return {
+            "algorithm": algorithm,
+            "checkpoints": sorted(set(self.episodes)),
+            "eval_episodes": self.eval_episodes,
+            "curve_points": self.curve_points,
+            "curve_eval_episodes": self.curve_eval_episodes,
+            "learner": asdict(self.learner_config(algorithm)),
+        }
+
+    def specs(self) -> list[RunSpec]:
+        """One spec per (algorithm, run); its streams depend on the learner only."""
+        specs = []
+        for name in self.algorithms:
+            config = self.config(name)
+            stream = {"algorithm": name, "learner": config["learner"]}
+            specs += [
+                RunSpec.make(EXPERIMENT, name, config, self.seed, r, stream)
+                for r in range(self.runs)
+            ]
+        return specs
+
+
+def rule_params(config: Mapping[str, Any]) -> RuleParams:
+    """The compiled rule parameters of a stored config."""
+    _, config_type = ALGORITHMS[config["algorithm"]]
+    return config_type(**config["learner"]).rule_params()
+
+
+def _keyed_rng(seed: np.random.SeedSequence, *key: int) -> np.random.Generator:
+    """A stream that depends only on ``seed`` and ``key`` (e.g. an evaluation at L)."""
+    child = np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, *key))
+    return np.random.default_rng(child)
+
+
+def _evaluate(policy: np.ndarray, episodes: int, rng: np.random.Generator) -> dict[str, float]:
+    successes, total_return, total_steps = dsn_evaluate(policy, episodes, rng)
+    return {
+        "success_rate": successes / episodes,
+        "mean_return": total_return / episodes,
+        "mean_steps": total_steps / episodes,
+    }
+
+
+def _schedule(config: Mapping[str, Any]) -> list[int]:
+    """Every budget at which the run stops to evaluate: checkpoints and curve points."""
+    largest = max(config["checkpoints"])
+    points = config["curve_points"]
+    curve = {round(largest * k / points) for k in range(1, points + 1)} if points else set()
+    return sorted(curve | set(config["checkpoints"]) - {0})
+
+
+def run_dsn(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+    """One run: train to each budget in turn, evaluating the greedy policy at each."""
+    env_seed, agent_seed, eval_seed = seed.spawn(3)
+    env_rng, agent_rng = np.random.default_rng(env_seed), np.random.default_rng(agent_seed)
+    tables = dsn_tables(rule_params(config))
+    checkpoints, curve, trained = {}, [], 0
+    start = time.perf_counter()
+    for budget in _schedule(config):
+        train_dsn(tables, budget - trained, env_rng, agent_rng)
+        trained = budget
+        policy = greedy_policy(tables)
+        if budget in config["checkpoints"]:
+            checkpoints[str(budget)] = _evaluate(
+                policy, config["eval_episodes"], _keyed_rng(eval_seed, 0, budget)
+            )
+        point = _evaluate(policy, config["curve_eval_episodes"], _keyed_rng(eval_seed, 1, budget))
+        curve.append([budget, point["success_rate"], point["mean_return"], point["mean_steps"]])
+    return {
+        "checkpoints": checkpoints,
+        "curve": curve,
+        "policy": policy[: dsn.N_STATES].tolist(),
+        "seconds": time.perf_counter() - start,
+    }
+
+
+def _warm_up() -> None:
+    tables = dsn_tables(StochasticConfig().rule_params())
+    train_dsn(tables, 2, np.random.default_rng(0), np.random.default_rng(1))
+    dsn_evaluate(greedy_policy(tables), 2, np.random.default_rng(2))
+    tables = dsn_tables(AutomatonConfig().rule_params())
+    train_dsn(tables, 2, np.random.default_rng(0), np.random.default_rng(1))
+
+
+def _cost(config: Mapping[str, Any]) -> float:
+    return float(max(config["checkpoints"]) + config["eval_episodes"])
+
+
+DSN = register(Experiment(EXPERIMENT, run_dsn, _warm_up, _cost))
+
+
+# ------------------------------------------------------------------- aggregation
+
+
+@dataclass(frozen=True)
+class DsnRow:
+    """One (algorithm, L) entry of Tables 3-7, aggregated over runs."""
+
+    algorithm: str
+    label: str
+    """Display name; marked * when the learner's settings differ from the paper's."""
+    episodes: int
+    runs: int
+    success_rate: float
+    mean_return: float
+    std_return: float
+    mean_steps: float
+    std_steps: float
+    min_return: float
+    max_steps: float
+    paper: dict[str, float | None]
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def row_label(algorithm: str, learner: Mapping[str, Any]) -> str:
+    """The algorithm's name, marked with * when its settings are not the paper's."""
+    _, config_type = ALGORITHMS.get(algorithm, (None, None))
+    default = config_type is not None and asdict(config_type()) == dict(learner)
+    return display_name(algorithm) + ("" if default else " *")
+
+
+def summarize(records: Iterable[RunRecord]) -> list[DsnRow]:
+    """Tables 3-7 from stored runs: one row per (algorithm, settings, L), paper values attached."""
+    per_cell: dict[tuple[str, str, int], list[dict[str, float]]] = defaultdict(list)
+    for rec in records:
+        label = row_label(rec.key.algorithm, rec.config["learner"])
+        for budget, result in rec.metrics["checkpoints"].items():
+            per_cell[(rec.key.algorithm, label, int(budget))].append(result)
+    rows = []
+    for (name, label, budget), results in sorted(per_cell.items(), key=_row_order):
+        success = np.array([r["success_rate"] for r in results])
+        returns = np.array([r["mean_return"] for r in results])
+        steps = np.array([r["mean_steps"] for r in results])
+        rows.append(
+            DsnRow(
+                algorithm=name,
+                label=label,
+                episodes=budget,
+                runs=len(results),
+                success_rate=float(success.mean()),
+                mean_return=float(returns.mean()),
+                std_return=float(returns.std(ddof=STD_DDOF)),
+                mean_steps=float(steps.mean()),
+                std_steps=float(steps.std(ddof=STD_DDOF)),
+                min_return=float(returns.min()),
+                max_steps=float(steps.max()),
+                paper={m: dsn_value(name, budget, m) for m in TABLE_METRICS},
+            )
+        )
+    return rows
+
+
+def _row_order(item: tuple[tuple[str, str, int], Any]) -> tuple[int, str, int]:
+    (name, label, budget), _ = item
+    known = DSN_ALGORITHMS
+    return (known.index(name) if name in known else len(known), label, budget)
+
+
+def learning_curves(records: Iterable[RunRecord]) -> dict[str, np.ndarray]:
+    """Per row label, an array (runs, points, 4) of [episodes, success, return, steps]."""
+    curves: dict[str, list[list[list[float]]]] = defaultdict(list)
+    for rec in records:
+        curves[row_label(rec.key.algorithm, rec.config["learner"])].append(rec.metrics["curve"])
+    return {label: np.array(runs) for label, runs in curves.items() if runs and runs[0]}
+
+
+def protocol_key(record: RunRecord) -> tuple:
+    """Runs that belong in one set of Tables 3-7: same seed, budgets and evaluation."""
+    cfg = record.config
+    fields = ("checkpoints", "eval_episodes", "curve_points", "curve_eval_episodes")
+    return (record.key.root_seed, *(str(cfg[f]) for f in fields))
+
+
+def display_name(algorithm: str) -> str:
+    return ALGORITHMS.get(algorithm, (algorithm.upper(), None))[0]

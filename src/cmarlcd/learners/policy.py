@@ -1,0 +1,56 @@
+"""Acting from per-agent tables: sampling a joint action and the greedy joint action.
+
+Shared by every tabular learner. Rows are padded to the largest action count;
+``counts[i]`` says how many entries of agent ``i``'s row are real, and a ``legal`` mask
+(same shape as the table) marks the actions allowed in the current state. Illegal
+actions carry probability 0 and are never chosen.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def sample_action(p_row: np.ndarray, count: int, u: float) -> int:
+    """Inverse-CDF draw from ``p_row[:count]`` with ``u ~ U[0, 1)``.
+
+    If rounding leaves ``u`` above the last partial sum, the last action with positive
+    probability is returned (never a zero-probability, e.g. illegal, action).
+    """
+    acc = 0.0
+    last = 0
+    for a in range(count):
+        if p_row[a] > 0.0:
+            acc += p_row[a]
+            last = a
+            if u < acc:
+                return a
+    return last
+
+
+@njit(cache=True)
+def sample_joint_action(p: np.ndarray, counts: np.ndarray, rng, joint: np.ndarray) -> None:
+    """Every agent draws ``a_i ~ p_i``, one uniform each, in agent order."""
+    for i in range(counts.shape[0]):
+        joint[i] = sample_action(p[i], counts[i], rng.random())
+
+
+@njit(cache=True)
+def greedy_action(values_row: np.ndarray, legal_row: np.ndarray, count: int) -> int:
+    """``argmax`` of ``values_row`` over the legal actions, lowest index on ties."""
+    best = -1
+    for a in range(count):
+        if legal_row[a] and (best < 0 or values_row[a] > values_row[best]):
+            best = a
+    return best
+
+
+@njit(cache=True)
+def greedy_actions(values: np.ndarray, legal: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Execution: each agent's greedy legal action (Algorithms 1 and 2)."""
+    out = np.zeros(counts.shape[0], dtype=np.int64)
+    for i in range(counts.shape[0]):
+        out[i] = greedy_action(values[i], legal[i], counts[i])
+    return out

@@ -1,0 +1,165 @@
+"""Playing episodes: a generic loop for any PettingZoo ParallelEnv, compiled loops for the DSN.
+
+The generic loop (:func:`play_episodes`) drives a tabular learner through any
+``ParallelEnv`` whose ``state()`` is an integer or hashable and whose infos may carry
+``"action_mask"``. The compiled loops (:func:`dsn_train`, :func:`dsn_evaluate`) run the
+same learner kernels against the DSN's compiled transition. With the same seeds both
+paths consume the random streams in the same order (the environment's generator for
+starts and target moves, the learner's for actions), so they learn the same tables.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from cmarlcd.games import sensor_network as dsn
+from cmarlcd.learners.policy import greedy_actions, sample_joint_action
+from cmarlcd.learners.stochastic import TabularLearner, TabularTables, update_from_episode
+
+
+def shared_reward(rewards: Mapping[str, float]) -> float:
+    """The global reward when every agent receives it (as in the DSN)."""
+    return float(next(iter(rewards.values())))
+
+
+@dataclass(frozen=True)
+class EpisodeStats:
+    """Undiscounted return and length of each episode played."""
+
+    returns: np.ndarray
+    lengths: np.ndarray
+
+
+def play_episodes(
+    env,
+    learner: TabularLearner,
+    episodes: int,
+    *,
+    learn: bool = True,
+    seed: int | None = None,
+    global_reward: Callable[[Mapping[str, float]], float] = shared_reward,
+) -> EpisodeStats:
+    """Play ``episodes`` episodes of ``env``: sampled actions and learning when ``learn``,
+    greedy actions otherwise. ``seed`` seeds the first ``env.reset``; later episodes
+    continue the environment's own stream."""
+    returns, lengths = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
+    for episode in range(episodes):
+        _, infos = env.reset(seed=seed if episode == 0 else None)
+        agents = list(env.possible_agents)
+        while env.agents:
+            state = env.state()
+            masks = (
+                [infos[a]["action_mask"] for a in agents]
+                if "action_mask" in infos[agents[0]]
+                else None
+            )
+            joint = learner.act(state, masks) if learn else learner.greedy(state, masks)
+            _, rewards, _, _, infos = env.step(dict(zip(agents, joint, strict=True)))
+            reward = global_reward(rewards)
+            if learn:
+                learner.observe(state, joint, reward)
+            returns[episode] += reward
+            lengths[episode] += 1
+        if learn:
+            learner.end_episode()
+    return EpisodeStats(returns, lengths)
+
+
+# ------------------------------------------------------------- compiled DSN loops
+
+
+@njit(cache=True)
+def dsn_train(
+    values: np.ndarray,
+    probs: np.ndarray,
+    legal: np.ndarray,
+    counts: np.ndarray,
+    r_max: np.ndarray,
+    params,
+    episodes: int,
+    env_rng,
+    agent_rng,
+) -> None:
+    """Algorithm 2 (or LA-OCA, by ``params.kind``) on the DSN for ``episodes`` episodes."""
+    states = np.zeros(dsn.MAX_STEPS, dtype=np.int64)
+    joints = np.zeros((dsn.MAX_STEPS, dsn.N_SENSORS), dtype=np.int64)
+    rewards = np.zeros(dsn.MAX_STEPS)
+    targets = np.zeros(2, dtype=np.int64)
+    energy = np.zeros(2, dtype=np.int64)
+    individual = np.zeros(dsn.N_SENSORS)
+    for _ in range(episodes):
+        dsn.dsn_reset(targets, energy, env_rng)
+        length = 0
+        while length < dsn.MAX_STEPS:
+            s = dsn.dsn_state(targets)
+            sample_joint_action(probs[s], counts, agent_rng, joints[length])
+            rewards[length] = dsn.dsn_step(targets, energy, joints[length], env_rng, individual)
+            states[length] = s
+            length += 1
+            if dsn.done(targets):
+                break
+        update_from_episode(
+            states, joints, rewards, length, values, probs, legal, counts, r_max, params
+        )
+
+
+@njit(cache=True)
+def dsn_evaluate(policy: np.ndarray, episodes: int, env_rng) -> tuple[int, float, int]:
+    """Play ``episodes`` episodes with the fixed joint policy ``policy[state]``.
+
+    Returns (successful episodes, total undiscounted return, total steps); an episode
+    succeeds when its return is the optimum, 42, reached in exactly 3 steps.
+    """
+    targets = np.zeros(2, dtype=np.int64)
+    energy = np.zeros(2, dtype=np.int64)
+    individual = np.zeros(dsn.N_SENSORS)
+    successes, total_return, total_steps = 0, 0.0, 0
+    for _ in range(episodes):
+        dsn.dsn_reset(targets, energy, env_rng)
+        episode_return, steps = 0.0, 0
+        while steps < dsn.MAX_STEPS:
+            joint = policy[dsn.dsn_state(targets)]
+            episode_return += dsn.dsn_step(targets, energy, joint, env_rng, individual)
+            steps += 1
+            if dsn.done(targets):
+                break
+        successes += episode_return == dsn.OPTIMAL_RETURN and steps == dsn.OPTIMAL_STEPS
+        total_return += episode_return
+        total_steps += steps
+    return successes, total_return, total_steps
+
+
+def greedy_policy(tables: TabularTables) -> np.ndarray:
+    """The greedy joint action of every state: shape (n_states, n_agents)."""
+    return np.stack(
+        [
+            greedy_actions(tables.values[s], tables.legal[s], tables.counts)
+            for s in range(tables.n_states)
+        ]
+    )
+
+
+def dsn_tables(params) -> TabularTables:
+    """Fresh tables for the DSN: 43 state indices (42 + terminal), every action legal."""
+    tables = TabularTables(dsn.N_STATE_INDICES, dsn.ACTION_COUNTS.copy(), params)
+    tables.init_all()
+    return tables
+
+
+def train_dsn(tables: TabularTables, episodes: int, env_rng, agent_rng) -> None:
+    """Continue training ``tables`` on the DSN with the compiled loop."""
+    dsn_train(
+        tables.values,
+        tables.probs,
+        tables.legal,
+        tables.counts,
+        tables.r_max,
+        tables.params,
+        int(episodes),
+        env_rng,
+        agent_rng,
+    )

@@ -1,0 +1,99 @@
+"""The DSN protocol (Section V-A): runs, checkpoints, Tables 3-7 aggregation."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import pytest
+
+from cmarlcd.errors import ConfigError
+from cmarlcd.experiments import sensor_network as sn
+from cmarlcd.learners.stochastic import StochasticConfig
+from cmarlcd.runner import run_sweep
+from cmarlcd.store import ResultStore, RunKey, RunRecord, canonical_json
+
+
+def run(sweep: sn.DsnSweep, algorithm: str = "cmarl-cd", index: int = 0) -> dict:
+    spec = next(s for s in sweep.specs() if s.algorithm == algorithm and s.run_index == index)
+    return sn.run_dsn(spec.config, spec.seed_sequence())
+
+
+def test_paper_protocol_specs() -> None:
+    sweep = sn.DsnSweep()
+    assert len(sweep.specs()) == 2 * 50
+    assert sweep.config("cmarl-cd")["checkpoints"] == [100_000, 300_000, 500_000]
+    assert sweep.config("la-oca")["eval_episodes"] == 50_000
+
+
+def test_a_checkpoint_does_not_depend_on_the_other_checkpoints() -> None:
+    """Training streams are seeded by the learner only; evaluation streams by L."""
+    both = run(sn.DsnSweep(episodes=(400, 900), eval_episodes=300, curve_points=3, runs=1))
+    alone = run(sn.DsnSweep(episodes=(400,), eval_episodes=300, curve_points=0, runs=1))
+    assert both["checkpoints"]["400"] == alone["checkpoints"]["400"]
+    assert [c[0] for c in both["curve"]] == [300, 400, 600, 900]
+
+
+def test_run_metrics_are_deterministic_and_well_formed() -> None:
+    sweep = sn.DsnSweep(episodes=(500,), eval_episodes=200, curve_points=2, runs=2)
+    first, again, other = run(sweep), run(sweep), run(sweep, index=1)
+    first.pop("seconds"), again.pop("seconds"), other.pop("seconds")
+    assert first == again and first != other
+    result = first["checkpoints"]["500"]
+    assert 0.0 <= result["success_rate"] <= 1.0 and 1.0 <= result["mean_steps"] <= 40.0
+    assert len(first["policy"]) == 42 and len(first["policy"][0]) == 12
+
+
+def record(algorithm: str, index: int, checkpoints: dict) -> RunRecord:
+    config = sn.DsnSweep().config(algorithm)
+    key = RunKey("dsn", algorithm, canonical_json(config), 0, index)
+    return RunRecord(key, {"checkpoints": checkpoints, "curve": [], "policy": []}, 1.0)
+
+
+def test_tables_3_to_7_aggregate_as_the_paper_defines_them() -> None:
+    runs = [
+        {"100000": {"success_rate": 1.0, "mean_return": 42.0, "mean_steps": 3.0}},
+        {"100000": {"success_rate": 0.5, "mean_return": 40.0, "mean_steps": 4.0}},
+    ]
+    (row,) = sn.summarize(record("cmarl-cd", i, c) for i, c in enumerate(runs))
+    assert (row.algorithm, row.episodes, row.runs) == ("cmarl-cd", 100_000, 2)
+    assert row.success_rate == 0.75  # Table 3: mean of the per-run success rates
+    assert (row.mean_return, row.std_return) == (41.0, 1.0)  # Table 4 (population std)
+    assert (row.mean_steps, row.std_steps) == (3.5, 0.5)  # Table 5
+    assert (row.min_return, row.max_steps) == (40.0, 4.0)  # Tables 6 and 7
+    assert row.paper["success_rate"] == pytest.approx(0.909) and row.label == "CMARL-CD"
+
+
+def test_non_default_settings_are_marked() -> None:
+    assert sn.row_label("cmarl-cd", asdict(StochasticConfig(delta=0.1))) == "CMARL-CD *"
+
+
+def test_small_sweep_through_the_runner(tmp_path) -> None:
+    sweep = sn.DsnSweep(episodes=(200, 400), eval_episodes=100, curve_points=2, runs=2)
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        run_sweep(sweep.specs(), store, workers=1, show_progress=False)
+        records = store.get(s.key for s in sweep.specs())
+    rows = sn.summarize(records)
+    assert [(r.label, r.episodes, r.runs) for r in rows] == [
+        ("CMARL-CD", 200, 2),
+        ("CMARL-CD", 400, 2),
+        ("LA-OCA", 200, 2),
+        ("LA-OCA", 400, 2),
+    ]
+    curves = sn.learning_curves(records)
+    assert curves["CMARL-CD"].shape == (2, 2, 4)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "parameter"),
+    [
+        ({"algorithms": ("cmarl-cd", "dqn")}, "algorithms"),
+        ({"algorithms": ()}, "algorithms"),
+        ({"episodes": (0, 100)}, "episodes"),
+        ({"runs": 0}, "runs"),
+        ({"eval_episodes": 0}, "eval_episodes"),
+    ],
+)
+def test_bad_sweeps_are_rejected(kwargs: dict, parameter: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        sn.DsnSweep(**kwargs)
+    assert info.value.parameter == parameter
