@@ -274,3 +274,21 @@ def test_dsn_bad_input(paths, args, option) -> None:
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"error: {option}:"), result.stderr
     assert not store.exists() and not figures.exists()
+
+
+def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
+    from cmarlcd import cli
+
+    tiny = cli.Preset(repeated_runs=1, dsn_runs=1, dsn_eval_episodes=50, dsn_episodes=(100,))
+    monkeypatch.setitem(cli.PRESETS, "quick", tiny)
+    _, figures, where = paths
+    result = invoke("reproduce", "--workers", "1", "--json", *where)
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert [t["case"] for t in doc["repeated"]] == [1, 2]
+    assert len(doc["repeated"][0]["cells"]) == 24 and len(doc["repeated"][1]["cells"]) == 12
+    assert {r["algorithm"] for r in doc["dsn"]["rows"]} == {"cmarl-cd", "la-oca"}
+    assert all(check["confirmed"] for check in doc["theorem1"])
+    assert (figures / "theorem1-phase-T1.png").exists()
+    bad = invoke("reproduce", "--preset", "huge", *where)
+    assert bad.exit_code == 2 and bad.stderr.startswith("error: --preset:")

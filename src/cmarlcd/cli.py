@@ -6,6 +6,7 @@ import functools
 import json
 import sys
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
@@ -301,15 +302,35 @@ def _render_dsn(records: list, figures: Path, as_json: bool) -> dict[str, Any]:
     }
 
 
-#: Runs per cell of each preset of ``reproduce``.
-PRESETS = {"quick": 20, "paper": rep.PAPER_RUNS}
+@dataclass(frozen=True)
+class Preset:
+    """How much of the paper's protocol ``reproduce`` runs."""
+
+    repeated_runs: int
+    """Runs per cell of Tables 1-2 (the paper: 50)."""
+    dsn_runs: int
+    """Runs per algorithm of Tables 3-7 (the paper: 50)."""
+    dsn_eval_episodes: int
+    """Greedy evaluation episodes per DSN checkpoint (the paper: 50,000)."""
+    dsn_episodes: tuple[int, ...] = dsn_exp.DSN_EPISODES
+    """DSN learning budgets L (the paper: 100k, 300k, 500k)."""
+
+
+PRESETS = {
+    "quick": Preset(repeated_runs=20, dsn_runs=10, dsn_eval_episodes=10_000),
+    "paper": Preset(rep.PAPER_RUNS, dsn_exp.PAPER_RUNS, dsn_exp.PAPER_EVAL_EPISODES),
+}
 
 
 @app.command()
 @fails_cleanly
 def reproduce(
     preset: Annotated[
-        str, typer.Option(help="quick: 20 runs per cell; paper: the full protocol (50 runs).")
+        str,
+        typer.Option(
+            help="quick: 20 runs per cell of Tables 1-2, 10 DSN runs with 10k-episode "
+            "evaluations; paper: the full protocol (50 runs, 50k evaluations)."
+        ),
     ] = "quick",
     seed: Annotated[int, typer.Option(help="Root seed.")] = 0,
     workers: WorkersOption = None,
@@ -318,34 +339,32 @@ def reproduce(
     figures: FiguresOption = DEFAULT_FIGURES,
     progress: ProgressOption = True,
 ) -> None:
-    """Reproduce the paper: Tables 1-2 and the Theorem 1 check (resumable)."""
+    """Reproduce the paper: Tables 1-7, Fig. 4 and the Theorem 1 check (resumable)."""
     from cmarlcd.theory import check_theorem1, plot_phase_portrait
 
     require(preset in PRESETS, "preset", f"must be one of {', '.join(PRESETS)} (got {preset!r})")
     require(workers is None or workers >= 1, "workers", f"must be >= 1 (got {workers})")
-    tables = [
-        _run_repeated(
-            rep.paper_sweep(case, PRESETS[preset], seed), store, figures, workers, progress, as_json
-        )
-        for case in (1, 2)
-    ]
-    checks = [check_theorem1(n, m, 1.0, seed=seed).to_dict() for n, m in ((2, 2), (7, 5))]
+    chosen = PRESETS[preset]
+    doc: dict[str, Any] = {"preset": preset, "repeated": [], "dsn": None}
+    for case in (1, 2):
+        sweep = rep.paper_sweep(case, chosen.repeated_runs, seed)
+        doc["repeated"].append(_run_repeated(sweep, store, figures, workers, progress, as_json))
+    sweep = dsn_exp.DsnSweep(
+        episodes=chosen.dsn_episodes,
+        runs=chosen.dsn_runs,
+        eval_episodes=chosen.dsn_eval_episodes,
+        seed=seed,
+    )
+    records, done = _sweep(sweep.specs(), store, workers, progress, "DSN")
+    doc["dsn"] = {**_render_dsn(records, figures, as_json), **_run_counts(done, store, as_json)}
+    doc["theorem1"] = [check_theorem1(n, m, 1.0, seed=seed).to_dict() for n, m in ((2, 2), (7, 5))]
     portrait = plot_phase_portrait(figures / "theorem1-phase-T1.png", temperature=1.0, seed=seed)
+    doc["phase_portrait"] = str(portrait)
     if as_json:
-        print(
-            json.dumps(
-                {
-                    "preset": preset,
-                    "tables": tables,
-                    "theorem1": checks,
-                    "phase_portrait": str(portrait),
-                },
-                indent=2,
-            )
-        )
+        print(json.dumps(doc, indent=2))
         return
-    for doc in checks:
-        _print_theory(doc)
+    for check in doc["theorem1"]:
+        _print_theory(check)
     Console().print(f"phase portrait: {portrait}")
 
 

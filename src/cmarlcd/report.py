@@ -89,8 +89,8 @@ def dsn_tables(rows: Sequence[DsnRow]) -> list[Table]:
     by_cell = {(r.label, r.episodes): r for r in rows}
     tables = []
     for number, title, metrics, fmt in DSN_TABLES:
-        table = Table(title=f"Table {number}. {title}")
-        table.add_column("ours (paper)", no_wrap=True)
+        table = Table(title=f"Table {number}. {title}", show_lines=True)
+        table.add_column("ours\n(paper)", no_wrap=True)
         for budget in budgets:
             table.add_column(f"L = {budget:,}", justify="right", no_wrap=True)
         for label in labels:
@@ -102,7 +102,7 @@ def dsn_tables(rows: Sequence[DsnRow]) -> list[Table]:
                     continue
                 ours = " | ".join(_format(getattr(row, m), fmt) for m in metrics)
                 paper = " | ".join(_format(row.paper[m], fmt) for m in metrics)
-                cells.append(f"{ours} [dim]({paper})[/]")
+                cells.append(f"{ours}\n[dim]({paper})[/]")
             table.add_row(*cells)
         tables.append(table)
     return tables

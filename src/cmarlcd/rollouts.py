@@ -83,14 +83,17 @@ def dsn_train(
     episodes: int,
     env_rng,
     agent_rng,
-) -> None:
-    """Algorithm 2 (or LA-OCA, by ``params.kind``) on the DSN for ``episodes`` episodes."""
+) -> int:
+    """Algorithm 2 (or LA-OCA, by ``params.kind``) on the DSN for ``episodes`` episodes.
+
+    Returns the number of environment steps taken."""
     states = np.zeros(dsn.MAX_STEPS, dtype=np.int64)
     joints = np.zeros((dsn.MAX_STEPS, dsn.N_SENSORS), dtype=np.int64)
     rewards = np.zeros(dsn.MAX_STEPS)
     targets = np.zeros(2, dtype=np.int64)
     energy = np.zeros(2, dtype=np.int64)
     individual = np.zeros(dsn.N_SENSORS)
+    total_steps = 0
     for _ in range(episodes):
         dsn.dsn_reset(targets, energy, env_rng)
         length = 0
@@ -105,6 +108,8 @@ def dsn_train(
         update_from_episode(
             states, joints, rewards, length, values, probs, legal, counts, r_max, params
         )
+        total_steps += length
+    return total_steps
 
 
 @njit(cache=True)
@@ -150,9 +155,9 @@ def dsn_tables(params) -> TabularTables:
     return tables
 
 
-def train_dsn(tables: TabularTables, episodes: int, env_rng, agent_rng) -> None:
-    """Continue training ``tables`` on the DSN with the compiled loop."""
-    dsn_train(
+def train_dsn(tables: TabularTables, episodes: int, env_rng, agent_rng) -> int:
+    """Continue training ``tables`` on the DSN with the compiled loop; returns the steps."""
+    return dsn_train(
         tables.values,
         tables.probs,
         tables.legal,
