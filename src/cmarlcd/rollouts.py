@@ -12,13 +12,19 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numba import njit
 
 from cmarlcd.games import sensor_network as dsn
-from cmarlcd.learners.policy import greedy_actions, sample_joint_action
-from cmarlcd.learners.stochastic import TabularLearner, TabularTables, update_from_episode
+from cmarlcd.learners.policy import (
+    annealed_epsilon,
+    epsilon_greedy,
+    greedy_actions,
+    sample_joint_action,
+)
+from cmarlcd.learners.stochastic import TabularTables, update_from_episode
 
 
 def shared_reward(rewards: Mapping[str, float]) -> float:
@@ -36,7 +42,7 @@ class EpisodeStats:
 
 def play_episodes(
     env,
-    learner: TabularLearner,
+    learner: Any,
     episodes: int,
     *,
     learn: bool = True,
@@ -45,7 +51,11 @@ def play_episodes(
 ) -> EpisodeStats:
     """Play ``episodes`` episodes of ``env``: sampled actions and learning when ``learn``,
     greedy actions otherwise. ``seed`` seeds the first ``env.reset``; later episodes
-    continue the environment's own stream."""
+    continue the environment's own stream.
+
+    ``learner`` is a tabular learner or a :class:`cmarlcd.deep_training.DeepAgent`:
+    anything with ``act``/``greedy(state, masks)``, ``observe(state, joint, reward)`` and
+    ``end_episode(final_state, terminated)``."""
     returns, lengths = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
     for episode in range(episodes):
         _, infos = env.reset(seed=seed if episode == 0 else None)
@@ -58,14 +68,14 @@ def play_episodes(
                 else None
             )
             joint = learner.act(state, masks) if learn else learner.greedy(state, masks)
-            _, rewards, _, _, infos = env.step(dict(zip(agents, joint, strict=True)))
+            _, rewards, terminations, _, infos = env.step(dict(zip(agents, joint, strict=True)))
             reward = global_reward(rewards)
             if learn:
                 learner.observe(state, joint, reward)
             returns[episode] += reward
             lengths[episode] += 1
         if learn:
-            learner.end_episode()
+            learner.end_episode(final_state=env.state(), terminated=any(terminations.values()))
     return EpisodeStats(returns, lengths)
 
 
@@ -168,3 +178,54 @@ def train_dsn(tables: TabularTables, episodes: int, env_rng, agent_rng) -> int:
         env_rng,
         agent_rng,
     )
+
+
+# ------------------------------------------------- compiled DSN loop for VDN / QMIX
+
+
+@njit(cache=True)
+def dsn_collect(
+    greedy: np.ndarray,
+    steps: int,
+    total_episodes: int,
+    schedule: tuple,
+    envs: tuple,
+    buffer: tuple,
+    env_rngs,
+    act_rngs,
+) -> None:
+    """Step B DSN copies in lockstep for ``steps`` steps with ε-greedy actions (eq. 18).
+
+    ``greedy[b, s]`` is seed b's greedy joint action in state s (the networks change only
+    between calls). ``envs`` = (targets, energy, clock, episodes), each with a leading seed
+    axis; a seed that has finished its ``total_episodes`` stops. Transitions go into seed
+    b's ring ``buffer`` = (state, actions, reward, next_state, terminal, position, size).
+    ``env_rngs[b]`` and ``act_rngs[b]`` are seed b's own generators.
+    """
+    targets, energy, clock, episodes = envs
+    b_state, b_actions, b_reward, b_next, b_terminal, position, size = buffer
+    counts = dsn.ACTION_COUNTS
+    capacity = b_state.shape[1]
+    individual = np.zeros(dsn.N_SENSORS)
+    joint = np.zeros(dsn.N_SENSORS, dtype=np.int64)
+    for _ in range(steps):
+        for b in range(targets.shape[0]):
+            if episodes[b] >= total_episodes:
+                continue
+            s = dsn.dsn_state(targets[b])
+            eps = annealed_epsilon(episodes[b] + 1, total_episodes, *schedule)
+            epsilon_greedy(greedy[b, s], counts, eps, act_rngs[b], joint)
+            reward = dsn.dsn_step(targets[b], energy[b], joint, env_rngs[b], individual)
+            clock[b] += 1
+            terminal = dsn.done(targets[b])
+            p = position[b]
+            b_state[b, p], b_reward[b, p], b_terminal[b, p] = s, reward, terminal
+            b_actions[b, p] = joint
+            b_next[b, p] = dsn.dsn_state(targets[b])
+            position[b] = (p + 1) % capacity
+            size[b] = min(size[b] + 1, capacity)
+            if terminal or clock[b] >= dsn.MAX_STEPS:
+                episodes[b] += 1
+                clock[b] = 0
+                if episodes[b] < total_episodes:
+                    dsn.dsn_reset(targets[b], energy[b], env_rngs[b])

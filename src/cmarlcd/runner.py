@@ -18,10 +18,12 @@ from __future__ import annotations
 import hashlib
 import multiprocessing
 import os
+import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
+from queue import Empty
 from typing import Any
 
 import numpy as np
@@ -30,15 +32,18 @@ from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
     Progress,
+    ProgressColumn,
     TextColumn,
     TimeElapsedColumn,
     TimeRemainingColumn,
 )
+from rich.text import Text
 
 from cmarlcd.errors import require
 from cmarlcd.store import ResultStore, RunKey, canonical_json
 
 RunFunction = Callable[[dict[str, Any], np.random.SeedSequence], dict[str, Any]]
+BatchFunction = Callable[[dict[str, Any], list[np.random.SeedSequence]], list[dict[str, Any]]]
 
 
 @dataclass(frozen=True)
@@ -50,12 +55,17 @@ class Experiment:
         run: computes one run's metrics from its config and seed sequence.
         warm_up: compiles the kernels once in the parent before workers fork.
         cost: a rough relative cost of a config, used to start expensive runs first.
+        run_batch: optional; computes several runs of one config together (e.g. seeds
+            stacked in one model). It must give each run the metrics ``run`` would.
+        batch_limit: how many runs of a config may share one ``run_batch`` call (1: none).
     """
 
     name: str
     run: RunFunction
     warm_up: Callable[[], None] = lambda: None
     cost: Callable[[Mapping[str, Any]], float] = lambda config: 1.0
+    run_batch: BatchFunction | None = None
+    batch_limit: Callable[[Mapping[str, Any]], int] = lambda config: 1
 
 
 _REGISTRY: dict[str, Experiment] = {}
@@ -129,6 +139,36 @@ def execute(spec: RunSpec) -> tuple[RunSpec, dict[str, Any], float]:
     return spec, metrics, time.perf_counter() - start
 
 
+def execute_batch(specs: list[RunSpec]) -> list[tuple[RunSpec, dict[str, Any], float]]:
+    """Compute runs that share one config, together when the experiment can batch them."""
+    experiment = get_experiment(specs[0].experiment)
+    if len(specs) == 1 or experiment.run_batch is None:
+        return [execute(spec) for spec in specs]
+    start = time.perf_counter()
+    results = experiment.run_batch(specs[0].config, [s.seed_sequence() for s in specs])
+    seconds = (time.perf_counter() - start) / len(specs)
+    return [(spec, metrics, seconds) for spec, metrics in zip(specs, results, strict=True)]
+
+
+# Progress from inside runs (e.g. environment steps): a run calls report_progress(n); the
+# runner shows the rate. In worker processes the amounts travel over a queue.
+_progress_sink: Callable[[float], None] | None = None
+
+
+def report_progress(amount: float) -> None:
+    """Tell the running sweep that ``amount`` units of work (env steps) were done."""
+    if _progress_sink is not None:
+        _progress_sink(amount)
+
+
+def _worker_init(queue: Any, threads: int) -> None:
+    global _progress_sink
+    _progress_sink = queue.put
+    os.environ["OMP_NUM_THREADS"] = str(threads)
+    if "torch" in sys.modules:  # forked from a parent that imported it
+        sys.modules["torch"].set_num_threads(threads)
+
+
 def default_workers() -> int:
     """All cores this process may use."""
     try:
@@ -180,6 +220,7 @@ def run_sweep(
     progress = _progress(console, show_progress)
     with progress:
         task = progress.add_task(description, total=len(specs), completed=result.reused)
+        steps_task: list[Any] = []
 
         def commit(spec: RunSpec, metrics: dict[str, Any], seconds: float) -> None:
             store.put(spec.key, metrics, seconds, version)
@@ -187,9 +228,14 @@ def run_sweep(
             result.run_seconds.append(seconds)
             progress.advance(task)
 
+        def advance_steps(amount: float) -> None:
+            if not steps_task:
+                steps_task.append(progress.add_task("  env steps", total=None))
+            progress.advance(steps_task[0], amount)
+
         try:
             if todo:
-                _dispatch(todo, min(workers, len(todo)), commit)
+                _dispatch(_batches(todo), workers, commit, advance_steps)
         except KeyboardInterrupt:
             result.interrupted = True
             result.wall_seconds = time.perf_counter() - start
@@ -208,28 +254,76 @@ def _order_by_cost(specs: list[RunSpec]) -> list[RunSpec]:
     return sorted(specs, key=lambda s: -get_experiment(s.experiment).cost(s.config))
 
 
+def _batches(todo: list[RunSpec]) -> list[list[RunSpec]]:
+    """Group runs of one config into batches of up to the experiment's batch limit."""
+    groups: dict[tuple[str, str], list[RunSpec]] = {}
+    for spec in todo:
+        groups.setdefault((spec.experiment, spec.config_json), []).append(spec)
+    batches = []
+    for specs in groups.values():
+        limit = max(1, get_experiment(specs[0].experiment).batch_limit(specs[0].config))
+        batches += [specs[i : i + limit] for i in range(0, len(specs), limit)]
+    return batches
+
+
 def _dispatch(
-    todo: list[RunSpec], workers: int, commit: Callable[[RunSpec, dict[str, Any], float], None]
+    batches: list[list[RunSpec]],
+    workers: int,
+    commit: Callable[[RunSpec, dict[str, Any], float], None],
+    advance_steps: Callable[[float], None],
 ) -> None:
-    for name in {s.experiment for s in todo}:
+    global _progress_sink
+    for name in {b[0].experiment for b in batches}:
         get_experiment(name).warm_up()
+    workers = min(workers, len(batches))
     if workers == 1:
-        for spec in todo:
-            commit(*execute(spec))
+        _progress_sink = advance_steps
+        try:
+            for batch in batches:
+                for outcome in execute_batch(batch):
+                    commit(*outcome)
+        finally:
+            _progress_sink = None
         return
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(method))
+    context = multiprocessing.get_context(method)
+    queue = context.Queue()
+    threads = max(1, default_workers() // workers)
+    pool = ProcessPoolExecutor(
+        workers, mp_context=context, initializer=_worker_init, initargs=(queue, threads)
+    )
     try:
-        pending: set[Future] = {pool.submit(execute, spec) for spec in todo}
+        pending: set[Future] = {pool.submit(execute_batch, batch) for batch in batches}
         while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+            _drain(queue, advance_steps)
             for future in done:
-                commit(*future.result())
+                for outcome in future.result():
+                    commit(*outcome)
     except BaseException:
         # Ctrl-C reaches the workers too and ends them; do not wait for queued runs.
         pool.shutdown(wait=False, cancel_futures=True)
         raise
     pool.shutdown(wait=True)
+
+
+def _drain(queue: Any, advance: Callable[[float], None]) -> None:
+    total = 0.0
+    while True:
+        try:
+            total += queue.get_nowait()
+        except Empty:
+            break
+    if total:
+        advance(total)
+
+
+class RateColumn(ProgressColumn):
+    """Units per second of a task (env steps/s for in-run progress)."""
+
+    def render(self, task: Any) -> Text:
+        speed = task.finished_speed or task.speed
+        return Text("" if speed is None else f"{speed:,.0f}/s")
 
 
 def _progress(console: Console | None, show: bool) -> Progress:
@@ -241,6 +335,7 @@ def _progress(console: Console | None, show: bool) -> Progress:
         TimeElapsedColumn(),
         TextColumn("eta"),
         TimeRemainingColumn(),
+        RateColumn(),
         console=console or Console(stderr=True),
         disable=not show,
         transient=False,

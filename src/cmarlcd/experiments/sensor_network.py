@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -19,18 +19,25 @@ import numpy as np
 
 from cmarlcd.errors import require
 from cmarlcd.games import sensor_network as dsn
+from cmarlcd.learners.deep_config import DeepConfig
 from cmarlcd.learners.stochastic import AutomatonConfig, RuleParams, StochasticConfig
 from cmarlcd.paper import DSN_ALGORITHMS, DSN_EPISODES, dsn_value
 from cmarlcd.rollouts import dsn_evaluate, dsn_tables, greedy_policy, train_dsn
-from cmarlcd.runner import Experiment, RunSpec, register
+from cmarlcd.runner import Experiment, RunSpec, register, report_progress
 from cmarlcd.store import RunRecord
 
 EXPERIMENT = "dsn"
-#: Learners available to this protocol, with their display names and config types.
-ALGORITHMS: dict[str, tuple[str, type]] = {
-    "cmarl-cd": ("CMARL-CD", StochasticConfig),
-    "la-oca": ("LA-OCA", AutomatonConfig),
+#: Learners available to this protocol: display name and the paper's settings.
+ALGORITHMS: dict[str, tuple[str, StochasticConfig | AutomatonConfig | DeepConfig]] = {
+    "cmarl-cd": ("CMARL-CD", StochasticConfig()),
+    "la-oca": ("LA-OCA", AutomatonConfig()),
+    "vdn": ("VDN", DeepConfig(mixer="vdn")),
+    "qmix": ("QMIX", DeepConfig(mixer="qmix")),
 }
+#: The deep baselines: their ε schedule depends on L, so each L is a separate run.
+DEEP = ("vdn", "qmix")
+#: Seeds of one deep config trained together in one stacked model (the runner's batch).
+SEED_BATCH = 50
 PAPER_RUNS = 50
 PAPER_EVAL_EPISODES = 50_000
 #: [choice] Learning-curve resolution: greedy evaluations at this many evenly spaced
@@ -62,6 +69,8 @@ class DsnSweep:
     seed: int = 0
     cmarlcd: StochasticConfig = field(default_factory=StochasticConfig)
     laoca: AutomatonConfig = field(default_factory=AutomatonConfig)
+    vdn: DeepConfig = ALGORITHMS["vdn"][1]
+    qmix: DeepConfig = ALGORITHMS["qmix"][1]
     curve_points: int = CURVE_POINTS
     curve_eval_episodes: int = CURVE_EVAL_EPISODES
 
@@ -84,14 +93,14 @@ class DsnSweep:
             f"must be >= 1 (got {self.curve_eval_episodes})",
         )
 
-    def learner_config(self, algorithm: str) -> StochasticConfig | AutomatonConfig:
-        return self.cmarlcd if algorithm == "cmarl-cd" else self.laoca
+    def learner_config(self, algorithm: str) -> StochasticConfig | AutomatonConfig | DeepConfig:
+        return getattr(self, algorithm.replace("-", ""))
 
-    def config(self, algorithm: str) -> dict[str, Any]:
-        """The stored config of one algorithm's runs."""
+    def config(self, algorithm: str, budgets: Sequence[int] | None = None) -> dict[str, Any]:
+        """The stored config of one algorithm's runs (evaluated after each budget)."""
         return {
             "algorithm": algorithm,
-            "checkpoints": sorted(set(self.episodes)),
+            "checkpoints": sorted(set(budgets or self.episodes)),
             "eval_episodes": self.eval_episodes,
             "curve_points": self.curve_points,
             "curve_eval_episodes": self.curve_eval_episodes,
@@ -99,22 +108,32 @@ class DsnSweep:
         }
 
     def specs(self) -> list[RunSpec]:
-        """One spec per (algorithm, run); its streams depend on the learner only."""
+        """Tabular learners: one spec per (algorithm, run), trained once to the largest L,
+        with streams that depend on the learner only. Deep learners: one spec per
+        (algorithm, L, run), streams depending on the learner and L."""
         specs = []
         for name in self.algorithms:
-            config = self.config(name)
-            stream = {"algorithm": name, "learner": config["learner"]}
-            specs += [
-                RunSpec.make(EXPERIMENT, name, config, self.seed, r, stream)
-                for r in range(self.runs)
-            ]
+            groups = [[b] for b in sorted(set(self.episodes))] if name in DEEP else [None]
+            for budgets in groups:
+                config = self.config(name, budgets)
+                stream = {"algorithm": name, "learner": config["learner"]}
+                if budgets:
+                    stream["episodes"] = budgets[0]
+                specs += [
+                    RunSpec.make(EXPERIMENT, name, config, self.seed, r, stream)
+                    for r in range(self.runs)
+                ]
         return specs
 
 
+def learner(config: Mapping[str, Any]) -> StochasticConfig | AutomatonConfig | DeepConfig:
+    """The learner settings of a stored config."""
+    return type(ALGORITHMS[config["algorithm"]][1])(**config["learner"])
+
+
 def rule_params(config: Mapping[str, Any]) -> RuleParams:
-    """The compiled rule parameters of a stored config."""
-    _, config_type = ALGORITHMS[config["algorithm"]]
-    return config_type(**config["learner"]).rule_params()
+    """The compiled rule parameters of a stored (tabular) config."""
+    return learner(config).rule_params()
 
 
 def _keyed_rng(seed: np.random.SeedSequence, *key: int) -> np.random.Generator:
@@ -140,29 +159,63 @@ def _schedule(config: Mapping[str, Any]) -> list[int]:
     return sorted(curve | set(config["checkpoints"]) - {0})
 
 
+class _Recorder:
+    """Evaluates a run's greedy policy at each budget: the checkpoints of Tables 3-7 with
+    ``eval_episodes`` episodes, every budget with ``curve_eval_episodes`` for the curve."""
+
+    def __init__(self, config: Mapping[str, Any], eval_seed: np.random.SeedSequence) -> None:
+        self.config, self.eval_seed = config, eval_seed
+        self.checkpoints: dict[str, dict[str, float]] = {}
+        self.curve: list[list[float]] = []
+        self.policy = np.zeros((dsn.N_STATE_INDICES, dsn.N_SENSORS), dtype=np.int64)
+        self.start = time.perf_counter()
+
+    def __call__(self, budget: int, policy: np.ndarray) -> None:
+        cfg = self.config
+        if budget in cfg["checkpoints"]:
+            rng = _keyed_rng(self.eval_seed, 0, budget)
+            self.checkpoints[str(budget)] = _evaluate(policy, cfg["eval_episodes"], rng)
+        point = _evaluate(policy, cfg["curve_eval_episodes"], _keyed_rng(self.eval_seed, 1, budget))
+        self.curve.append(
+            [budget, point["success_rate"], point["mean_return"], point["mean_steps"]]
+        )
+        self.policy = policy
+
+    def metrics(self) -> dict[str, Any]:
+        return {
+            "checkpoints": self.checkpoints,
+            "curve": self.curve,
+            "policy": self.policy[: dsn.N_STATES].tolist(),
+            "seconds": time.perf_counter() - self.start,
+        }
+
+
 def run_dsn(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
     """One run: train to each budget in turn, evaluating the greedy policy at each."""
+    if config["algorithm"] in DEEP:
+        return run_dsn_batch(config, [seed])[0]
     env_seed, agent_seed, eval_seed = seed.spawn(3)
     env_rng, agent_rng = np.random.default_rng(env_seed), np.random.default_rng(agent_seed)
     tables = dsn_tables(rule_params(config))
-    checkpoints, curve, trained = {}, [], 0
-    start = time.perf_counter()
+    record, trained = _Recorder(config, eval_seed), 0
     for budget in _schedule(config):
-        train_dsn(tables, budget - trained, env_rng, agent_rng)
+        report_progress(train_dsn(tables, budget - trained, env_rng, agent_rng))
         trained = budget
-        policy = greedy_policy(tables)
-        if budget in config["checkpoints"]:
-            checkpoints[str(budget)] = _evaluate(
-                policy, config["eval_episodes"], _keyed_rng(eval_seed, 0, budget)
-            )
-        point = _evaluate(policy, config["curve_eval_episodes"], _keyed_rng(eval_seed, 1, budget))
-        curve.append([budget, point["success_rate"], point["mean_return"], point["mean_steps"]])
-    return {
-        "checkpoints": checkpoints,
-        "curve": curve,
-        "policy": policy[: dsn.N_STATES].tolist(),
-        "seconds": time.perf_counter() - start,
-    }
+        record(budget, greedy_policy(tables))
+    return record.metrics()
+
+
+def run_dsn_batch(
+    config: dict[str, Any], seeds: list[np.random.SeedSequence]
+) -> list[dict[str, Any]]:
+    """VDN / QMIX runs of one config, all seeds trained together in one stacked model."""
+    from cmarlcd.deep_training import DsnDeepBatch  # needs the [deep] extra
+
+    train_seeds, eval_seeds = zip(*(s.spawn(2) for s in seeds), strict=True)
+    records = [_Recorder(config, e) for e in eval_seeds]
+    batch = DsnDeepBatch(learner(config), train_seeds, max(config["checkpoints"]))
+    batch.train(_schedule(config), lambda k, budget, table: records[k](budget, table))
+    return [r.metrics() for r in records]
 
 
 def _warm_up() -> None:
@@ -174,10 +227,19 @@ def _warm_up() -> None:
 
 
 def _cost(config: Mapping[str, Any]) -> float:
-    return float(max(config["checkpoints"]) + config["eval_episodes"])
+    scale = 100.0 if config["algorithm"] in DEEP else 1.0
+    return scale * max(config["checkpoints"]) + config["eval_episodes"]
 
 
-DSN = register(Experiment(EXPERIMENT, run_dsn, _warm_up, _cost))
+def _batch_limit(config: Mapping[str, Any]) -> int:
+    return SEED_BATCH if config["algorithm"] in DEEP else 1
+
+
+DSN = register(
+    Experiment(
+        EXPERIMENT, run_dsn, _warm_up, _cost, run_batch=run_dsn_batch, batch_limit=_batch_limit
+    )
+)
 
 
 # ------------------------------------------------------------------- aggregation
@@ -207,20 +269,22 @@ class DsnRow:
 
 def row_label(algorithm: str, learner: Mapping[str, Any]) -> str:
     """The algorithm's name, marked with * when its settings are not the paper's."""
-    _, config_type = ALGORITHMS.get(algorithm, (None, None))
-    default = config_type is not None and asdict(config_type()) == dict(learner)
+    _, paper = ALGORITHMS.get(algorithm, (None, None))
+    default = paper is not None and asdict(paper) == dict(learner)
     return display_name(algorithm) + ("" if default else " *")
 
 
 def summarize(records: Iterable[RunRecord]) -> list[DsnRow]:
     """Tables 3-7 from stored runs: one row per (algorithm, settings, L), paper values attached."""
-    per_cell: dict[tuple[str, str, int], list[dict[str, float]]] = defaultdict(list)
+    per_cell: dict[tuple[str, str, int], dict[int, dict[str, float]]] = defaultdict(dict)
     for rec in records:
         label = row_label(rec.key.algorithm, rec.config["learner"])
         for budget, result in rec.metrics["checkpoints"].items():
-            per_cell[(rec.key.algorithm, label, int(budget))].append(result)
+            # keyed by run: sweeps with other checkpoint lists hold the very same run at L
+            per_cell[(rec.key.algorithm, label, int(budget))][rec.key.run_index] = result
     rows = []
-    for (name, label, budget), results in sorted(per_cell.items(), key=_row_order):
+    for (name, label, budget), by_run in sorted(per_cell.items(), key=_row_order):
+        results = list(by_run.values())
         success = np.array([r["success_rate"] for r in results])
         returns = np.array([r["mean_return"] for r in results])
         steps = np.array([r["mean_steps"] for r in results])
@@ -253,14 +317,17 @@ def learning_curves(records: Iterable[RunRecord]) -> dict[str, np.ndarray]:
     """Per row label, an array (runs, points, 4) of [episodes, success, return, steps]."""
     curves: dict[str, list[list[list[float]]]] = defaultdict(list)
     for rec in records:
-        curves[row_label(rec.key.algorithm, rec.config["learner"])].append(rec.metrics["curve"])
+        label = row_label(rec.key.algorithm, rec.config["learner"])
+        if rec.key.algorithm in DEEP:
+            label += f", L = {max(rec.config['checkpoints']):,}"
+        curves[label].append(rec.metrics["curve"])
     return {label: np.array(runs) for label, runs in curves.items() if runs and runs[0]}
 
 
 def protocol_key(record: RunRecord) -> tuple:
     """Runs that belong in one set of Tables 3-7: same seed, budgets and evaluation."""
     cfg = record.config
-    fields = ("checkpoints", "eval_episodes", "curve_points", "curve_eval_episodes")
+    fields = ("eval_episodes", "curve_points", "curve_eval_episodes")
     return (record.key.root_seed, *(str(cfg[f]) for f in fields))
 
 

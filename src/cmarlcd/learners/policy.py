@@ -54,3 +54,30 @@ def greedy_actions(values: np.ndarray, legal: np.ndarray, counts: np.ndarray) ->
     for i in range(counts.shape[0]):
         out[i] = greedy_action(values[i], legal[i], counts[i])
     return out
+
+
+@njit(cache=True)
+def annealed_epsilon(
+    episode: int, total: int, start: float, end: float, fraction: float, after: float
+) -> float:
+    """Eq. (18): ε of the ``episode``-th (1-based) of ``total`` learning episodes.
+
+    Linear from ``start`` towards ``end`` over the first ``fraction · total`` episodes,
+    then ``after``.
+    """
+    anneal = fraction * total
+    if episode <= anneal:
+        return start - (start - end) * episode / anneal
+    return after
+
+
+@njit(cache=True)
+def epsilon_greedy(
+    greedy_row: np.ndarray, counts: np.ndarray, epsilon: float, rng, joint: np.ndarray
+) -> None:
+    """Each agent independently: with probability ε a uniform random action, else greedy."""
+    for i in range(counts.shape[0]):
+        if rng.random() < epsilon:
+            joint[i] = int(rng.random() * counts[i])
+        else:
+            joint[i] = greedy_row[i]

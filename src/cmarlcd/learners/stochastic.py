@@ -297,8 +297,11 @@ class TabularLearner:
         require(bool(np.isfinite(reward)), "reward", f"must be finite (got {reward})")
         self._episode.append((self._row(state, None), joint, float(reward)))
 
-    def end_episode(self) -> None:
-        """Learn from the recorded episode (the backward pass) and start a new one."""
+    def end_episode(self, final_state: Hashable = None, terminated: bool = True) -> None:
+        """Learn from the recorded episode (the backward pass) and start a new one.
+
+        The arguments are for learners that bootstrap; Monte-Carlo returns need neither.
+        """
         if not self._episode:
             return
         rows, joints, rewards = zip(*self._episode, strict=True)

@@ -1,0 +1,84 @@
+"""Hyper-parameters of the VDN and QMIX baselines (SPEC §4) and the ε schedule of eq. (18).
+
+Kept free of PyTorch so that configs validate, and the command line reports bad input,
+without the ``[deep]`` extra installed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from cmarlcd.errors import require
+from cmarlcd.learners.policy import annealed_epsilon
+
+MIXERS = ("vdn", "qmix")
+
+
+@dataclass(frozen=True)
+class DeepConfig:
+    """Hyper-parameters of VDN / QMIX; defaults are the paper's DSN settings (SPEC §4)."""
+
+    mixer: str = "vdn"
+    """``"vdn"`` (sum) or ``"qmix"`` (monotonic mixing network)."""
+    hidden: int = 49
+    """Hidden units of each agent's MLP."""
+    mixer_hidden: int = 70
+    """Hidden units of the QMIX mixing network (70 DSN, 64 battlefield)."""
+    buffer_size: int = 40_000
+    """Replay buffer capacity, in transitions."""
+    batch_size: int = 400
+    """Transitions per gradient step; learning starts once this many are stored."""
+    train_every: int = 200
+    """One gradient step every this many environment steps."""
+    target_every: int = 2_000
+    """Copy the online networks to the target networks every this many environment steps."""
+    lr: float = 1e-3
+    """Adam learning rate."""
+    gamma: float = 0.9
+    """[choice] Discount of the TD target, in (0, 1]."""
+    eps_start: float = 1.0
+    """ε_ini of eq. (18)."""
+    eps_end: float = 0.0
+    """ε_fin of eq. (18), reached after ``anneal_fraction`` of the episodes."""
+    anneal_fraction: float = 0.8
+    """Fraction of the L learning episodes over which ε is annealed (eq. 18: 0.8)."""
+    eps_after: float = 0.01
+    """ε for the remaining episodes (eq. 18: 0.01)."""
+
+    def __post_init__(self) -> None:
+        known = ", ".join(MIXERS)
+        require(self.mixer in MIXERS, "mixer", f"must be one of {known} (got {self.mixer!r})")
+        for name in (
+            "hidden",
+            "mixer_hidden",
+            "buffer_size",
+            "batch_size",
+            "train_every",
+            "target_every",
+        ):
+            value = getattr(self, name)
+            require(value >= 1, name, f"must be >= 1 (got {value})")
+        require(self.batch_size <= self.buffer_size, "batch_size", "must be <= buffer_size")
+        require(self.lr > 0, "lr", f"must be > 0 (got {self.lr})")
+        require(0 < self.gamma <= 1, "gamma", f"must be in (0, 1] (got {self.gamma})")
+        for name in ("eps_start", "eps_end", "eps_after"):
+            value = getattr(self, name)
+            require(0 <= value <= 1, name, f"must be in [0, 1] (got {value})")
+        fraction = self.anneal_fraction
+        require(0 < fraction <= 1, "anneal_fraction", f"must be in (0, 1] (got {fraction})")
+
+
+#: The paper's battlefield settings (Section V-B).
+BATTLEFIELD_DEEP = dict(
+    buffer_size=100_000, batch_size=720, train_every=240, target_every=2_400, mixer_hidden=64
+)
+
+
+def epsilon(episode: int, total_episodes: int, config: DeepConfig) -> float:
+    """Eq. (18): ε of the ``episode``-th learning episode (1-based) out of ``L``."""
+    return annealed_epsilon(episode, total_episodes, *epsilon_schedule(config))
+
+
+def epsilon_schedule(config: DeepConfig) -> tuple[float, float, float, float]:
+    """(start, end, anneal fraction, after) for :func:`annealed_epsilon`."""
+    return (config.eps_start, config.eps_end, config.anneal_fraction, config.eps_after)

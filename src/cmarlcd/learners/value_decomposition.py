@@ -1,0 +1,238 @@
+"""VDN and QMIX baselines (paper Section V-A/B, SPEC §4), trained B seeds at a time.
+
+Requires the ``[deep]`` extra (PyTorch). Every tensor carries a leading *group* axis: one
+group per independent seed (and per agent for the agent networks), so B seeds train as one
+stacked model with batched matrix products. Each seed has its own parameters, initialised
+from its own generator, its own replay buffer and its own random streams; the losses of
+the seeds are summed, and since no parameter is shared, each seed's gradient (and its Adam
+update, which is element-wise) is exactly what it would be alone.
+
+Pieces, each in one place:
+
+* :class:`GroupLinear` -- B independent linear layers applied in one ``bmm``; for one-hot
+  inputs (integer states), :meth:`GroupLinear.lookup` gives the identical result by row
+  lookup.
+* :class:`AgentNetworks` -- per-agent MLPs, no parameter sharing ([choice]): state ->
+  hidden (ReLU) -> Q-values over the agent's actions.
+* :class:`VDNMixer` (``Q_tot = Σ_i Q_i``) and :class:`QMixer` (hypernetworks on the state,
+  non-negative weights via ``abs``, an ELU hidden layer, a state-dependent bias).
+* :class:`ValueDecomposition` -- online and target networks, Adam, the one-step TD loss
+  with the target network's greedy legal action, target copies, greedy action tables.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from cmarlcd.learners.deep_config import DeepConfig
+
+# -------------------------------------------------------------------------- layers
+
+
+class GroupLinear(nn.Module):
+    """``groups`` independent linear layers ``in_dim -> out_dim``, applied with one bmm.
+
+    Initialised like :class:`torch.nn.Linear` (uniform ±1/sqrt(in_dim)), group by group
+    from that group's generator, so a group's parameters do not depend on the others.
+    """
+
+    def __init__(self, in_dim: int, out_dim: int, generators: Sequence[torch.Generator]) -> None:
+        super().__init__()
+        bound = 1.0 / math.sqrt(in_dim)
+        weights, biases = [], []
+        for gen in generators:
+            weights.append(_uniform((in_dim, out_dim), bound, gen))
+            biases.append(_uniform((out_dim,), bound, gen))
+        self.weight = nn.Parameter(torch.stack(weights))
+        self.bias = nn.Parameter(torch.stack(biases))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """``x``: (groups, N, in_dim) -> (groups, N, out_dim)."""
+        return torch.baddbmm(self.bias[:, None, :], x, self.weight)
+
+    def table(self) -> torch.Tensor:
+        """The layer's output for every one-hot input: (groups, in_dim, out_dim)."""
+        return self.weight + self.bias[:, None, :]
+
+
+def rows(table: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """``table`` (G, S, out) at the integer states ``index`` (G, N) -> (G, N, out)."""
+    return torch.gather(table, 1, index[:, :, None].expand(-1, -1, table.shape[2]))
+
+
+def _uniform(shape: tuple[int, ...], bound: float, gen: torch.Generator) -> torch.Tensor:
+    return (torch.rand(shape, generator=gen) * 2.0 - 1.0) * bound
+
+
+def per_state(
+    first: GroupLinear, state: torch.Tensor, rest: Callable[[torch.Tensor], torch.Tensor]
+) -> torch.Tensor:
+    """``rest(first(x))`` for the states: feature vectors go through as they are; integer
+    states (one-hot encoding) are evaluated once per distinct state and then looked up,
+    which gives the same values at a fraction of the cost."""
+    if state.dtype == torch.int64:
+        return rows(rest(first.table()), state)
+    return rest(first(state))
+
+
+def _same(x: torch.Tensor) -> torch.Tensor:
+    return x
+
+
+class AgentNetworks(nn.Module):
+    """Per-agent MLPs for B seeds: state -> Linear -> ReLU -> Linear -> Q over actions.
+
+    Rows are padded to the largest action count; padded actions are masked by callers.
+    """
+
+    def __init__(
+        self,
+        seeds: int,
+        n_agents: int,
+        in_dim: int,
+        hidden: int,
+        n_actions: int,
+        generators: Sequence[Sequence[torch.Generator]],
+    ) -> None:
+        super().__init__()
+        self.seeds, self.n_agents = seeds, n_agents
+        flat = [gens[i] for gens in generators for i in range(n_agents)]
+        self.first = GroupLinear(in_dim, hidden, flat)
+        self.second = GroupLinear(hidden, n_actions, flat)
+
+    def forward(self, state: torch.Tensor) -> torch.Tensor:
+        """``state``: (B, N) int64 or (B, N, in_dim) -> Q (B, N, n_agents, n_actions)."""
+        per_agent = state.repeat_interleave(self.n_agents, dim=0)  # (B*n, N[, in])
+        q = per_state(self.first, per_agent, lambda x: self.second(torch.relu(x)))  # (B*n, N, A)
+        q = q.view(self.seeds, self.n_agents, *q.shape[1:])
+        return q.transpose(1, 2)
+
+
+class VDNMixer(nn.Module):
+    """VDN: ``Q_tot = Σ_i Q_i``."""
+
+    def forward(self, q: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
+        return q.sum(dim=-1)
+
+
+class QMixer(nn.Module):
+    """QMIX's monotonic mixer for B seeds: hypernetworks on the state give non-negative
+    (``abs``) weights, an ELU hidden layer of ``hidden`` units and a state-dependent bias
+    ``V(s)`` (a ReLU MLP), so ``∂Q_tot/∂Q_i >= 0``."""
+
+    def __init__(
+        self,
+        seeds: int,
+        n_agents: int,
+        in_dim: int,
+        hidden: int,
+        generators: Sequence[Sequence[torch.Generator]],
+    ) -> None:
+        super().__init__()
+        gens = [g[-1] for g in generators]  # each seed's mixer generator
+        self.n_agents, self.hidden = n_agents, hidden
+        self.hyper_w1 = GroupLinear(in_dim, n_agents * hidden, gens)
+        self.hyper_b1 = GroupLinear(in_dim, hidden, gens)
+        self.hyper_w2 = GroupLinear(in_dim, hidden, gens)
+        self.value_1 = GroupLinear(in_dim, hidden, gens)
+        self.value_2 = GroupLinear(hidden, 1, gens)
+
+    def forward(self, q: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
+        """``q``: (B, N, n_agents), ``state``: (B, N[, in]) -> Q_tot (B, N)."""
+        b, n = q.shape[0], q.shape[1]
+        w1 = per_state(self.hyper_w1, state, torch.abs).view(b, n, self.n_agents, self.hidden)
+        b1 = per_state(self.hyper_b1, state, _same)
+        hidden = nn.functional.elu((q[..., None] * w1).sum(dim=2) + b1)
+        w2 = per_state(self.hyper_w2, state, torch.abs)
+        value = per_state(self.value_1, state, lambda x: self.value_2(torch.relu(x)))[..., 0]
+        return (hidden * w2).sum(dim=-1) + value
+
+
+# ------------------------------------------------------------------------ learner
+
+
+class ValueDecomposition(nn.Module):
+    """VDN or QMIX for B independent seeds: networks, targets, optimiser and TD step.
+
+    Args:
+        action_counts: actions of each agent.
+        in_dim: state features, or the number of states for integer (one-hot) states.
+        seeds: one :class:`numpy.random.SeedSequence` per seed (parameter initialisation).
+    """
+
+    def __init__(
+        self,
+        action_counts: Sequence[int],
+        in_dim: int,
+        config: DeepConfig,
+        seeds: Sequence[np.random.SeedSequence],
+    ) -> None:
+        super().__init__()
+        self.config = config
+        counts = torch.as_tensor(list(action_counts))
+        self.n_agents, self.n_seeds = len(counts), len(seeds)
+        width = int(counts.max())
+        self.register_buffer("valid", torch.arange(width)[None, :] < counts[:, None])
+        gens = [_generators(s, self.n_agents + 1) for s in seeds]
+        self.agents = AgentNetworks(self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens)
+        self.mixer: nn.Module = (
+            QMixer(self.n_seeds, self.n_agents, in_dim, config.mixer_hidden, gens)
+            if config.mixer == "qmix"
+            else VDNMixer()
+        )
+        self.target_agents = copy.deepcopy(self.agents).requires_grad_(False)
+        self.target_mixer = copy.deepcopy(self.mixer).requires_grad_(False)
+        self.optimizer = torch.optim.Adam(
+            list(self.agents.parameters()) + list(self.mixer.parameters()), lr=config.lr
+        )
+
+    def q_values(self, state: torch.Tensor, legal: torch.Tensor | None = None) -> torch.Tensor:
+        """Online Q (B, N, n, A) with illegal and padded actions at -inf."""
+        return self._masked(self.agents(state), legal)
+
+    def _masked(self, q: torch.Tensor, legal: torch.Tensor | None) -> torch.Tensor:
+        allowed = self.valid if legal is None else legal & self.valid
+        return q.masked_fill(~allowed, -torch.inf)
+
+    @torch.no_grad()
+    def greedy(self, state: torch.Tensor, legal: torch.Tensor | None = None) -> torch.Tensor:
+        """Greedy legal joint actions (B, N, n) for the states (B, N[, in])."""
+        return self.q_values(state, legal).argmax(dim=-1)
+
+    def td_step(self, batch: dict[str, torch.Tensor]) -> float:
+        """One Adam step on the summed per-seed one-step TD losses; returns the mean loss.
+
+        ``batch``: state (B, N[, in]), actions (B, N, n), reward (B, N), next_state,
+        next_legal (B, N, n, A) bool, terminal (B, N) bool.
+        """
+        q = self.agents(batch["state"])
+        chosen = q.gather(-1, batch["actions"][..., None])[..., 0]
+        q_tot = self.mixer(chosen, batch["state"])
+        with torch.no_grad():
+            next_q = self._masked(self.target_agents(batch["next_state"]), batch["next_legal"])
+            best = next_q.max(dim=-1).values  # the target network's greedy legal action
+            next_tot = self.target_mixer(best, batch["next_state"])
+            alive = (~batch["terminal"]).to(q.dtype)
+            target = batch["reward"] + self.config.gamma * alive * next_tot
+        loss = ((q_tot - target) ** 2).mean(dim=1).sum()
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        self.optimizer.step()
+        return float(loss.detach()) / self.n_seeds
+
+    def sync_target(self) -> None:
+        """Clone the online networks into the target networks."""
+        self.target_agents.load_state_dict(self.agents.state_dict())
+        self.target_mixer.load_state_dict(self.mixer.state_dict())
+
+
+def _generators(seed: np.random.SeedSequence, count: int) -> list[torch.Generator]:
+    """``count`` torch generators from one seed: one per agent network, then the mixer."""
+    states = seed.generate_state(count, dtype=np.uint64)
+    return [torch.Generator().manual_seed(int(s) & 0x7FFF_FFFF_FFFF_FFFF) for s in states]
