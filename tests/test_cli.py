@@ -292,3 +292,43 @@ def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
     assert (figures / "theorem1-phase-T1.png").exists()
     bad = invoke("reproduce", "--preset", "huge", *where)
     assert bad.exit_code == 2 and bad.stderr.startswith("error: --preset:")
+
+
+def test_dsn_deep_baselines_from_the_cli(paths) -> None:
+    pytest.importorskip("torch")
+    _, _, where = paths
+    args = [
+        "dsn",
+        "--algorithms",
+        "vdn,qmix",
+        "--episodes",
+        "20,40",
+        "--runs",
+        "2",
+        "--eval-episodes",
+        "50",
+        "--workers",
+        "1",
+        "--json",
+        *where,
+    ]
+    result = invoke(*args)
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert {(r["algorithm"], r["episodes"], r["runs"]) for r in doc["rows"]} == {
+        (a, e, 2) for a in ("vdn", "qmix") for e in (20, 40)
+    }
+    assert doc["runs_computed"] == 8 and "a run of its own" in doc["note"]
+
+
+def test_dsn_deep_without_torch_names_the_extra(paths, monkeypatch) -> None:
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "torch" else real(name, *a)
+    )
+    store, _, where = paths
+    result = invoke("dsn", "--algorithms", "cmarl-cd,qmix", "--episodes", "10", *where)
+    assert result.exit_code == 2 and "cmarl-cd[deep]" in result.stderr
+    assert not store.exists()
