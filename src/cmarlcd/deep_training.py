@@ -174,9 +174,14 @@ class DeepAgent:
         self._pending: tuple | None = None
 
     def _encode(self, state) -> torch.Tensor:
+        return self._encode_many([state])
+
+    def _encode_many(self, states) -> torch.Tensor:
+        """States as the model's input: (1, N) integers or (1, N, state_dim) features."""
         if self.integer_states:
-            return torch.tensor([[int(state)]])
-        return torch.as_tensor(np.asarray(state, dtype=np.float32).reshape(1, 1, -1))
+            return torch.tensor([[int(x) for x in states]])
+        rows = [np.asarray(x, dtype=np.float32).ravel() for x in states]
+        return torch.as_tensor(np.stack(rows)[None])
 
     def _legal(self, masks) -> torch.Tensor:
         legal = np.arange(self.width)[None, :] < self.counts[:, None]
@@ -239,20 +244,11 @@ class DeepAgent:
 
     def _batch(self, items: list[tuple]) -> dict[str, torch.Tensor]:
         states, joints, rewards, nexts, legal, terminal = zip(*items, strict=True)
-        encode = (
-            (lambda xs: torch.tensor([[int(x) for x in xs]]))
-            if self.integer_states
-            else (
-                lambda xs: torch.as_tensor(
-                    np.stack([np.asarray(x, np.float32).ravel() for x in xs])[None]
-                )
-            )
-        )
         return {
-            "state": encode(states),
+            "state": self._encode_many(states),
             "actions": torch.tensor([joints]),
             "reward": torch.tensor([rewards], dtype=torch.float32),
-            "next_state": encode(nexts),
+            "next_state": self._encode_many(nexts),
             "next_legal": torch.stack(legal)[None],
             "terminal": torch.tensor([terminal]),
         }
