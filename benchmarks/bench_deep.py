@@ -2,9 +2,10 @@
 
 For each mixer, trains B seeds for the same number of learning episodes with the paper's
 DSN settings and prints the aggregate environment steps per second (all seeds together,
-gradient steps included) for B = 1 and B = 50, and their ratio.
+gradient steps included) for B = 1 and for batches of B seeds (default 4, 10 and 50),
+and the ratios; and, for reference, the generic path (DeepAgent on the PettingZoo ParallelEnv, one forward pass per step).
 
-Usage: python benchmarks/bench_deep.py [--episodes E] [--seeds B]
+Usage: python benchmarks/bench_deep.py [--episodes E] [--seeds B [B ...]]
 """
 
 from __future__ import annotations
@@ -18,8 +19,10 @@ import numpy as np
 import torch
 
 from cmarlcd import runner
-from cmarlcd.deep_training import DsnDeepBatch
+from cmarlcd.deep_training import DeepAgent, DsnDeepBatch
+from cmarlcd.games import sensor_network as dsn
 from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.rollouts import play_episodes
 
 
 def steps_per_second(mixer: str, seeds: int, episodes: int) -> tuple[float, int]:
@@ -35,26 +38,42 @@ def steps_per_second(mixer: str, seeds: int, episodes: int) -> tuple[float, int]
     return counted[0] / elapsed, batch.steps // batch.config.train_every
 
 
+def parallel_env_rate(mixer: str, episodes: int) -> float:
+    """The generic path: DeepAgent on the PettingZoo ParallelEnv, a forward pass per step."""
+    agent = DeepAgent(
+        dsn.ACTION_COUNTS, DeepConfig(mixer=mixer), episodes, n_states=dsn.N_STATE_INDICES, seed=0
+    )
+    start = time.perf_counter()
+    stats = play_episodes(dsn.SensorNetworkEnv(), agent, episodes, seed=1)
+    return float(stats.lengths.sum()) / (time.perf_counter() - start)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=300)
-    parser.add_argument("--seeds", type=int, default=50)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[4, 10, 50])
     args = parser.parse_args()
     print(
         f"machine: {platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}, "
         f"{torch.get_num_threads()} threads; {args.episodes} learning episodes per seed"
     )
-    for seeds in (1, args.seeds):  # compile the lockstep loop for both batch sizes first
+    for seeds in (1, *args.seeds):  # compile the lockstep loop for both batch sizes first
         DsnDeepBatch(DeepConfig(), [np.random.SeedSequence(k) for k in range(seeds)], 2).train(
             [], lambda *a: None
         )
     for mixer in ("vdn", "qmix"):
         single, _ = steps_per_second(mixer, 1, args.episodes)
-        batched, updates = steps_per_second(mixer, args.seeds, args.episodes)
+        for seeds in args.seeds:
+            batched, updates = steps_per_second(mixer, seeds, args.episodes)
+            print(
+                f"{mixer.upper():5s} B={seeds}: {batched:,.0f} env steps/s over all seeds "
+                f"({updates} batched gradient steps); vs B=1 ({single:,.0f}/s): "
+                f"{batched / single:.1f}x"
+            )
+        generic = parallel_env_rate(mixer, max(args.episodes // 10, 10))
         print(
-            f"{mixer.upper():5s} B=1: {single:,.0f} env steps/s; B={args.seeds}: "
-            f"{batched:,.0f} env steps/s ({updates} batched gradient steps); "
-            f"ratio {batched / single:.1f}x"
+            f"{mixer.upper():5s} generic DeepAgent + ParallelEnv loop: {generic:,.0f} env "
+            f"steps/s (the compiled B=1 path is {single / generic:.0f}x that)"
         )
 
 

@@ -323,7 +323,9 @@ class RateColumn(ProgressColumn):
 
     def render(self, task: Any) -> Text:
         speed = task.finished_speed or task.speed
-        return Text("" if speed is None else f"{speed:,.0f}/s")
+        if task.total is not None or speed is None:  # only for open-ended in-run counters
+            return Text("")
+        return Text(f"{speed:,.0f}/s")
 
 
 def _progress(console: Console | None, show: bool) -> Progress:
