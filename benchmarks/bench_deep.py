@@ -3,7 +3,8 @@
 For each mixer, trains B seeds for the same number of learning episodes with the paper's
 DSN settings and prints the aggregate environment steps per second (all seeds together,
 gradient steps included) for B = 1 and for batches of B seeds (default 4, 10 and 50),
-and the ratios; and, for reference, the generic path (DeepAgent on the PettingZoo ParallelEnv, one forward pass per step).
+and the ratios; and, for reference, the generic path (DeepAgent on the PettingZoo
+ParallelEnv, one forward pass per step).
 
 Usage: python benchmarks/bench_deep.py [--episodes E] [--seeds B [B ...]]
 """
