@@ -1,4 +1,4 @@
-"""Benchmark: seed-batched VDN / QMIX on the DSN, B = 1 against B = 50 seeds.
+"""Benchmark: seed-batched VDN / QMIX on the DSN, one seed against batches of seeds.
 
 For each mixer, trains B seeds for the same number of learning episodes with the paper's
 DSN settings and prints the aggregate environment steps per second (all seeds together,
