@@ -7,7 +7,7 @@ import importlib.util
 import json
 import sys
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
@@ -126,7 +126,7 @@ def _run_repeated(
     specs = sweep.specs()
     records, done = _sweep(specs, store_path, workers, progress, f"case {sweep.case}")
     doc = _render_repeated(records, figures, as_json)
-    return {**doc, "learner": rep.asdict(sweep.learner), **_run_counts(done, store_path, as_json)}
+    return {**doc, "learner": asdict(sweep.learner), **_run_counts(done, store_path, as_json)}
 
 
 def _sweep(
