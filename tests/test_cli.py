@@ -25,6 +25,14 @@ def paths(tmp_path):
     return store, figures, ["--store", str(store), "--figures", str(figures)]
 
 
+def assert_rejected_cleanly(result, option: str, store, figures) -> None:
+    """Exit 2, one line naming the option, nothing written."""
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {option}:"), result.stderr
+    assert not store.exists() and not figures.exists()
+
+
 def test_parse_range_forms() -> None:
     assert parse_range("2-7", "agents") == (2, 3, 4, 5, 6, 7)
     assert parse_range("4", "agents") == (4,)
@@ -109,9 +117,7 @@ def test_bad_input_is_one_line_exit_2_and_stores_nothing(paths, args, option) ->
     store, figures, where = paths
     result = invoke("repeated", "--agents", "2", "--actions", "2", "--runs", "1", *where, *args)
     assert result.exit_code == 2
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"error: {option}:"), result.stderr
-    assert not store.exists() and not figures.exists()
+    assert_rejected_cleanly(result, option, store, figures)
 
 
 def test_report_without_store_fails_cleanly(paths) -> None:
@@ -271,9 +277,7 @@ def test_dsn_bad_input(paths, args, option) -> None:
     store, figures, where = paths
     result = invoke("dsn", "--episodes", "10", "--runs", "1", *where, *args)
     assert result.exit_code == 2
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"error: {option}:"), result.stderr
-    assert not store.exists() and not figures.exists()
+    assert_rejected_cleanly(result, option, store, figures)
 
 
 def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
