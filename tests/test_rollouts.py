@@ -7,7 +7,14 @@ import pytest
 
 from cmarlcd.games import sensor_network as dsn
 from cmarlcd.learners.stochastic import LAOCA, AutomatonConfig, CMARLCDStochastic, StochasticConfig
-from cmarlcd.rollouts import dsn_evaluate, dsn_tables, greedy_policy, play_episodes, train_dsn
+from cmarlcd.rollouts import (
+    dsn_evaluate,
+    dsn_tables,
+    greedy_policy,
+    play_episodes,
+    replay_sample,
+    train_dsn,
+)
 
 
 @pytest.mark.parametrize(
@@ -61,3 +68,29 @@ def test_cmarlcd_learns_the_dsn_optimum_in_every_state() -> None:
     train_dsn(tables, 150_000, np.random.default_rng(3), np.random.default_rng(4))
     successes, _, _ = dsn_evaluate(greedy_policy(tables), 5000, np.random.default_rng(0))
     assert successes / 5000 > 0.9
+
+
+def test_replay_sample_draws_numpy_s_stream_from_the_stored_rows_of_each_seed() -> None:
+    capacity, size = 7, np.array([5, 7])
+    state = np.arange(2 * capacity, dtype=np.int8).reshape(2, capacity)  # rows are distinct
+    buffer = (
+        state,
+        np.stack([state, -state], axis=-1),
+        (state * 0.5).astype(np.float32),
+        (state + 1).astype(np.int8),
+        state % 2 == 0,
+        np.zeros(2, np.int64),
+        size,
+    )
+    out = (
+        np.empty((2, 20), np.int64),
+        np.empty((2, 20, 2), np.int64),
+        np.empty((2, 20), np.float32),
+        np.empty((2, 20), np.int64),
+        np.empty((2, 20), np.bool_),
+    )
+    replay_sample(buffer, (np.random.default_rng(3), np.random.default_rng(4)), 20, out)
+    for k, seed in enumerate((3, 4)):
+        picks = np.random.default_rng(seed).integers(0, size[k], 20)  # NumPy, independently
+        for stored, drawn in zip(buffer[:5], out, strict=True):
+            assert np.array_equal(drawn[k], stored[k][picks])

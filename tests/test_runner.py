@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cmarlcd import runner
 from cmarlcd.runner import Experiment, RunSpec, SweepInterrupted, register, run_sweep
 from cmarlcd.store import ResultStore
 
@@ -98,3 +99,16 @@ def test_interrupted_sweep_resumes_where_it_stopped(tmp_path, workers: int) -> N
 def test_workers_must_be_positive(tmp_path) -> None:
     with ResultStore(tmp_path / "s.sqlite") as store, pytest.raises(ValueError, match="workers"):
         sweep(store, specs(), workers=0)
+
+
+def test_worker_progress_is_batched_but_never_lost() -> None:
+    sent: list[float] = []
+    sink = runner._Throttled(sent.append, interval=3600.0)
+    for amount in (200, 200, 150):
+        sink(amount)
+    assert sent == []  # held back: one message per interval, not per call
+    sink.flush()
+    assert sent == [550]
+    eager = runner._Throttled(sent.append, interval=0.0)
+    eager(7)
+    assert sent == [550, 7]

@@ -25,7 +25,7 @@ from cmarlcd.errors import require
 from cmarlcd.games import sensor_network as dsn
 from cmarlcd.learners.deep_config import DeepConfig, epsilon, epsilon_schedule
 from cmarlcd.learners.value_decomposition import ValueDecomposition
-from cmarlcd.rollouts import dsn_collect
+from cmarlcd.rollouts import dsn_collect, replay_sample
 from cmarlcd.runner import report_progress
 
 #: Called as evaluate(seed index, episodes learnt, greedy policy (43, 12)).
@@ -43,7 +43,7 @@ class DsnDeepBatch:
         self.model = ValueDecomposition(dsn.ACTION_COUNTS, dsn.N_STATE_INDICES, config, init)
         self.env_rngs = tuple(np.random.default_rng(s) for s in env)
         self.act_rngs = tuple(np.random.default_rng(s) for s in act)
-        self.replay_rngs = [np.random.default_rng(s) for s in replay]
+        self.replay_rngs = tuple(np.random.default_rng(s) for s in replay)
         b = self.n_seeds
         self.envs = (
             np.zeros((b, 2), np.int64),
@@ -52,11 +52,12 @@ class DsnDeepBatch:
             np.zeros(b, np.int64),
         )
         cap = config.buffer_size
+        # compact rows (states < 43, actions < 5): random replay reads stay in cache
         self.buffer = (
-            np.zeros((b, cap), np.int64),
-            np.zeros((b, cap, dsn.N_SENSORS), np.int64),
-            np.zeros((b, cap)),
-            np.zeros((b, cap), np.int64),
+            np.zeros((b, cap), np.int8),
+            np.zeros((b, cap, dsn.N_SENSORS), np.int8),
+            np.zeros((b, cap), np.float32),
+            np.zeros((b, cap), np.int8),
             np.zeros((b, cap), np.bool_),
             np.zeros(b, np.int64),
             np.zeros(b, np.int64),
@@ -64,7 +65,6 @@ class DsnDeepBatch:
         for k in range(b):
             dsn.dsn_reset(self.envs[0][k], self.envs[1][k], self.env_rngs[k])
         self.steps = 0
-        self._all_states = torch.arange(dsn.N_STATE_INDICES).expand(b, -1)
 
     @property
     def episodes(self) -> np.ndarray:
@@ -73,7 +73,7 @@ class DsnDeepBatch:
 
     def greedy_tables(self) -> np.ndarray:
         """(B, 43, 12): each seed's greedy joint action in every state."""
-        return self.model.greedy(self._all_states).numpy()
+        return self.model.greedy_table().numpy()
 
     def train(self, checkpoints: Sequence[int], evaluate: Evaluator) -> None:
         """Learn until every seed has played ``total_episodes`` episodes, calling
@@ -114,29 +114,19 @@ class DsnDeepBatch:
                     evaluate(k, point, table[k])
 
     def sample(self) -> dict[str, torch.Tensor]:
-        """A replay batch per seed, drawn with that seed's own generator."""
-        states, actions, rewards, nexts, terminal, _, size = self.buffer
-        index = np.stack(
-            [
-                rng.integers(0, size[k], self.config.batch_size)
-                for k, rng in enumerate(self.replay_rngs)
-            ]
+        """A replay batch per seed, drawn with that seed's own generator (every DSN
+        action is legal, so there is no ``next_legal``)."""
+        b, n = self.n_seeds, self.config.batch_size
+        out = (
+            np.empty((b, n), np.int64),
+            np.empty((b, n, dsn.N_SENSORS), np.int64),
+            np.empty((b, n), np.float32),
+            np.empty((b, n), np.int64),
+            np.empty((b, n), np.bool_),
         )
-
-        def take(array: np.ndarray) -> torch.Tensor:
-            rows = np.take_along_axis(
-                array, index.reshape(index.shape + (1,) * (array.ndim - 2)), axis=1
-            )
-            return torch.from_numpy(rows)
-
-        return {
-            "state": take(states),
-            "actions": take(actions),
-            "reward": take(rewards).to(torch.float32),
-            "next_state": take(nexts),
-            "next_legal": torch.ones(1, dtype=torch.bool),  # every DSN action is legal
-            "terminal": take(terminal),
-        }
+        replay_sample(self.buffer, self.replay_rngs, n, out)
+        keys = ("state", "actions", "reward", "next_state", "terminal")
+        return {key: torch.from_numpy(array) for key, array in zip(keys, out, strict=True)}
 
 
 class DeepAgent:

@@ -194,13 +194,14 @@ def dsn_collect(
     env_rngs,
     act_rngs,
 ) -> None:
-    """Step B DSN copies in lockstep for ``steps`` steps with ε-greedy actions (eq. 18).
+    """Step each of B DSN copies ``steps`` steps with ε-greedy actions (eq. 18).
 
     ``greedy[b, s]`` is seed b's greedy joint action in state s (the networks change only
     between calls). ``envs`` = (targets, energy, clock, episodes), each with a leading seed
     axis; a seed that has finished its ``total_episodes`` stops. Transitions go into seed
     b's ring ``buffer`` = (state, actions, reward, next_state, terminal, position, size).
-    ``env_rngs[b]`` and ``act_rngs[b]`` are seed b's own generators.
+    ``env_rngs[b]`` and ``act_rngs[b]`` are seed b's own generators, so the seeds are
+    independent and are stepped one after the other (the order does not matter).
     """
     targets, energy, clock, episodes = envs
     b_state, b_actions, b_reward, b_next, b_terminal, position, size = buffer
@@ -208,10 +209,10 @@ def dsn_collect(
     capacity = b_state.shape[1]
     individual = np.zeros(dsn.N_SENSORS)
     joint = np.zeros(dsn.N_SENSORS, dtype=np.int64)
-    for _ in range(steps):
-        for b in range(targets.shape[0]):
+    for b in range(targets.shape[0]):
+        for _ in range(steps):
             if episodes[b] >= total_episodes:
-                continue
+                break
             s = dsn.dsn_state(targets[b])
             eps = annealed_epsilon(episodes[b] + 1, total_episodes, *schedule)
             epsilon_greedy(greedy[b, s], counts, eps, act_rngs[b], joint)
@@ -229,3 +230,20 @@ def dsn_collect(
                 clock[b] = 0
                 if episodes[b] < total_episodes:
                     dsn.dsn_reset(targets[b], energy[b], env_rngs[b])
+
+
+@njit(cache=True)
+def replay_sample(buffer: tuple, rngs, batch_size: int, out: tuple) -> None:
+    """Draw ``batch_size`` stored transitions per seed, uniformly with replacement, with
+    seed b's generator ``rngs[b]`` (the same draws as ``rngs[b].integers(0, size,
+    batch_size)`` in NumPy), into ``out`` = (state, actions, reward, next_state,
+    terminal), each with a leading seed axis. ``buffer`` as in :func:`dsn_collect`."""
+    b_state, b_actions, b_reward, b_next, b_terminal, _, size = buffer
+    o_state, o_actions, o_reward, o_next, o_terminal = out
+    for b in range(b_state.shape[0]):
+        picks = rngs[b].integers(0, size[b], batch_size)
+        for n in range(batch_size):
+            k = picks[n]
+            o_state[b, n], o_next[b, n] = b_state[b, k], b_next[b, k]
+            o_reward[b, n], o_terminal[b, n] = b_reward[b, k], b_terminal[b, k]
+            o_actions[b, n] = b_actions[b, k]

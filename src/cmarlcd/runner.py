@@ -139,6 +139,15 @@ def execute(spec: RunSpec) -> tuple[RunSpec, dict[str, Any], float]:
     return spec, metrics, time.perf_counter() - start
 
 
+def _execute_in_worker(specs: list[RunSpec]) -> list[tuple[RunSpec, dict[str, Any], float]]:
+    """:func:`execute_batch` in a pool worker, sending on the progress it still holds."""
+    try:
+        return execute_batch(specs)
+    finally:
+        if isinstance(_progress_sink, _Throttled):
+            _progress_sink.flush()
+
+
 def execute_batch(specs: list[RunSpec]) -> list[tuple[RunSpec, dict[str, Any], float]]:
     """Compute runs that share one config, together when the experiment can batch them."""
     experiment = get_experiment(specs[0].experiment)
@@ -161,9 +170,28 @@ def report_progress(amount: float) -> None:
         _progress_sink(amount)
 
 
+class _Throttled:
+    """Sums progress amounts and forwards them at most every ``interval`` seconds, so a
+    worker's fast inner loop does not cost a queue message (and a pipe write) each time."""
+
+    def __init__(self, put: Callable[[float], None], interval: float = 0.1) -> None:
+        self.put, self.interval = put, interval
+        self.pending, self.last = 0.0, time.monotonic()
+
+    def __call__(self, amount: float) -> None:
+        self.pending += amount
+        if time.monotonic() - self.last >= self.interval:
+            self.flush()
+
+    def flush(self) -> None:
+        if self.pending:
+            self.put(self.pending)
+        self.pending, self.last = 0.0, time.monotonic()
+
+
 def _worker_init(queue: Any, threads: int) -> None:
     global _progress_sink
-    _progress_sink = queue.put
+    _progress_sink = _Throttled(queue.put)
     os.environ["OMP_NUM_THREADS"] = str(threads)
     if "torch" in sys.modules:  # forked from a parent that imported it
         sys.modules["torch"].set_num_threads(threads)
@@ -293,7 +321,7 @@ def _dispatch(
         workers, mp_context=context, initializer=_worker_init, initargs=(queue, threads)
     )
     try:
-        pending: set[Future] = {pool.submit(execute_batch, batch) for batch in batches}
+        pending: set[Future] = {pool.submit(_execute_in_worker, batch) for batch in batches}
         while pending:
             done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
             _drain(queue, advance_steps)

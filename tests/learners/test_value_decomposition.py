@@ -112,3 +112,33 @@ def test_bad_deep_config(kwargs: dict, parameter: str) -> None:
     with pytest.raises(ConfigError) as info:
         DeepConfig(**kwargs)
     assert info.value.parameter == parameter
+
+
+@pytest.mark.parametrize("mixer", ["vdn", "qmix"])
+def test_integer_state_fast_path_trains_like_the_one_hot_product(mixer: str) -> None:
+    """Integer states take table lookups, QMIX's embedding bag and a cached target table;
+    one-hot feature vectors take the plain dense products. Same seeds, same batches:
+    the same losses and parameters, also across a target copy."""
+    n_states, cfg = 5, DeepConfig(mixer=mixer, hidden=6, mixer_hidden=4, gamma=0.9)
+    fast = ValueDecomposition([2, 3, 2], n_states, cfg, seeds(2))
+    dense = ValueDecomposition([2, 3, 2], n_states, cfg, seeds(2))
+    gen = torch.Generator().manual_seed(1)
+
+    def one_hot(state: torch.Tensor) -> torch.Tensor:
+        return torch.nn.functional.one_hot(state, n_states).float()
+
+    for step in range(4):
+        state = torch.randint(0, n_states, (2, 30), generator=gen)
+        batch = {
+            "state": state,
+            "actions": torch.randint(0, 2, (2, 30, 3), generator=gen),
+            "reward": torch.randn(2, 30, generator=gen),
+            "next_state": torch.randint(0, n_states, (2, 30), generator=gen),
+            "terminal": torch.rand(2, 30, generator=gen) < 0.2,
+        }
+        dense_batch = batch | {"state": one_hot(state), "next_state": one_hot(batch["next_state"])}
+        assert fast.td_step(batch) == pytest.approx(dense.td_step(dense_batch), rel=1e-5)
+        if step == 1:
+            fast.sync_target(), dense.sync_target()
+    for (name, a), (_, b) in zip(fast.named_parameters(), dense.named_parameters(), strict=True):
+        assert torch.allclose(a, b, atol=1e-5), name

@@ -10,14 +10,19 @@ update, which is element-wise) is exactly what it would be alone.
 Pieces, each in one place:
 
 * :class:`GroupLinear` -- B independent linear layers applied in one ``bmm``; for one-hot
-  inputs (integer states), :meth:`GroupLinear.lookup` gives the identical result by row
-  lookup.
+  inputs (integer states), :meth:`GroupLinear.table` gives the layer's output for every
+  state, so a network is evaluated once per distinct state and then looked up.
 * :class:`AgentNetworks` -- per-agent MLPs, no parameter sharing ([choice]): state ->
   hidden (ReLU) -> Q-values over the agent's actions.
 * :class:`VDNMixer` (``Q_tot = Σ_i Q_i``) and :class:`QMixer` (hypernetworks on the state,
   non-negative weights via ``abs``, an ELU hidden layer, a state-dependent bias).
 * :class:`ValueDecomposition` -- online and target networks, Adam, the one-step TD loss
   with the target network's greedy legal action, target copies, greedy action tables.
+
+Integer states (the DSN's 43) take a fast path that gives the same values as the one-hot
+product: the agents' Q-values are a table over the states, and QMIX's first mixing layer,
+``Σ_i Q_i |W1(s)|_i``, is one ``embedding_bag`` over the rows ``(seed, s, i)`` of the
+hypernetwork's table weighted by ``Q_i``, so no per-sample weight matrix is ever built.
 """
 
 from __future__ import annotations
@@ -61,9 +66,12 @@ class GroupLinear(nn.Module):
         return self.weight + self.bias[:, None, :]
 
 
-def rows(table: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
-    """``table`` (G, S, out) at the integer states ``index`` (G, N) -> (G, N, out)."""
-    return torch.gather(table, 1, index[:, :, None].expand(-1, -1, table.shape[2]))
+def rows(table: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
+    """``table`` (B, S, ...) at the integer states ``state`` (B, N) -> (B, N, ...)."""
+    b, count = table.shape[:2]
+    flat = table.reshape(b, count, -1)
+    picked = torch.gather(flat, 1, state[:, :, None].expand(-1, -1, flat.shape[2]))
+    return picked.view(*state.shape, *table.shape[2:])
 
 
 def _uniform(shape: tuple[int, ...], bound: float, gen: torch.Generator) -> torch.Tensor:
@@ -108,10 +116,18 @@ class AgentNetworks(nn.Module):
 
     def forward(self, state: torch.Tensor) -> torch.Tensor:
         """``state``: (B, N) int64 or (B, N, in_dim) -> Q (B, N, n_agents, n_actions)."""
-        per_agent = state.repeat_interleave(self.n_agents, dim=0)  # (B*n, N[, in])
-        q = per_state(self.first, per_agent, lambda x: self.second(torch.relu(x)))  # (B*n, N, A)
-        q = q.view(self.seeds, self.n_agents, *q.shape[1:])
-        return q.transpose(1, 2)
+        if state.dtype == torch.int64:
+            return rows(self.tables(), state)
+        per_agent = state.repeat_interleave(self.n_agents, dim=0)  # (B*n, N, in)
+        return self._by_seed(self.second(torch.relu(self.first(per_agent))))
+
+    def tables(self) -> torch.Tensor:
+        """Q of every integer (one-hot) state: (B, in_dim, n_agents, n_actions)."""
+        return self._by_seed(self.second(torch.relu(self.first.table())))
+
+    def _by_seed(self, q: torch.Tensor) -> torch.Tensor:
+        """(B*n, N, A), grouped seed-major -> (B, N, n, A)."""
+        return q.view(self.seeds, self.n_agents, *q.shape[1:]).transpose(1, 2)
 
 
 class VDNMixer(nn.Module):
@@ -145,13 +161,28 @@ class QMixer(nn.Module):
 
     def forward(self, q: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
         """``q``: (B, N, n_agents), ``state``: (B, N[, in]) -> Q_tot (B, N)."""
-        b, n = q.shape[0], q.shape[1]
-        w1 = per_state(self.hyper_w1, state, torch.abs).view(b, n, self.n_agents, self.hidden)
         b1 = per_state(self.hyper_b1, state, _same)
-        hidden = nn.functional.elu((q[..., None] * w1).sum(dim=2) + b1)
+        hidden = nn.functional.elu(self._first_layer(q, state) + b1)
         w2 = per_state(self.hyper_w2, state, torch.abs)
         value = per_state(self.value_1, state, lambda x: self.value_2(torch.relu(x)))[..., 0]
         return (hidden * w2).sum(dim=-1) + value
+
+    def _first_layer(self, q: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
+        """``Σ_i q_i |W1(s)|_i``: (B, N, hidden)."""
+        b, n, agents = q.shape
+        if state.dtype != torch.int64:
+            w1 = torch.abs(self.hyper_w1(state)).view(b, n, agents, self.hidden)
+            return (q[..., None] * w1).sum(dim=2)
+        w1 = torch.abs(self.hyper_w1.table())  # (B, S, agents * hidden)
+        seed_state = torch.arange(b)[:, None] * w1.shape[1] + state  # (B, N)
+        bags = seed_state[..., None] * agents + torch.arange(agents)  # rows (seed, s, i)
+        out = nn.functional.embedding_bag(
+            bags.view(b * n, agents),
+            w1.view(-1, self.hidden),
+            mode="sum",
+            per_sample_weights=q.reshape(b * n, agents),
+        )
+        return out.view(b, n, self.hidden)
 
 
 # ------------------------------------------------------------------------ learner
@@ -188,8 +219,11 @@ class ValueDecomposition(nn.Module):
         )
         self.target_agents = copy.deepcopy(self.agents).requires_grad_(False)
         self.target_mixer = copy.deepcopy(self.mixer).requires_grad_(False)
+        self._next_value_table: torch.Tensor | None = None  # see _next_values
         self.optimizer = torch.optim.Adam(
-            list(self.agents.parameters()) + list(self.mixer.parameters()), lr=config.lr
+            list(self.agents.parameters()) + list(self.mixer.parameters()),
+            lr=config.lr,
+            fused=True,  # one pass over the parameters: ~10x the default on CPU
         )
 
     def q_values(self, state: torch.Tensor, legal: torch.Tensor | None = None) -> torch.Tensor:
@@ -205,20 +239,23 @@ class ValueDecomposition(nn.Module):
         """Greedy legal joint actions (B, N, n) for the states (B, N[, in])."""
         return self.q_values(state, legal).argmax(dim=-1)
 
+    @torch.no_grad()
+    def greedy_table(self) -> torch.Tensor:
+        """Greedy joint action (B, S, n) in every integer state, all actions legal."""
+        return self._masked(self.agents.tables(), None).argmax(dim=-1)
+
     def td_step(self, batch: dict[str, torch.Tensor]) -> float:
         """One Adam step on the summed per-seed one-step TD losses; returns the mean loss.
 
         ``batch``: state (B, N[, in]), actions (B, N, n), reward (B, N), next_state,
-        next_legal (B, N, n, A) bool, terminal (B, N) bool.
+        terminal (B, N) bool, and optionally next_legal (B, N, n, A) bool (default: every
+        action legal).
         """
-        q = self.agents(batch["state"])
-        chosen = q.gather(-1, batch["actions"][..., None])[..., 0]
+        chosen = self._chosen_q(batch["state"], batch["actions"])
         q_tot = self.mixer(chosen, batch["state"])
         with torch.no_grad():
-            next_q = self._masked(self.target_agents(batch["next_state"]), batch["next_legal"])
-            best = next_q.max(dim=-1).values  # the target network's greedy legal action
-            next_tot = self.target_mixer(best, batch["next_state"])
-            alive = (~batch["terminal"]).to(q.dtype)
+            next_tot = self._next_values(batch["next_state"], batch.get("next_legal"))
+            alive = (~batch["terminal"]).to(q_tot.dtype)
             target = batch["reward"] + self.config.gamma * alive * next_tot
         loss = ((q_tot - target) ** 2).mean(dim=1).sum()
         self.optimizer.zero_grad(set_to_none=True)
@@ -226,10 +263,33 @@ class ValueDecomposition(nn.Module):
         self.optimizer.step()
         return float(loss.detach()) / self.n_seeds
 
+    def _chosen_q(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """Each agent's online Q of its action in ``actions`` (B, N, n)."""
+        if state.dtype != torch.int64:
+            return self.agents(state).gather(-1, actions[..., None])[..., 0]
+        table = self.agents.tables()  # (B, S, n, A): pick entries, build no (B, N, n, A)
+        b, _, n, width = table.shape
+        flat = (state[..., None] * n + torch.arange(n)) * width + actions
+        return table.reshape(b, -1).gather(1, flat.view(b, -1)).view(actions.shape)
+
+    def _next_values(self, state: torch.Tensor, legal: torch.Tensor | None) -> torch.Tensor:
+        """The target networks' ``Q_tot`` at ``state`` (B, N) with each agent's best legal
+        action. For integer states with every action legal it depends on the state
+        alone, so it is a (B, S) table, computed once per target copy and looked up."""
+        if state.dtype != torch.int64 or legal is not None:
+            best = self._masked(self.target_agents(state), legal).max(dim=-1).values
+            return self.target_mixer(best, state)
+        if self._next_value_table is None:
+            best = self._masked(self.target_agents.tables(), None).max(dim=-1).values
+            every_state = torch.arange(best.shape[1]).expand(best.shape[0], -1)
+            self._next_value_table = self.target_mixer(best, every_state)
+        return torch.gather(self._next_value_table, 1, state)
+
     def sync_target(self) -> None:
         """Clone the online networks into the target networks."""
         self.target_agents.load_state_dict(self.agents.state_dict())
         self.target_mixer.load_state_dict(self.mixer.state_dict())
+        self._next_value_table = None
 
 
 def _generators(seed: np.random.SeedSequence, count: int) -> list[torch.Generator]:
