@@ -58,10 +58,10 @@ def main() -> None:
         f"machine: {platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}, "
         f"{torch.get_num_threads()} threads; {args.episodes} learning episodes per seed"
     )
-    for seeds in (1, *args.seeds):  # compile the lockstep loop for both batch sizes first
-        DsnDeepBatch(DeepConfig(), [np.random.SeedSequence(k) for k in range(seeds)], 2).train(
-            [], lambda *a: None
-        )
+    for seeds in (1, *args.seeds):  # compile the kernels for every batch size first
+        warm = DsnDeepBatch(DeepConfig(), [np.random.SeedSequence(k) for k in range(seeds)], 2)
+        warm.train([], lambda *a: None)
+        warm.sample()
     for mixer in ("vdn", "qmix"):
         single, _ = steps_per_second(mixer, 1, args.episodes)
         for seeds in args.seeds:
