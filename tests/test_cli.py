@@ -325,13 +325,44 @@ def test_dsn_deep_baselines_from_the_cli(paths) -> None:
     assert doc["runs_computed"] == 8 and "a run of its own" in doc["note"]
 
 
-def test_dsn_deep_without_torch_names_the_extra(paths, monkeypatch) -> None:
+def without_torch(monkeypatch) -> None:
+    """Make the CLI see an install without the [deep] extra."""
     import importlib.util
 
     real = importlib.util.find_spec
     monkeypatch.setattr(
         importlib.util, "find_spec", lambda name, *a: None if name == "torch" else real(name, *a)
     )
+
+
+def tiny_paper_preset(monkeypatch) -> None:
+    from cmarlcd import cli
+
+    tiny = cli.Preset(1, 1, dsn_eval_episodes=20, dsn_episodes=(30,), deep=True)
+    monkeypatch.setitem(cli.PRESETS, "paper", tiny)
+
+
+def test_reproduce_paper_preset_has_the_deep_rows(paths, monkeypatch) -> None:
+    pytest.importorskip("torch")
+    tiny_paper_preset(monkeypatch)
+    _, _, where = paths
+    result = invoke("reproduce", "--preset", "paper", "--workers", "1", "--json", *where)
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.stdout)["dsn"]["rows"]
+    assert {r["algorithm"] for r in rows} == {"cmarl-cd", "la-oca", "vdn", "qmix"}
+
+
+def test_reproduce_paper_preset_without_torch_says_what_it_left_out(paths, monkeypatch) -> None:
+    without_torch(monkeypatch)
+    tiny_paper_preset(monkeypatch)
+    _, _, where = paths
+    result = invoke("reproduce", "--preset", "paper", "--workers", "1", *where)
+    assert result.exit_code == 0, result.output
+    assert "note: VDN and QMIX need PyTorch: pip install 'cmarl-cd[deep]'" in result.stderr
+
+
+def test_dsn_deep_without_torch_names_the_extra(paths, monkeypatch) -> None:
+    without_torch(monkeypatch)
     store, _, where = paths
     result = invoke("dsn", "--algorithms", "cmarl-cd,qmix", "--episodes", "10", *where)
     assert result.exit_code == 2 and "cmarl-cd[deep]" in result.stderr
