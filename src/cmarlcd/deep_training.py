@@ -1,7 +1,8 @@
 """Seed-batched VDN / QMIX training on the DSN (needs the ``[deep]`` extra).
 
-B independent seeds train together: B copies of the DSN step in lockstep inside one
-compiled loop (:func:`cmarlcd.rollouts.dsn_collect`), and one stacked model
+B independent seeds train together: B copies of the DSN each take ``train_every`` steps
+in one compiled call (:func:`cmarlcd.rollouts.dsn_collect`), replay batches are drawn in
+another (:func:`cmarlcd.rollouts.replay_sample`), and one stacked model
 (:class:`cmarlcd.learners.value_decomposition.ValueDecomposition`) takes the gradient
 steps of all seeds at once. Each seed has its own streams, spawned from its run seed in
 a fixed order: parameter initialisation, environment, exploration, replay sampling; so
