@@ -347,7 +347,7 @@ PRESETS = {
 
 def _reproduced_algorithms(preset: Preset, doc: dict[str, Any], as_json: bool) -> tuple[str, ...]:
     """The DSN rows of a preset; VDN and QMIX are skipped, with a note, without torch."""
-    tabular = ("cmarl-cd", "la-oca")
+    tabular = tuple(name for name in dsn_exp.ALGORITHMS if name not in dsn_exp.DEEP)
     if not preset.deep:
         return tabular
     if _has_torch():

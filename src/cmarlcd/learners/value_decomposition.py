@@ -152,7 +152,7 @@ class QMixer(nn.Module):
     ) -> None:
         super().__init__()
         gens = [g[-1] for g in generators]  # each seed's mixer generator
-        self.n_agents, self.hidden = n_agents, hidden
+        self.hidden = hidden
         self.hyper_w1 = GroupLinear(in_dim, n_agents * hidden, gens)
         self.hyper_b1 = GroupLinear(in_dim, hidden, gens)
         self.hyper_w2 = GroupLinear(in_dim, hidden, gens)
