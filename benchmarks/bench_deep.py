@@ -19,24 +19,26 @@ import time
 import numpy as np
 import torch
 
-from cmarlcd import runner
-from cmarlcd.deep_training import DeepAgent, DsnDeepBatch
 from cmarlcd.games import sensor_network as dsn
+from cmarlcd.learners.deep_agent import DeepAgent
 from cmarlcd.learners.deep_config import DeepConfig
-from cmarlcd.rollouts import play_episodes
+from cmarlcd.training.deep import DeepBatch
+from cmarlcd.training.episodes import play_episodes
 
 
 def steps_per_second(mixer: str, seeds: int, episodes: int) -> tuple[float, int]:
-    counted = [0.0]
-    runner._progress_sink = lambda amount: counted.__setitem__(0, counted[0] + amount)
-    batch = DsnDeepBatch(
-        DeepConfig(mixer=mixer), [np.random.SeedSequence(k) for k in range(seeds)], episodes
+    """Aggregate env steps/s of B seeds learning ``episodes`` episodes each, and the
+    number of batched gradient steps taken."""
+    batch = DeepBatch(
+        dsn.SPEC,
+        DeepConfig(mixer=mixer),
+        [np.random.SeedSequence(k) for k in range(seeds)],
+        episodes,
     )
     start = time.perf_counter()
     batch.train([], lambda *args: None)
     elapsed = time.perf_counter() - start
-    runner._progress_sink = None
-    return counted[0] / elapsed, batch.steps // batch.config.train_every
+    return batch.env_steps / elapsed, batch.steps // batch.config.train_every
 
 
 def parallel_env_rate(mixer: str, episodes: int) -> float:
@@ -59,7 +61,8 @@ def main() -> None:
         f"{torch.get_num_threads()} threads; {args.episodes} learning episodes per seed"
     )
     for seeds in (1, *args.seeds):  # compile the kernels for every batch size first
-        warm = DsnDeepBatch(DeepConfig(), [np.random.SeedSequence(k) for k in range(seeds)], 2)
+        sequences = [np.random.SeedSequence(k) for k in range(seeds)]
+        warm = DeepBatch(dsn.SPEC, DeepConfig(), sequences, 2)
         warm.train([], lambda *a: None)
         warm.sample()
     for mixer in ("vdn", "qmix"):

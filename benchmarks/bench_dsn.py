@@ -24,17 +24,17 @@ import numpy as np
 
 from cmarlcd.experiments import sensor_network as sn
 from cmarlcd.games import sensor_network as dsn
-from cmarlcd.learners.stochastic import CMARLCDStochastic, StochasticConfig
-from cmarlcd.rollouts import dsn_tables, play_episodes, train_dsn
+from cmarlcd.learners.coordination import CMARLCDStochastic, StochasticConfig
 from cmarlcd.runner import default_workers, run_sweep
 from cmarlcd.store import ResultStore
+from cmarlcd.training import TabularRun, play_episodes
 
 
 def compiled_rate(episodes: int) -> tuple[int, float]:
-    train_dsn(dsn_tables(StochasticConfig().rule_params()), 5, *rngs())  # compile
-    tables = dsn_tables(StochasticConfig().rule_params())
+    TabularRun(dsn.SPEC, StochasticConfig(), *rngs()).train(5)  # compile (or load the cache)
+    run = TabularRun(dsn.SPEC, StochasticConfig(), *rngs())
     start = time.perf_counter()
-    steps = train_dsn(tables, episodes, *rngs())
+    steps = run.train(episodes)
     return steps, time.perf_counter() - start
 
 
@@ -53,7 +53,7 @@ def full_protocol(workers: int) -> float:
     sweep = sn.DsnSweep()
     with tempfile.TemporaryDirectory() as tmp, ResultStore(Path(tmp) / "b.sqlite") as store:
         start = time.perf_counter()
-        run_sweep(sweep.specs(), store, workers=workers, show_progress=False)
+        run_sweep(sweep.specs(), store, workers=workers)
         return time.perf_counter() - start
 
 

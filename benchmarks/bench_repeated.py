@@ -24,6 +24,7 @@ from pathlib import Path
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.runner import default_workers, run_sweep
 from cmarlcd.store import ResultStore
+from cmarlcd.training import fit
 
 #: The subset timed in both paths: mid-size case-1 cells (about 1e3-1e4 games a run),
 #: small enough for plain Python to finish in seconds.
@@ -31,13 +32,13 @@ SUBSET = rep.RepeatedSweep(case=1, agents=(4, 5, 6), actions=(3, 4), runs=3, see
 
 
 def time_subset() -> dict[str, float]:
-    """Algorithm 1 (``CMARLCD.fit``) on every run of SUBSET: games played, seconds taken."""
+    """Algorithm 1 (:func:`cmarlcd.fit`) on every run of SUBSET: games played, seconds taken."""
     rep._warm_up()
     games, seconds = 0, 0.0
     for spec in SUBSET.specs():
         game, learner = rep.prepare_run(spec.config, spec.seed_sequence())
         start = time.perf_counter()
-        games += learner.fit(game).games
+        games += fit(learner, game).games
         seconds += time.perf_counter() - start
     return {"games": games, "seconds": seconds}
 
@@ -58,7 +59,7 @@ def time_full_protocol(workers: int) -> dict[str, float]:
     specs = rep.paper_sweep(1).specs() + rep.paper_sweep(2).specs()
     with tempfile.TemporaryDirectory() as tmp, ResultStore(Path(tmp) / "bench.sqlite") as store:
         start = time.perf_counter()
-        result = run_sweep(specs, store, workers=workers, show_progress=False)
+        result = run_sweep(specs, store, workers=workers)
         wall = time.perf_counter() - start
         successes = [r.metrics["success"] for r in store.get(s.key for s in specs)]
     return {

@@ -5,12 +5,17 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
+from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from cmarlcd import __version__
 from cmarlcd.cli import app, parse_range
 from cmarlcd.errors import ConfigError
+from tests.helpers import STORE_PROBLEMS, not_a_store
 
 runner = CliRunner()
 
@@ -34,13 +39,13 @@ def assert_rejected_cleanly(result, option: str, store, figures) -> None:
 
 
 def test_parse_range_forms() -> None:
-    assert parse_range("2-7", "agents") == (2, 3, 4, 5, 6, 7)
-    assert parse_range("4", "agents") == (4,)
-    assert parse_range("2,5, 3", "agents") == (2, 3, 5)
+    assert parse_range("2-7", "agents", 2, 26) == (2, 3, 4, 5, 6, 7)
+    assert parse_range("4", "agents", 2, 26) == (4,)
+    assert parse_range("2,5, 3", "agents", 2, 26) == (2, 3, 5)
     with pytest.raises(ConfigError, match="reversed"):
-        parse_range("7-2", "agents")
+        parse_range("7-2", "agents", 2, 26)
     with pytest.raises(ConfigError, match="LOW-HIGH"):
-        parse_range("two", "agents")
+        parse_range("two", "agents", 2, 26)
 
 
 def test_repeated_json_then_resume_then_report(paths) -> None:
@@ -66,7 +71,7 @@ def test_repeated_json_then_resume_then_report(paths) -> None:
     assert [(c["agents"], c["actions"], c["runs"]) for c in doc["cells"]] == [(2, 2, 3), (3, 2, 3)]
     assert all(0.0 <= c["success_rate"] <= 1.0 and c["median_games"] > 0 for c in doc["cells"])
     assert doc["runs_computed"] == 6 and doc["runs_reused"] == 0
-    assert (figures / "repeated-case1-seed0.png").stat().st_size > 10_000
+    assert Path(doc["figure"]).parent == figures and Path(doc["figure"]).stat().st_size > 10_000
     again = json.loads(invoke(*args).stdout)
     assert again["runs_computed"] == 0 and again["runs_reused"] == 6
     assert again["cells"] == doc["cells"]
@@ -281,7 +286,7 @@ def test_dsn_bad_input(paths, args, option) -> None:
 
 
 def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
-    from cmarlcd import cli
+    from cmarlcd.cli import commands as cli
 
     tiny = cli.Preset(repeated_runs=1, dsn_runs=1, dsn_eval_episodes=50, dsn_episodes=(100,))
     monkeypatch.setitem(cli.PRESETS, "quick", tiny)
@@ -336,7 +341,7 @@ def without_torch(monkeypatch) -> None:
 
 
 def tiny_paper_preset(monkeypatch) -> None:
-    from cmarlcd import cli
+    from cmarlcd.cli import commands as cli
 
     tiny = cli.Preset(1, 1, dsn_eval_episodes=20, dsn_episodes=(30,), deep=True)
     monkeypatch.setitem(cli.PRESETS, "paper", tiny)
@@ -367,3 +372,130 @@ def test_dsn_deep_without_torch_names_the_extra(paths, monkeypatch) -> None:
     result = invoke("dsn", "--algorithms", "cmarl-cd,qmix", "--episodes", "10", *where)
     assert result.exit_code == 2 and "cmarl-cd[deep]" in result.stderr
     assert not store.exists()
+
+
+# ---------------------------------------------------- what a new user ran into
+
+
+TINY = {
+    "repeated": ["repeated", "--agents", "2", "--actions", "2", "--runs", "1", "--workers", "1"],
+    "dsn": ["dsn", "--episodes", "20", "--runs", "1", "--eval-episodes", "10", "--workers", "1"],
+    "reproduce": ["reproduce", "--workers", "1"],
+    "report": ["report"],
+}
+
+
+@pytest.mark.parametrize("command", list(TINY))
+@pytest.mark.parametrize("kind", STORE_PROBLEMS)
+def test_every_command_refuses_a_bad_store_in_one_line(tmp_path, command, kind) -> None:
+    store, words = not_a_store(tmp_path, kind)
+    if command == "report" and kind == "unwritable":
+        words = "no results store"  # report only reads
+    before = store.read_bytes() if store.is_file() else None
+    figures = tmp_path / "figs"
+    result = invoke(*TINY[command], "--store", str(store), "--figures", str(figures))
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: --store:") and words in lines[0]
+    assert (store.read_bytes() if store.is_file() else None) == before  # never modified
+    assert not figures.exists()  # nothing computed
+
+
+def test_a_bad_figures_folder_is_refused_before_anything_is_computed(paths, tmp_path) -> None:
+    store, _, _ = paths
+    (tmp_path / "taken").write_text("a file where the figures should go")
+    for figures in (tmp_path / "taken", tmp_path / "taken" / "sub"):
+        result = invoke(*TINY["repeated"], "--store", str(store), "--figures", str(figures))
+        assert result.exit_code == 2 and result.stderr.startswith("error: --figures:")
+        assert "is a file, not a directory" in result.stderr
+        assert not store.exists()
+
+
+def test_figures_are_named_by_their_settings(paths) -> None:
+    _, figures, where = paths
+    base = ["repeated", "--agents", "2", "--actions", "2", "--runs", "2", "--workers", "1"]
+    one = invoke(*base, "--json", *where)
+    two = invoke(*base, "--temperature", "0.5", "--json", *where)
+    first, second = json.loads(one.stdout)["figure"], json.loads(two.stdout)["figure"]
+    assert first != second and Path(first).exists() and Path(second).exists()
+    text = invoke("report", *where).stdout
+    assert f"figure: {first} (case 1, T=1, δ=0.04, seed 0, 2 runs per cell)" in text
+    assert f"figure: {second} (case 1, T=0.5" in text
+    assert len(list(figures.glob("repeated-*.png"))) == 2
+
+
+def test_settings_other_than_the_paper_s_are_not_shown_beside_the_paper(paths) -> None:
+    _, _, where = paths
+    base = ["repeated", "--case", "2", "--agents", "4", "--actions", "3", "--runs", "2"]
+    paper = invoke(*base, "--workers", "1", "--no-progress", *where).stdout
+    assert "2 runs per cell" in paper and "ours (the paper's)" in paper and "(100)" in paper
+    other = invoke(*base, "--delta", "0.05", "--workers", "1", "--no-progress", *where).stdout
+    assert "settings differ from the paper's" in other and "(100)" not in other
+    assert other.strip().splitlines()[-1].startswith("results: runs in ")
+
+
+def test_dsn_tables_state_their_runs_and_mark_other_settings(paths) -> None:
+    _, _, where = paths
+    base = ["dsn", "--algorithms", "cmarl-cd", "--episodes", "50", "--runs", "2", "--workers", "1"]
+    paper = invoke(*base, "--eval-episodes", "1k", "--no-progress", *where)
+    assert paper.exit_code == 0, paper.output
+    assert "2 runs per cell, 1,000 evaluation episodes" in paper.stdout
+    other = invoke(*base, "--eval-episodes", "20", "--delta", "0.1", "--json", *where)
+    (row,) = json.loads(other.stdout)["rows"]
+    assert row["label"] == "CMARL-CD *" and set(row["paper"].values()) == {None}
+
+
+@pytest.mark.parametrize(
+    ("args", "option", "words"),
+    [
+        (["repeated", "--agents", "99999999999999999999"], "--agents", "must be <= 26"),
+        (["repeated", "--agents", "2-30000000"], "--agents", "must be <= 26"),
+        (["repeated", "--agents", "20", "--actions", "5"], "--agents", "exceed the limit"),
+        (["repeated", "--agents", ""], "--agents", "expected N, LOW-HIGH"),
+        (["repeated", "--actions", "2,,3"], "--actions", "expected N, LOW-HIGH"),
+        (["report", "--case", "3"], "--case", "must be 1 or 2"),
+        (["theory", "--agents", "50", "--optima", "50"], "--agents", "exceed"),
+        (["dsn", "--eval-episodes", "lots"], "--eval-episodes", "expected an integer"),
+        (["dsn", "--algorithms", " , "], "--algorithms", "needs at least one"),
+    ],
+)
+def test_absurd_or_empty_values_fail_at_once(paths, args, option, words) -> None:
+    store, figures, where = paths
+    start = time.perf_counter()
+    result = invoke(*args, *where) if args[0] != "theory" else invoke(*args)
+    assert time.perf_counter() - start < 5
+    assert_rejected_cleanly(result, option, store, figures)
+    assert words in result.stderr
+
+
+def test_payoff_files_that_cannot_be_games_say_why(tmp_path) -> None:
+    huge = tmp_path / "huge.npy"
+    with huge.open("wb") as file:  # a header that promises 10^5 x 10^5 doubles, no data
+        np.lib.format.write_array_header_1_0(
+            file, {"descr": "<f8", "fortran_order": False, "shape": (100_000, 100_000)}
+        )
+    (tmp_path / "empty.npy").touch()
+    cases = [
+        (huge, "more than 100,000,000 joint actions"),
+        (tmp_path / "empty.npy", "empty.npy is empty"),
+        (tmp_path, "is a directory"),
+    ]
+    for path, words in cases:
+        start = time.perf_counter()
+        result = invoke("play", "--payoffs", str(path))
+        assert time.perf_counter() - start < 5
+        assert result.exit_code == 2 and result.stderr.startswith("error: --payoffs:")
+        assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_help_keeps_its_words_and_shows_flags_as_flags() -> None:
+    repeated_help = invoke("repeated", "--help").stdout
+    words = " ".join(repeated_help.split())  # as wrapped to the terminal's width
+    assert "[default: all cores]" in words and "[default: the paper's]" in words
+    assert "[deep]" in " ".join(invoke("reproduce", "-h").stdout.split())
+    flag = next(line for line in repeated_help.splitlines() if "--json" in line)
+    assert "<" not in flag  # no value
+    assert invoke("--version").stdout.strip() == f"cmarl-cd {__version__}"
+    assert "Commands:" in invoke("-h").stdout
+    dsn_help = " ".join(invoke("dsn", "--help").stdout.split())
+    assert "[default: 0.05]" in dsn_help and "[default: 0.1]" in dsn_help  # from the configs

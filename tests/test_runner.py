@@ -2,11 +2,20 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from cmarlcd import runner
-from cmarlcd.runner import Experiment, RunSpec, SweepInterrupted, register, run_sweep
+from cmarlcd.experiments import register
+from cmarlcd.progress import Throttled
+from cmarlcd.runner import SweepInterrupted, SweepObserver, run_sweep
+from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.store import ResultStore
 
 FAIL_AT: dict[str, int] = {}
@@ -30,7 +39,7 @@ def specs(scales=(1, 2), runs=4, root_seed=0) -> list[RunSpec]:
 
 
 def sweep(store: ResultStore, todo: list[RunSpec], workers: int = 1):
-    return run_sweep(todo, store, workers=workers, show_progress=False)
+    return run_sweep(todo, store, workers=workers)
 
 
 def stored(store: ResultStore, todo: list[RunSpec]) -> list:
@@ -103,12 +112,93 @@ def test_workers_must_be_positive(tmp_path) -> None:
 
 def test_worker_progress_is_batched_but_never_lost() -> None:
     sent: list[float] = []
-    sink = runner._Throttled(sent.append, interval=3600.0)
+    sink = Throttled(sent.append, interval=3600.0)
     for amount in (200, 200, 150):
         sink(amount)
     assert sent == []  # held back: one message per interval, not per call
     sink.flush()
     assert sent == [550]
-    eager = runner._Throttled(sent.append, interval=0.0)
+    eager = Throttled(sent.append, interval=0.0)
     eager(7)
     assert sent == [550, 7]
+
+
+class Recording(SweepObserver):
+    def __init__(self) -> None:
+        self.total = self.stored = self.done = 0.0
+        self.runs = 0
+
+    def start(self, description, runs, stored_runs, work, stored_work, unit="runs") -> None:
+        self.total, self.stored, self.unit = work, stored_work, unit
+
+    def advance(self, work: float) -> None:
+        self.done += work
+
+    def run_finished(self) -> None:
+        self.runs += 1
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_progress_has_a_total_and_reaches_it(tmp_path, workers: int) -> None:
+    """A DSN sweep counts episodes: the total is known at the start, and the workers'
+    reports (throttled through a queue) add up to exactly that total."""
+    from cmarlcd.experiments.sensor_network import DsnSweep
+
+    specs = DsnSweep(episodes=(40, 80), runs=2, eval_episodes=30, curve_points=4).specs()
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        first = Recording()
+        run_sweep(specs[:1], store, workers=1, observer=first)
+        seen = Recording()
+        run_sweep(specs, store, workers=workers, observer=seen)
+    assert seen.unit == "episodes" and seen.total == seen.stored + seen.done
+    assert seen.stored == first.total and seen.runs == len(specs) - 1
+
+
+def children_of(pid: int) -> list[int]:
+    """Processes whose parent is ``pid`` (Linux /proc)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"  # a zombie has exited
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_workers_exit_when_the_sweep_s_parent_is_killed(tmp_path) -> None:
+    """kill -9 of the parent (an OOM killer, a scheduler) must not leave workers behind."""
+    command = [
+        sys.executable, "-m", "cmarlcd", "dsn", "--algorithms", "cmarl-cd",
+        "--episodes", "20000000", "--runs", "2", "--workers", "2", "--no-progress",
+        "--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "f"),
+    ]  # fmt: skip
+    parent = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    workers: list[int] = []
+    try:
+        deadline = time.monotonic() + 120
+        while len(workers := children_of(parent.pid)) < 2 and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert len(workers) >= 2, "the sweep never started its workers"
+        time.sleep(1.0)  # the workers are now deep in compiled training loops
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait()
+        deadline = time.monotonic() + 5
+        while any(alive(w) for w in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not any(alive(w) for w in workers)
+    finally:
+        parent.kill()
+        for w in workers:
+            if alive(w):
+                os.kill(w, signal.SIGKILL)

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import sqlite3
 
+import pytest
+
+from cmarlcd.errors import ConfigError
 from cmarlcd.store import ResultStore, RunKey, canonical_json
+from tests.helpers import STORE_PROBLEMS, not_a_store
 
 
 def key(index: int, config: str = '{"a":1}') -> RunKey:
@@ -46,4 +50,30 @@ def test_each_put_is_committed_immediately(tmp_path) -> None:
     other = sqlite3.connect(path)
     assert other.execute("SELECT COUNT(*) FROM runs").fetchone()[0] == 1
     other.close()
+    store.close()
+
+
+# ------------------------------------------------------- paths that are not stores
+
+
+@pytest.mark.parametrize("kind", STORE_PROBLEMS)
+def test_a_path_that_is_not_a_store_is_refused_and_left_alone(tmp_path, kind) -> None:
+    path, words = not_a_store(tmp_path, kind)
+    before = path.read_bytes() if path.is_file() else None
+    with pytest.raises(ConfigError, match=words) as info:
+        ResultStore(path)
+    assert info.value.parameter == "store"
+    assert (path.read_bytes() if path.is_file() else None) == before
+    assert not path.with_name(path.name + "-wal").exists()
+
+
+def test_an_empty_file_and_a_killed_writer_s_store_open_fine(tmp_path) -> None:
+    (tmp_path / "empty.sqlite").touch()
+    with ResultStore(tmp_path / "empty.sqlite") as store:
+        assert store.count() == 0
+    path = tmp_path / "s.sqlite"
+    store = ResultStore(path)
+    store.put(key(0), {"v": 1}, 0.1, "x")  # committed to the WAL, never checkpointed
+    with ResultStore(path) as again:  # as after a kill -9 of the first writer
+        assert again.count() == 1
     store.close()

@@ -93,12 +93,35 @@ def dsn_policy_grid(policy: np.ndarray, title: str, path: Path) -> Path:
     from cmarlcd.games import sensor_network as dsn
 
     plt = _pyplot()
-    fig, axes = plt.subplots(6, 7, figsize=(14, 9.5))
+    fig, axes = plt.subplots(6, 7, figsize=(14, 10))
     for state, ax in enumerate(axes.flat):
         _draw_state(ax, state, policy[state], dsn)
     fig.suptitle(title, fontsize=11)
-    fig.tight_layout()
+    fig.legend(handles=_fig4_legend(), loc="lower center", ncol=4, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     return _save(fig, path)
+
+
+def _fig4_legend() -> list:
+    """What the colours and lines of Fig. 4 mean."""
+    from matplotlib.lines import Line2D
+
+    def dot(colour: str, label: str, size: float = 8) -> Line2D:
+        return Line2D([], [], ls="", marker="o", color=colour, ms=size, label=label)
+
+    def line(colour: str, label: str) -> Line2D:
+        return Line2D([], [], color=colour, lw=1.5, label=label)
+
+    return [
+        dot("tab:red", "target 0"),
+        dot("tab:blue", "target 1"),
+        dot("0.3", "sensor", 3),
+        line("tab:red", "sensor focusing target 0's cell"),
+        line("tab:blue", "sensor focusing target 1's cell"),
+        line("0.5", "sensor focusing an empty cell"),
+        line("tab:green", "title green: optimal (3 sensors per target, no other focus)"),
+        line("tab:red", "title red: not optimal"),
+    ]
 
 
 def _draw_state(ax, state: int, joint: np.ndarray, dsn) -> None:

@@ -1,13 +1,31 @@
-"""Paper-style tables for the terminal, rendered from stored results."""
+"""Reports rendered from stored runs: paper-style tables, their figures, their JSON.
+
+Each ``*_report`` function takes the stored records of one group of runs (one table's
+worth), draws its figures into a folder, prints its tables to a rich console (or nothing,
+for ``--json``) and returns the JSON document of the group. Figure files are named by
+what they show: a readable stem and a digest of the group's settings, so groups with
+other settings never overwrite each other; the printed line after each figure says
+which settings it shows.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import json
 from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
 
+import numpy as np
+from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
+from cmarlcd.experiments import episodic
+from cmarlcd.experiments import repeated as rep
+from cmarlcd.experiments.episodic import EpisodicGame, Row
 from cmarlcd.experiments.repeated import CellSummary
-from cmarlcd.experiments.sensor_network import DsnRow
+from cmarlcd.store import RunRecord
 
 #: Success rates below this are shown in red (the acceptance bar for Tables 1-2).
 SUCCESS_BAR = 0.96
@@ -19,6 +37,38 @@ def percent(rate: float | None) -> str:
         return "—"
     value = 100.0 * rate
     return f"{value:.0f}" if abs(value - round(value)) < 1e-9 else f"{value:.1f}"
+
+
+def show(console: Console, table: Table) -> None:
+    """Print ``table`` with its title and caption as lines of their own: a narrow table
+    would wrap them to its width."""
+    title, caption = table.title, table.caption
+    table.title = table.caption = None
+    if title:
+        console.print(Text(str(title), style="bold"), soft_wrap=True)
+    console.print(table)
+    if caption:
+        console.print(Text(str(caption), style="dim"), soft_wrap=True)
+
+
+def say(console: Console, text: str) -> None:
+    """One line of plain text (paths stay whole: no wrapping)."""
+    console.print(Text(text), soft_wrap=True)
+
+
+def figure_name(stem: str, settings: Any) -> str:
+    """``stem`` plus a short digest of ``settings`` (anything JSON can write)."""
+    text = json.dumps(settings, sort_keys=True, default=str)
+    return f"{stem}-{hashlib.sha256(text.encode()).hexdigest()[:8]}.png"
+
+
+def runs_text(counts: Sequence[int], unit: str) -> str:
+    """``"20 runs per cell"``, or a range when cells differ."""
+    low, high = min(counts), max(counts)
+    return f"{low} runs per {unit}" if low == high else f"{low}-{high} runs per {unit}"
+
+
+# ------------------------------------------------------------------ Tables 1 and 2
 
 
 def _grid_table(
@@ -46,7 +96,10 @@ def _grid_table(
 
 def _success(cell: CellSummary) -> str:
     style = "green" if cell.success_rate >= SUCCESS_BAR else "red"
-    return f"[{style}]{percent(cell.success_rate)}[/] [dim]({percent(cell.paper_success_rate)})[/]"
+    ours = f"[{style}]{percent(cell.success_rate)}[/]"
+    if cell.paper_success_rate is None:
+        return ours
+    return f"{ours} [dim]({percent(cell.paper_success_rate)})[/]"
 
 
 def _median_games(cell: CellSummary) -> str:
@@ -54,8 +107,10 @@ def _median_games(cell: CellSummary) -> str:
 
 
 def success_table(cells: Sequence[CellSummary], title: str) -> Table:
-    """Success rate per cell, ours beside the paper's."""
-    caption = "success % per cell: ours (the paper's); rows: actions m, columns: agents n"
+    """Success rate per cell, beside the paper's when the settings are the paper's."""
+    paper = any(c.paper_success_rate is not None for c in cells)
+    what = "ours (the paper's)" if paper else "ours (settings differ from the paper's)"
+    caption = f"success % per cell: {what}; rows: actions m, columns: agents n"
     return _grid_table(cells, title, _success, caption)
 
 
@@ -64,7 +119,34 @@ def games_table(cells: Sequence[CellSummary], title: str) -> Table:
     return _grid_table(cells, title, _median_games)
 
 
-# ----------------------------------------------------------------- DSN Tables 3-7
+def repeated_report(
+    records: Sequence[RunRecord], figures: Path, console: Console | None
+) -> dict[str, Any]:
+    """Table 1 or 2 and its heatmap from the records of one group of runs."""
+    from cmarlcd import figures as figs
+
+    cells = rep.summarize(records)
+    title = rep.table_title(records)
+    case, seed = records[0].config["case"], records[0].key.root_seed
+    settings = rep.group_key(records[0].config, seed)
+    name = figure_name(f"repeated-case{case}-seed{seed}", settings)
+    path = figs.repeated_heatmap(cells, title, figures / name)
+    if console is not None:
+        show(console, success_table(cells, title))
+        games_title = f"Median games to convergence ({rep.settings_text(records)})"
+        show(console, games_table(cells, games_title))
+        say(console, f"figure: {path} ({rep.settings_text(records)})")
+    return {
+        "experiment": rep.EXPERIMENT,
+        "title": title,
+        "case": case,
+        "seed": seed,
+        "figure": str(path),
+        "cells": [c.to_dict() for c in cells],
+    }
+
+
+# ----------------------------------------------------------------- Tables 3 to 7
 
 #: (table number, title, metrics shown as "a | b", number format)
 DSN_TABLES = (
@@ -82,15 +164,18 @@ def _format(value: float | None, fmt: str) -> str:
     return f"{100 * value:.2f}" if fmt == "pct" else format(value, fmt)
 
 
-def dsn_tables(rows: Sequence[DsnRow]) -> list[Table]:
-    """Tables 3-7 in the paper's layout: algorithms by row, L by column, ours (paper's)."""
+def dsn_tables(rows: Sequence[Row], protocol: str = "") -> list[Table]:
+    """Tables 3-7 in the paper's layout: algorithms by row, L by column; ours, and the
+    paper's in brackets for the rows run with the paper's settings."""
     budgets = sorted({r.episodes for r in rows})
     labels = list(dict.fromkeys(r.label for r in rows))
     by_cell = {(r.label, r.episodes): r for r in rows}
+    paper = any(v is not None for r in rows for v in r.paper.values())
+    suffix = f" ({protocol})" if protocol else ""
     tables = []
     for number, title, metrics, fmt in DSN_TABLES:
-        table = Table(title=f"Table {number}. {title}", show_lines=True)
-        table.add_column("ours\n(paper)", no_wrap=True)
+        table = Table(title=f"Table {number}. {title}{suffix}", show_lines=True)
+        table.add_column("ours\n(paper)" if paper else "ours", no_wrap=True)
         for budget in budgets:
             table.add_column(f"L = {budget:,}", justify="right", no_wrap=True)
         for label in labels:
@@ -101,8 +186,96 @@ def dsn_tables(rows: Sequence[DsnRow]) -> list[Table]:
                     cells.append("")
                     continue
                 ours = " | ".join(_format(getattr(row, m), fmt) for m in metrics)
-                paper = " | ".join(_format(row.paper[m], fmt) for m in metrics)
-                cells.append(f"{ours}\n[dim]({paper})[/]")
+                if any(row.paper[m] is not None for m in metrics):
+                    ours += (
+                        "\n[dim]("
+                        + " | ".join(_format(row.paper[m], fmt) for m in metrics)
+                        + ")[/]"
+                    )
+                cells.append(ours)
             table.add_row(*cells)
         tables.append(table)
     return tables
+
+
+TRAIN_ONCE_NOTE = (
+    "CMARL-CD and LA-OCA do not depend on L: each run trains once to the largest L and is "
+    "evaluated at every L on the way. VDN and QMIX anneal ε over L (eq. 18), so each L is "
+    "a run of its own."
+)
+
+
+def protocol_text(records: Sequence[RunRecord], rows: Sequence[Row]) -> str:
+    """What the tables of a group show: seed, runs per cell, evaluation episodes."""
+    cfg = records[0].config
+    runs = runs_text([r.runs for r in rows], "cell")
+    return f"seed {records[0].key.root_seed}, {runs}, {cfg['eval_episodes']:,} evaluation episodes"
+
+
+def dsn_report(
+    game: EpisodicGame, records: Sequence[RunRecord], figures: Path, console: Console | None
+) -> dict[str, Any]:
+    """Tables 3-7, the learning curves and Fig. 4 of one group of DSN runs."""
+    from cmarlcd import figures as figs
+
+    rows = episodic.summarize(game, records)
+    seed = records[0].key.root_seed
+    protocol = protocol_text(records, rows)
+    group = sorted({(r.key.algorithm, r.key.config) for r in records})
+    curves_name = figure_name(f"dsn-learning-curves-seed{seed}", group)
+    curves = figs.learning_curves(episodic.learning_curves(records), figures / curves_name)
+    paths = {"learning_curves": str(curves)}
+    shown = {"learning_curves": f"learning curves, {protocol}"}
+    for rec in records:
+        if rec.key.run_index == 0:
+            label = episodic.row_label(rec.key.algorithm, rec.config["learner"])
+            largest = max(rec.config["checkpoints"])
+            what = f"{label}, L = {largest:,}, seed {seed}, run 0"
+            title = f"Fig. 4 — greedy joint action of {what} in each of the 42 states"
+            stem = f"dsn-fig4-{rec.key.algorithm}-L{largest}-seed{seed}"
+            path = figs.dsn_policy_grid(
+                np.array(rec.metrics["policy"]), title, figures / figure_name(stem, rec.key.config)
+            )
+            key = f"fig4_{rec.key.algorithm}_L{largest}"
+            paths[key], shown[key] = str(path), f"Fig. 4, {what}"
+    if console is not None:
+        say(console, TRAIN_ONCE_NOTE)
+        for table in dsn_tables(rows, protocol):
+            show(console, table)
+        for key, path in paths.items():
+            say(console, f"figure: {path} ({shown[key]})")
+    return {
+        "experiment": game.experiment,
+        "seed": seed,
+        "note": TRAIN_ONCE_NOTE,
+        "rows": [r.to_dict() for r in rows],
+        "figures": paths,
+    }
+
+
+# ------------------------------------------------------------------- Theorem 1
+
+
+def theory_report(doc: dict[str, Any], console: Console) -> None:
+    """Where the ODE starts went, and the Jacobian's eigenvalues against eq. (13)."""
+    n, m, t = doc["n_agents"], doc["n_optima"], doc["temperature"]
+    console.print(f"[bold]Theorem 1[/]: {n} agents, {m} optimal joint actions, T = {t:g}")
+    reached = ", ".join(f"optimum {j}: {k}" for j, k in enumerate(doc["converged_to"]))
+    console.print(
+        f"ODE (8) from {doc['starts']} random interior starts -> {reached}; "
+        f"elsewhere: {doc['unconverged']}"
+    )
+    table = Table(
+        title="Jacobian of the reduced system (12) at each optimum, by finite differences"
+    )
+    for column in ("optimum", "eigenvalues (min .. max)", "paper, eq. (13)"):
+        table.add_column(column, justify="right")
+    for j, values in enumerate(doc["eigenvalues_real"]):
+        table.add_row(
+            str(j), f"{min(values):.8f} .. {max(values):.8f}", f"{doc['expected_eigenvalue']:g}"
+        )
+    show(console, table)
+    verdict = "[green]confirmed[/]" if doc["confirmed"] else "[red]NOT confirmed[/]"
+    console.print(f"max |eigenvalue + 2/T| = {doc['max_eigen_error']:.2e}: {verdict}")
+    if "figure" in doc:
+        say(console, f"phase portrait: {doc['figure']}")

@@ -1,154 +1,73 @@
 """Fan runs out over worker processes and commit each result to the store.
 
-A *run* is a :class:`RunSpec`: (experiment, algorithm, config, root seed, run index).
-Its random streams come from :meth:`RunSpec.seed_sequence`, a
-:class:`numpy.random.SeedSequence` built from the root seed, a digest of the experiment
-and config, and the run index, so a run's result never depends on which worker ran it,
-how many workers there were, or which other runs were in the same sweep. The algorithm
-name is deliberately left out of the seed: algorithms compared under the same config
-see the same random games (common random numbers).
-
 Backends: ``workers == 1`` runs in-process; otherwise a pool of forked local processes
-(spawned where fork is unavailable). Results come back to the parent, which alone
-writes to the store, one transaction per run, as each finishes.
+(spawned where fork is unavailable). Results come back to the parent, which alone writes
+to the store, one transaction per run, as each finishes. Runs of one config that the
+experiment can batch (seeds stacked in one model) travel together, ``seed_batch`` at a
+time. A worker whose parent dies (``kill -9``, an out-of-memory kill) exits at once
+rather than holding the store open; Ctrl-C stops the workers and keeps every finished run.
+
+How a sweep is shown is up to the caller: the runner reports to a :class:`SweepObserver`
+(the command line draws it with rich; the default shows nothing).
 """
 
 from __future__ import annotations
 
-import hashlib
+import contextlib
+import ctypes
 import multiprocessing
 import os
+import signal
 import sys
+import threading
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from queue import Empty
 from typing import Any
 
-import numpy as np
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    ProgressColumn,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
-from rich.text import Text
-
 from cmarlcd.errors import require
-from cmarlcd.store import ResultStore, RunKey, canonical_json
+from cmarlcd.experiments import get_experiment
+from cmarlcd.progress import Throttled, install_sink, progress_sink
+from cmarlcd.runs import RunSpec
+from cmarlcd.store import ResultStore
 
-RunFunction = Callable[[dict[str, Any], np.random.SeedSequence], dict[str, Any]]
-BatchFunction = Callable[[dict[str, Any], list[np.random.SeedSequence]], list[dict[str, Any]]]
+Outcome = tuple[RunSpec, dict[str, Any], float]
 
-
-@dataclass(frozen=True)
-class Experiment:
-    """What the runner needs to know about an experiment.
-
-    Attributes:
-        name: the store's experiment name.
-        run: computes one run's metrics from its config and seed sequence.
-        warm_up: compiles the kernels once in the parent before workers fork.
-        cost: a rough relative cost of a config, used to start expensive runs first.
-        run_batch: optional; computes several runs of one config together (e.g. seeds
-            stacked in one model). It must give each run the metrics ``run`` would.
-        batch_limit: how many runs of a config may share one ``run_batch`` call (1: none).
-    """
-
-    name: str
-    run: RunFunction
-    warm_up: Callable[[], None] = lambda: None
-    cost: Callable[[Mapping[str, Any]], float] = lambda config: 1.0
-    run_batch: BatchFunction | None = None
-    batch_limit: Callable[[Mapping[str, Any]], int] = lambda config: 1
+#: How often a worker checks that its parent is still alive, in seconds (where the
+#: operating system cannot tell it, as Linux's parent-death signal does).
+PARENT_CHECK_SECONDS = 0.5
 
 
-_REGISTRY: dict[str, Experiment] = {}
+class SweepObserver:
+    """Receives a sweep's progress; the default ignores it."""
+
+    def start(
+        self, description: str, runs: int, stored_runs: int, work: float, stored_work: float,
+        unit: str = "runs",
+    ) -> None:  # fmt: skip
+        """The sweep has ``runs`` runs (``stored_runs`` already stored) and ``work``
+        progress units (``unit``) in all, ``stored_work`` of them done by the stored runs."""
+
+    def advance(self, work: float) -> None:
+        """``work`` more units are done."""
+
+    def run_finished(self) -> None:
+        """One more run is computed and stored."""
+
+    def finish(self) -> None:
+        """The sweep has ended (finished or interrupted)."""
 
 
-def register(experiment: Experiment) -> Experiment:
-    """Make ``experiment`` runnable by name (also inside worker processes)."""
-    _REGISTRY[experiment.name] = experiment
-    return experiment
-
-
-def get_experiment(name: str) -> Experiment:
-    """The registered experiment ``name`` (the built-in ones register on import)."""
-    if name not in _REGISTRY:
-        import cmarlcd.experiments  # noqa: F401  (a spawned worker starts with an empty registry)
-    return _REGISTRY[name]
-
-
-@dataclass(frozen=True)
-class RunSpec:
-    """One run: everything needed to compute it, and its identity in the store."""
-
-    experiment: str
-    algorithm: str
-    config_json: str
-    root_seed: int
-    run_index: int
-    stream_json: str = ""
-    """The part of the config that defines the random streams (default: all of it)."""
-
-    @classmethod
-    def make(
-        cls,
-        experiment: str,
-        algorithm: str,
-        config: Mapping[str, Any],
-        root_seed: int,
-        index: int,
-        stream: Mapping[str, Any] | None = None,
-    ) -> RunSpec:
-        """A run of ``config``; ``stream`` (a sub-config) seeds it when given, so settings
-        outside it (e.g. evaluation budgets) leave the run's random streams unchanged."""
-        config_json = canonical_json(config)
-        stream_json = config_json if stream is None else canonical_json(stream)
-        return cls(experiment, algorithm, config_json, int(root_seed), int(index), stream_json)
-
-    @property
-    def key(self) -> RunKey:
-        return RunKey(
-            self.experiment, self.algorithm, self.config_json, self.root_seed, self.run_index
-        )
-
-    @property
-    def config(self) -> dict[str, Any]:
-        import json
-
-        return json.loads(self.config_json)
-
-    def seed_sequence(self) -> np.random.SeedSequence:
-        """The run's root of randomness: (root seed; digest of experiment+stream, index)."""
-        stream = self.stream_json or self.config_json
-        digest = hashlib.sha256(f"{self.experiment}\n{stream}".encode()).digest()
-        words = [int.from_bytes(digest[i : i + 4], "little") for i in range(0, 16, 4)]
-        return np.random.SeedSequence(self.root_seed, spawn_key=(*words, self.run_index))
-
-
-def execute(spec: RunSpec) -> tuple[RunSpec, dict[str, Any], float]:
+def execute(spec: RunSpec) -> Outcome:
     """Compute one run (in whatever process calls it)."""
     start = time.perf_counter()
     metrics = get_experiment(spec.experiment).run(spec.config, spec.seed_sequence())
     return spec, metrics, time.perf_counter() - start
 
 
-def _execute_in_worker(specs: list[RunSpec]) -> list[tuple[RunSpec, dict[str, Any], float]]:
-    """:func:`execute_batch` in a pool worker, sending on the progress it still holds."""
-    try:
-        return execute_batch(specs)
-    finally:
-        if isinstance(_progress_sink, _Throttled):
-            _progress_sink.flush()
-
-
-def execute_batch(specs: list[RunSpec]) -> list[tuple[RunSpec, dict[str, Any], float]]:
+def execute_batch(specs: list[RunSpec]) -> list[Outcome]:
     """Compute runs that share one config, together when the experiment can batch them."""
     experiment = get_experiment(specs[0].experiment)
     if len(specs) == 1 or experiment.run_batch is None:
@@ -159,42 +78,43 @@ def execute_batch(specs: list[RunSpec]) -> list[tuple[RunSpec, dict[str, Any], f
     return [(spec, metrics, seconds) for spec, metrics in zip(specs, results, strict=True)]
 
 
-# Progress from inside runs (e.g. environment steps): a run calls report_progress(n); the
-# runner shows the rate. In worker processes the amounts travel over a queue.
-_progress_sink: Callable[[float], None] | None = None
+_worker_sink: Throttled | None = None
 
 
-def report_progress(amount: float) -> None:
-    """Tell the running sweep that ``amount`` units of work (env steps) were done."""
-    if _progress_sink is not None:
-        _progress_sink(amount)
+def _execute_in_worker(specs: list[RunSpec]) -> list[Outcome]:
+    """:func:`execute_batch` in a pool worker, sending on the progress it still holds."""
+    try:
+        return execute_batch(specs)
+    finally:
+        if _worker_sink is not None:
+            _worker_sink.flush()
 
 
-class _Throttled:
-    """Sums progress amounts and forwards them at most every ``interval`` seconds, so a
-    worker's fast inner loop does not cost a queue message (and a pipe write) each time."""
-
-    def __init__(self, put: Callable[[float], None], interval: float = 0.1) -> None:
-        self.put, self.interval = put, interval
-        self.pending, self.last = 0.0, time.monotonic()
-
-    def __call__(self, amount: float) -> None:
-        self.pending += amount
-        if time.monotonic() - self.last >= self.interval:
-            self.flush()
-
-    def flush(self) -> None:
-        if self.pending:
-            self.put(self.pending)
-        self.pending, self.last = 0.0, time.monotonic()
-
-
-def _worker_init(queue: Any, threads: int) -> None:
-    global _progress_sink
-    _progress_sink = _Throttled(queue.put)
+def _worker_init(queue: Any, threads: int, parent: int) -> None:
+    global _worker_sink
+    _exit_with_parent(parent)
+    _worker_sink = Throttled(queue.put)
+    install_sink(_worker_sink)
     os.environ["OMP_NUM_THREADS"] = str(threads)
     if "torch" in sys.modules:  # forked from a parent that imported it
         sys.modules["torch"].set_num_threads(threads)
+
+
+def _exit_with_parent(parent: int) -> None:
+    """End this worker as soon as the process that started it is gone."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            pr_set_pdeathsig = 1
+            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL)
+    if os.getppid() != parent:  # the parent died before the signal was armed
+        os._exit(1)
+
+    def watch() -> None:  # elsewhere (or as a second line): poll, between compiled calls
+        while os.getppid() == parent:
+            time.sleep(PARENT_CHECK_SECONDS)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 def default_workers() -> int:
@@ -235,41 +155,52 @@ def run_sweep(
     *,
     workers: int | None = None,
     version: str = "",
-    console: Console | None = None,
+    observer: SweepObserver | None = None,
     description: str = "runs",
-    show_progress: bool = True,
+    seed_batch: int = 1,
 ) -> SweepResult:
-    """Compute every spec not yet in ``store`` and commit each as it finishes."""
+    """Compute every spec not yet in ``store`` and commit each as it finishes.
+
+    Runs of one config whose experiment can batch them are computed ``seed_batch`` at a
+    time in one call (the results are the same as one by one).
+    """
     workers = default_workers() if workers is None else workers
     require(workers >= 1, "workers", f"must be >= 1 (got {workers})")
+    require(seed_batch >= 1, "seed_batch", f"must be >= 1 (got {seed_batch})")
+    observer = observer or SweepObserver()
     todo = _order_by_cost(store_missing(store, specs))
     result = SweepResult(total=len(specs), reused=len(specs) - len(todo))
+    missing = set(todo)
+    stored_work = sum(_work(s) for s in specs if s not in missing)
+    units = {get_experiment(s.experiment).work_unit for s in specs[:1]}
+    total = sum(map(_work, specs))
+    observer.start(description, len(specs), result.reused, total, stored_work, *units)
     start = time.perf_counter()
-    progress = _progress(console, show_progress)
-    with progress:
-        task = progress.add_task(description, total=len(specs), completed=result.reused)
-        steps_task: list[Any] = []
 
-        def commit(spec: RunSpec, metrics: dict[str, Any], seconds: float) -> None:
-            store.put(spec.key, metrics, seconds, version)
-            result.computed += 1
-            result.run_seconds.append(seconds)
-            progress.advance(task)
+    def commit(spec: RunSpec, metrics: dict[str, Any], seconds: float) -> None:
+        store.put(spec.key, metrics, seconds, version)
+        result.computed += 1
+        result.run_seconds.append(seconds)
+        if get_experiment(spec.experiment).work(spec.config) is None:
+            observer.advance(1.0)
+        observer.run_finished()
 
-        def advance_steps(amount: float) -> None:
-            if not steps_task:
-                steps_task.append(progress.add_task("  env steps", total=None))
-            progress.advance(steps_task[0], amount)
-
-        try:
-            if todo:
-                _dispatch(_batches(todo), workers, commit, advance_steps)
-        except KeyboardInterrupt:
-            result.interrupted = True
-            result.wall_seconds = time.perf_counter() - start
-            raise SweepInterrupted(result) from None
-    result.wall_seconds = time.perf_counter() - start
+    try:
+        if todo:
+            _dispatch(_batches(todo, seed_batch), workers, commit, observer.advance)
+    except KeyboardInterrupt:
+        result.interrupted = True
+        raise SweepInterrupted(result) from None
+    finally:
+        result.wall_seconds = time.perf_counter() - start
+        observer.finish()
     return result
+
+
+def _work(spec: RunSpec) -> float:
+    """The progress units of one run (the run itself, for an experiment that reports none)."""
+    work = get_experiment(spec.experiment).work(spec.config)
+    return 1.0 if work is None else float(work)
 
 
 def store_missing(store: ResultStore, specs: Sequence[RunSpec]) -> list[RunSpec]:
@@ -282,14 +213,15 @@ def _order_by_cost(specs: list[RunSpec]) -> list[RunSpec]:
     return sorted(specs, key=lambda s: -get_experiment(s.experiment).cost(s.config))
 
 
-def _batches(todo: list[RunSpec]) -> list[list[RunSpec]]:
-    """Group runs of one config into batches of up to the experiment's batch limit."""
+def _batches(todo: list[RunSpec], seed_batch: int) -> list[list[RunSpec]]:
+    """Group runs of one batchable config into batches of up to ``seed_batch``."""
     groups: dict[tuple[str, str], list[RunSpec]] = {}
     for spec in todo:
         groups.setdefault((spec.experiment, spec.config_json), []).append(spec)
     batches = []
     for specs in groups.values():
-        limit = max(1, get_experiment(specs[0].experiment).batch_limit(specs[0].config))
+        batchable = get_experiment(specs[0].experiment).batchable(specs[0].config)
+        limit = seed_batch if batchable else 1
         batches += [specs[i : i + limit] for i in range(0, len(specs), limit)]
     return batches
 
@@ -298,36 +230,36 @@ def _dispatch(
     batches: list[list[RunSpec]],
     workers: int,
     commit: Callable[[RunSpec, dict[str, Any], float], None],
-    advance_steps: Callable[[float], None],
+    advance: Callable[[float], None],
 ) -> None:
-    global _progress_sink
     for name in {b[0].experiment for b in batches}:
         get_experiment(name).warm_up()
     workers = min(workers, len(batches))
     if workers == 1:
-        _progress_sink = advance_steps
-        try:
+        with progress_sink(advance):
             for batch in batches:
                 for outcome in execute_batch(batch):
                     commit(*outcome)
-        finally:
-            _progress_sink = None
         return
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     context = multiprocessing.get_context(method)
     queue = context.Queue()
     threads = max(1, default_workers() // workers)
     pool = ProcessPoolExecutor(
-        workers, mp_context=context, initializer=_worker_init, initargs=(queue, threads)
+        workers,
+        mp_context=context,
+        initializer=_worker_init,
+        initargs=(queue, threads, os.getpid()),
     )
     try:
         pending: set[Future] = {pool.submit(_execute_in_worker, batch) for batch in batches}
         while pending:
             done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
-            _drain(queue, advance_steps)
+            _drain(queue, advance)
             for future in done:
                 for outcome in future.result():
                     commit(*outcome)
+        _drain(queue, advance)
     except BaseException:
         # Ctrl-C reaches the workers too and ends them; do not wait for queued runs.
         pool.shutdown(wait=False, cancel_futures=True)
@@ -344,29 +276,3 @@ def _drain(queue: Any, advance: Callable[[float], None]) -> None:
             break
     if total:
         advance(total)
-
-
-class RateColumn(ProgressColumn):
-    """Units per second of a task (env steps/s for in-run progress)."""
-
-    def render(self, task: Any) -> Text:
-        speed = task.finished_speed or task.speed
-        if task.total is not None or speed is None:  # only for open-ended in-run counters
-            return Text("")
-        return Text(f"{speed:,.0f}/s")
-
-
-def _progress(console: Console | None, show: bool) -> Progress:
-    return Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("elapsed"),
-        TimeElapsedColumn(),
-        TextColumn("eta"),
-        TimeRemainingColumn(),
-        RateColumn(),
-        console=console or Console(stderr=True),
-        disable=not show,
-        transient=False,
-    )

@@ -5,17 +5,27 @@ A run is identified by ``(experiment, algorithm, config, root_seed, run_index)``
 that differ in any field are different experiments. Each run is committed in its own
 transaction the moment it finishes (WAL journal), so a killed sweep loses at most the
 runs that were in flight, and re-running the same command recomputes nothing stored.
+
+Opening a store checks it first: a path that is a directory, lies under a regular file
+or cannot be written, and a file that is not a cmarl-cd store (not SQLite, truncated or
+damaged, another program's database) are refused with a :class:`ConfigError` naming
+``store``, before anything is written, so a wrong path never costs a computation and
+a file that is not ours is never modified.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import sqlite3
 import time
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from cmarlcd.errors import ConfigError, require
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -34,6 +44,68 @@ CREATE TABLE IF NOT EXISTS runs (
 
 #: Default location, relative to the working directory; override with ``--store``.
 DEFAULT_STORE = Path("results") / "cmarl-cd.sqlite"
+COLUMNS = (
+    "experiment",
+    "algorithm",
+    "config",
+    "root_seed",
+    "run_index",
+    "metrics",
+    "wall_seconds",
+    "version",
+    "finished_at",
+)
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+def _existing_ancestor(path: Path, parameter: str) -> Path:
+    """The nearest existing directory at or above ``path`` (a file there is an error)."""
+    ancestor = path
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    require(ancestor.is_dir(), parameter, f"{ancestor} is a file, not a directory")
+    return ancestor
+
+
+def check_output_directory(path: Path, parameter: str) -> None:
+    """``path`` is, or can be made, a writable directory (nothing is created)."""
+    ancestor = _existing_ancestor(Path(path), parameter)
+    require(os.access(ancestor, os.W_OK | os.X_OK), parameter, f"cannot write in {ancestor}")
+
+
+def check_store(path: Path, create: bool = True) -> None:
+    """Refuse, without writing anything, a path that cannot hold a results store."""
+    path = Path(path)
+    require(not path.is_dir(), "store", f"{path} is a directory, not a results store")
+    if not path.exists():
+        _existing_ancestor(path, "store")
+        require(create, "store", f"no results store at {path}; run an experiment first")
+        check_output_directory(path.parent, "store")
+        return
+    require(os.access(path, os.R_OK), "store", f"cannot read {path}")
+    if path.stat().st_size == 0:
+        return  # an empty file is an empty SQLite database
+    with path.open("rb") as file:
+        magic = file.read(len(_SQLITE_MAGIC))
+    require(magic == _SQLITE_MAGIC, "store", f"{path} is not an SQLite database")
+    try:
+        # immutable: read the file as it is, creating no -wal or -shm beside it
+        uri = f"{path.resolve().as_uri()}?mode=ro&immutable=1"
+        with contextlib.closing(sqlite3.connect(uri, uri=True)) as conn:
+            check = conn.execute("PRAGMA quick_check").fetchone()[0]
+            require(check == "ok", "store", f"{path} is damaged ({check})")
+            tables = {row[0] for row in conn.execute("SELECT name FROM sqlite_master")}
+            columns = tuple(row[1] for row in conn.execute("PRAGMA table_info(runs)"))
+    except sqlite3.DatabaseError as exc:
+        raise ConfigError("store", f"{path} is damaged or not a database ({exc})") from None
+    require(
+        not tables or columns == COLUMNS,
+        "store",
+        f"{path} is an SQLite database but not a cmarl-cd results store",
+    )
+    if create:
+        require(os.access(path, os.W_OK), "store", f"cannot write {path}")
+        check_output_directory(path.parent, "store")
 
 
 def canonical_json(config: Mapping[str, Any]) -> str:
@@ -66,16 +138,23 @@ class RunRecord:
 
 
 class ResultStore:
-    """Read and append runs; safe to open from several processes (SQLite WAL)."""
+    """Read and append runs; safe to open from several processes (SQLite WAL).
 
-    def __init__(self, path: str | Path = DEFAULT_STORE) -> None:
+    ``create=False`` opens an existing store only (for reading reports).
+    """
+
+    def __init__(self, path: str | Path = DEFAULT_STORE, create: bool = True) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._conn = sqlite3.connect(self.path, timeout=60.0)
-        self._conn.execute("PRAGMA journal_mode=WAL")
-        self._conn.execute("PRAGMA synchronous=NORMAL")
-        with self._conn:
-            self._conn.execute(SCHEMA)
+        check_store(self.path, create)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._conn = sqlite3.connect(self.path, timeout=60.0)
+            self._conn.execute("PRAGMA journal_mode=WAL")
+            self._conn.execute("PRAGMA synchronous=NORMAL")
+            with self._conn:
+                self._conn.execute(SCHEMA)
+        except (OSError, sqlite3.Error) as exc:
+            raise ConfigError("store", f"cannot open {self.path} ({exc})") from None
 
     def close(self) -> None:
         self._conn.close()

@@ -51,6 +51,9 @@ EIGEN_TOL = 1e-4
 #: [choice] default horizon, in units of ``T m^n`` (the escape time from the uniform
 #: strategy scales like that because every ``D_j`` starts near ``m^-n``).
 T_END_FACTOR = 1e4
+#: Largest ``m^n`` checked: from the uniform start every ``D_j`` is about ``m^-n``, and
+#: beyond this the integration of eq. (8) falls below the solver's resolution.
+MAX_JOINT_ACTIONS = 10**12
 #: [choice] RK45 tolerances for eq. (8); ``c`` grows only linearly, so absolute is fine.
 RTOL = 1e-8
 ATOL = 1e-10
@@ -292,6 +295,13 @@ def _validate(n_agents: int, n_optima: int, temperature: float, starts: int, see
         _is_int(n_optima) and n_optima >= 2,
         "optima",
         f"must be an integer >= 2 (got {n_optima!r})",
+    )
+    fits = n_agents * math.log(n_optima) <= math.log(MAX_JOINT_ACTIONS) + 1e-9
+    require(
+        fits,
+        "agents",
+        f"{n_optima}^{n_agents} joint actions exceed the {MAX_JOINT_ACTIONS:.0e} the ODE check "
+        "can resolve",
     )
     _require_temperature(temperature)
     require(_is_int(starts) and starts >= 1, "starts", f"must be an integer >= 1 (got {starts!r})")

@@ -22,7 +22,7 @@ def test_paper_protocol_has_36_cells_of_50_runs() -> None:
 def test_a_small_sweep_is_summarized_per_cell(tmp_path) -> None:
     sweep = rep.RepeatedSweep(case=1, agents=(2, 3), actions=(2,), runs=5, seed=3)
     with ResultStore(tmp_path / "s.sqlite") as store:
-        run_sweep(sweep.specs(), store, workers=1, show_progress=False)
+        run_sweep(sweep.specs(), store, workers=1)
         records = store.get(s.key for s in sweep.specs())
     cells = rep.summarize(records)
     assert [(c.agents, c.actions, c.runs) for c in cells] == [(2, 2, 5), (3, 2, 5)]

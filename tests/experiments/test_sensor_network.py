@@ -7,22 +7,44 @@ from dataclasses import asdict
 import pytest
 
 from cmarlcd.errors import ConfigError
+from cmarlcd.experiments import episodic
 from cmarlcd.experiments import sensor_network as sn
-from cmarlcd.learners.stochastic import StochasticConfig
+from cmarlcd.learners import AutomatonConfig, DeepConfig, StochasticConfig
+from cmarlcd.progress import progress_sink
 from cmarlcd.runner import run_sweep
 from cmarlcd.store import ResultStore, RunKey, RunRecord, canonical_json
 
 
 def run(sweep: sn.DsnSweep, algorithm: str = "cmarl-cd", index: int = 0) -> dict:
     spec = next(s for s in sweep.specs() if s.algorithm == algorithm and s.run_index == index)
-    return sn.run_dsn(spec.config, spec.seed_sequence())
+    return episodic.run(sn.DSN_GAME, spec.config, spec.seed_sequence())
 
 
 def test_paper_protocol_specs() -> None:
     sweep = sn.DsnSweep()
     assert len(sweep.specs()) == 2 * 50
-    assert sweep.config("cmarl-cd")["checkpoints"] == [100_000, 300_000, 500_000]
-    assert sweep.config("la-oca")["eval_episodes"] == 50_000
+    assert sweep.algorithms == ("cmarl-cd", "la-oca")
+    assert sweep.config(StochasticConfig())["checkpoints"] == [100_000, 300_000, 500_000]
+    assert sweep.config(AutomatonConfig())["eval_episodes"] == 50_000
+    deep = sn.DsnSweep(learners=(DeepConfig(mixer="qmix"),))
+    assert [s.config["checkpoints"] for s in deep.specs()[::50]] == [
+        [100_000],
+        [300_000],
+        [500_000],
+    ]
+
+
+@pytest.mark.parametrize("learner", [StochasticConfig(), DeepConfig(batch_size=20, train_every=10)])
+def test_a_run_reports_exactly_its_work(learner) -> None:
+    """The progress bar's total is the episodes every run reports, learning and evaluation."""
+    sweep = sn.DsnSweep(
+        learners=(learner,), episodes=(30, 60), eval_episodes=40, curve_points=4, runs=1
+    )
+    reported: list[float] = []
+    for spec in sweep.specs():
+        with progress_sink(reported.append):
+            episodic.run(sn.DSN_GAME, spec.config, spec.seed_sequence())
+    assert sum(reported) == sum(episodic.run_work(s.config) for s in sweep.specs())
 
 
 def test_a_checkpoint_does_not_depend_on_the_other_checkpoints() -> None:
@@ -43,8 +65,10 @@ def test_run_metrics_are_deterministic_and_well_formed() -> None:
     assert len(first["policy"]) == 42 and len(first["policy"][0]) == 12
 
 
-def record(algorithm: str, index: int, checkpoints: dict) -> RunRecord:
-    config = sn.DsnSweep().config(algorithm)
+def record(algorithm: str, index: int, checkpoints: dict, learner=None) -> RunRecord:
+    from cmarlcd.registry import LEARNERS
+
+    config = sn.DsnSweep().config(learner or LEARNERS[algorithm])
     key = RunKey("dsn", algorithm, canonical_json(config), 0, index)
     return RunRecord(key, {"checkpoints": checkpoints, "curve": [], "policy": []}, 1.0)
 
@@ -54,7 +78,7 @@ def test_tables_3_to_7_aggregate_as_the_paper_defines_them() -> None:
         {"100000": {"success_rate": 1.0, "mean_return": 42.0, "mean_steps": 3.0}},
         {"100000": {"success_rate": 0.5, "mean_return": 40.0, "mean_steps": 4.0}},
     ]
-    (row,) = sn.summarize(record("cmarl-cd", i, c) for i, c in enumerate(runs))
+    (row,) = episodic.summarize(sn.DSN_GAME, (record("cmarl-cd", i, c) for i, c in enumerate(runs)))
     assert (row.algorithm, row.episodes, row.runs) == ("cmarl-cd", 100_000, 2)
     assert row.success_rate == 0.75  # Table 3: mean of the per-run success rates
     assert (row.mean_return, row.std_return) == (41.0, 1.0)  # Table 4 (population std)
@@ -63,31 +87,35 @@ def test_tables_3_to_7_aggregate_as_the_paper_defines_them() -> None:
     assert row.paper["success_rate"] == pytest.approx(0.909) and row.label == "CMARL-CD"
 
 
-def test_non_default_settings_are_marked() -> None:
-    assert sn.row_label("cmarl-cd", asdict(StochasticConfig(delta=0.1))) == "CMARL-CD *"
+def test_non_default_settings_are_marked_and_have_no_paper_values() -> None:
+    changed = StochasticConfig(delta=0.1)
+    assert episodic.row_label("cmarl-cd", asdict(changed)) == "CMARL-CD *"
+    result = {"100000": {"success_rate": 1.0, "mean_return": 42.0, "mean_steps": 3.0}}
+    (row,) = episodic.summarize(sn.DSN_GAME, [record("cmarl-cd", 0, result, changed)])
+    assert row.label == "CMARL-CD *" and set(row.paper.values()) == {None}
 
 
 def test_small_sweep_through_the_runner(tmp_path) -> None:
     sweep = sn.DsnSweep(episodes=(200, 400), eval_episodes=100, curve_points=2, runs=2)
     with ResultStore(tmp_path / "s.sqlite") as store:
-        run_sweep(sweep.specs(), store, workers=1, show_progress=False)
+        run_sweep(sweep.specs(), store, workers=1)
         records = store.get(s.key for s in sweep.specs())
-    rows = sn.summarize(records)
+    rows = episodic.summarize(sn.DSN_GAME, records)
     assert [(r.label, r.episodes, r.runs) for r in rows] == [
         ("CMARL-CD", 200, 2),
         ("CMARL-CD", 400, 2),
         ("LA-OCA", 200, 2),
         ("LA-OCA", 400, 2),
     ]
-    curves = sn.learning_curves(records)
+    curves = episodic.learning_curves(records)
     assert curves["CMARL-CD"].shape == (2, 2, 4)
 
 
 @pytest.mark.parametrize(
     ("kwargs", "parameter"),
     [
-        ({"algorithms": ("cmarl-cd", "dqn")}, "algorithms"),
-        ({"algorithms": ()}, "algorithms"),
+        ({"learners": (StochasticConfig(), StochasticConfig(delta=0.1))}, "algorithms"),
+        ({"learners": ()}, "algorithms"),
         ({"episodes": (0, 100)}, "episodes"),
         ({"runs": 0}, "runs"),
         ({"eval_episodes": 0}, "eval_episodes"),

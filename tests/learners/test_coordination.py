@@ -1,4 +1,5 @@
-"""CMARL-CD for repeated games (Algorithm 1, eqs. 2-5)."""
+"""CMARL-CD: repeated games (Algorithm 1, eqs. 2-5) and stochastic games (Algorithm 2,
+eqs. 14-17)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,10 @@ import sys
 import numpy as np
 import pytest
 
-from cmarlcd import CMARLCD, ConfigError, RepeatedConfig
+from cmarlcd import CMARLCD, ConfigError, RepeatedConfig, fit
 from cmarlcd.games.matrix import climbing_game, from_payoffs, penalty_game, random_case1
 from cmarlcd.learners import policy
-from cmarlcd.learners.coordination import is_pure
+from cmarlcd.learners.coordination import CMARLCDStochastic, StochasticConfig, is_pure
 
 
 def softmax(values: list[float], temperature: float) -> list[float]:
@@ -60,9 +61,10 @@ def test_stopping_rule_and_greedy_ties() -> None:
     assert is_pure(p, counts, 0.999)
     degrees = np.array([[1.0, 1.0, 9.0], [0.0, 2.0, 2.0]])  # padding (9.0) is ignored
     legal = np.array([[True, True, False], [True, True, False]])
-    assert policy.greedy_actions(degrees, legal, counts).tolist() == [0, 1]
+    greedy = [policy.greedy_action(degrees[i], legal[i], counts[i]) for i in range(2)]
+    assert greedy == [0, 1]
     legal[1, 1] = False  # an illegal action is never greedy
-    assert policy.greedy_actions(degrees, legal, counts).tolist() == [0, 0]
+    assert policy.greedy_action(degrees[1], legal[1], counts[1]) == 0
 
 
 def reference_fit(payoffs: np.ndarray, rng: np.random.Generator, delta: float, max_games: int):
@@ -100,18 +102,18 @@ def test_compiled_loop_equals_a_plain_python_algorithm_1(seed: int) -> None:
     stream = np.random.default_rng(100 + seed)
     expected_games, expected = reference_fit(game.payoffs, stream, 0.04, 10**6)
     learner = CMARLCD(game.action_counts, seed=np.random.default_rng(100 + seed))
-    result = learner.fit(game)
+    result = fit(learner, game)
     assert result.games == expected_games
     assert np.allclose(learner.degrees, expected, atol=1e-12, rtol=0)
 
 
 SCRIPT = """
 import json, numpy as np
-from cmarlcd import CMARLCD
+from cmarlcd import CMARLCD, fit
 from cmarlcd.games.matrix import random_case1
 game = random_case1(4, 3, np.random.default_rng(3))
 learner = CMARLCD(game.action_counts, seed=11)
-r = learner.fit(game)
+r = fit(learner, game)
 print(json.dumps({"games": r.games, "degrees": learner.degrees.tolist()}))
 """
 
@@ -138,15 +140,15 @@ def test_act_update_loop_equals_fit() -> None:
         stepwise.update(joint, game.payoff(joint))
         games += 1
     fitted = CMARLCD(game.action_counts, seed=9)
-    assert fitted.fit(game).games == games
+    assert fit(fitted, game).games == games
     assert np.array_equal(fitted.degrees, stepwise.degrees)
 
 
 def test_same_seed_same_result_and_different_seed_differs() -> None:
     game = random_case1(4, 4, np.random.default_rng(0))
-    first = CMARLCD(game.action_counts, seed=1).fit(game)
-    again = CMARLCD(game.action_counts, seed=1).fit(game)
-    other = CMARLCD(game.action_counts, seed=2).fit(game)
+    first = fit(CMARLCD(game.action_counts, seed=1), game)
+    again = fit(CMARLCD(game.action_counts, seed=1), game)
+    other = fit(CMARLCD(game.action_counts, seed=2), game)
     assert first == again
     assert other.games != first.games
 
@@ -154,7 +156,7 @@ def test_same_seed_same_result_and_different_seed_differs() -> None:
 @pytest.mark.parametrize("game", [climbing_game(), penalty_game(-10.0), penalty_game(-100.0)])
 def test_converges_to_an_optimum_of_classic_games(game) -> None:
     for seed in range(20):
-        result = CMARLCD(game.action_counts, seed=seed).fit(game)
+        result = fit(CMARLCD(game.action_counts, seed=seed), game)
         assert result.converged and result.success, (game.name, seed, result)
 
 
@@ -166,7 +168,7 @@ def test_agents_with_different_action_counts() -> None:
         payoffs[1, 2, 4] = 1.0
         game = from_payoffs(payoffs)
         learner = CMARLCD(game.action_counts, seed=seed)
-        result = learner.fit(game)
+        result = fit(learner, game)
         assert result.converged
         assert learner.strategies[0, 2:].tolist() == [0.0, 0.0, 0.0]  # padding stays empty
         successes += result.success
@@ -175,7 +177,7 @@ def test_agents_with_different_action_counts() -> None:
 
 def test_cap_ends_an_unconverged_run_as_failure() -> None:
     game = random_case1(6, 5, np.random.default_rng(0))
-    result = CMARLCD(game.action_counts, seed=0).fit(game, max_games=50)
+    result = fit(CMARLCD(game.action_counts, seed=0), game, max_games=50)
     assert result.games == 50 and not result.converged and not result.success
 
 
@@ -210,4 +212,83 @@ def test_bad_learner_input_is_rejected() -> None:
     with pytest.raises(ConfigError, match="reward"):
         learner.update((0, 1), float("nan"))
     with pytest.raises(ConfigError, match="game"):
-        learner.fit(climbing_game())
+        fit(learner, climbing_game())
+
+
+# ------------------------------------------------- Algorithm 2: stochastic games
+
+
+def episode(learner, steps) -> None:
+    for state, joint, reward in steps:
+        learner.observe(state, joint, reward)
+    learner.end_episode()
+
+
+def test_new_record_resets_and_takes_the_large_step() -> None:
+    """DSN settings: c_init 1.5, δ_reset 0.5, δ 0.05, clip [0.5, 3.0], γ 0.9."""
+    learner = CMARLCDStochastic([2, 3], n_states=3, seed=0)
+    # one episode s0 -(1, 2), r=1-> s1 -(0, 0), r=2-> end. Backwards:
+    # s1: G = 2 > -inf, record: reset to 1.5, chosen +0.5, others -0.5
+    # s0: G = 1 + 0.9 * 2 = 2.8 > -inf, record as well
+    episode(learner, [(0, (1, 2), 1.0), (1, (0, 0), 2.0)])
+    values = learner.tables.degrees
+    assert values[1, 0, :2].tolist() == [2.0, 1.0]
+    assert values[1, 1].tolist() == [2.0, 1.0, 1.0]
+    assert values[0, 0, :2].tolist() == [1.0, 2.0]
+    assert values[0, 1].tolist() == [1.0, 1.0, 2.0]
+    assert learner.max_return(0) == pytest.approx(2.8) and learner.max_return(1) == 2.0
+    # eq. (17): p = softmax(c / T)
+    assert learner.tables.probs[1, 1].tolist() == pytest.approx(softmax([2.0, 1.0, 1.0], 1.0))
+
+
+def test_tie_takes_the_small_step_and_below_changes_nothing() -> None:
+    learner = CMARLCDStochastic([3], n_states=1, seed=0)
+    episode(learner, [(0, (0,), 5.0)])  # record: [2.0, 1.0, 1.0]
+    episode(learner, [(0, (1,), 5.0)])  # tie: action 1 +0.05, others -0.05
+    assert learner.tables.degrees[0, 0].tolist() == pytest.approx([1.95, 1.05, 0.95])
+    episode(learner, [(0, (2,), 4.0)])  # below the record: nothing moves
+    assert learner.tables.degrees[0, 0].tolist() == pytest.approx([1.95, 1.05, 0.95])
+    episode(learner, [(0, (2,), 5.0 + 1e-12)])  # within the 1e-9 tolerance: a tie
+    assert learner.tables.degrees[0, 0].tolist() == pytest.approx([1.9, 1.0, 1.0])
+    assert learner.max_return(0) == 5.0
+
+
+def test_degrees_are_clipped_to_c_min_c_max() -> None:
+    learner = CMARLCDStochastic([2], StochasticConfig(delta=0.4), n_states=1, seed=0)
+    episode(learner, [(0, (0,), 1.0)])  # record: [2.0, 1.0]
+    for _ in range(5):  # ties: +0.4 / -0.4 until the clips hold
+        episode(learner, [(0, (0,), 1.0)])
+    assert learner.tables.degrees[0, 0].tolist() == [3.0, 0.5]
+
+
+def test_every_visit_backward_order() -> None:
+    """A state visited twice: the later visit (processed first) sets the record."""
+    learner = CMARLCDStochastic([2], n_states=2, seed=0)
+    # s0 -(0), r=0-> s1 -(1), r=0-> s0 -(1), r=10-> end
+    # backwards: t=2 s0 G=10 record (action 1); t=1 s1 G=9 record; t=0 s0 G=8.1 < 10: nothing
+    episode(learner, [(0, (0,), 0.0), (1, (1,), 0.0), (0, (1,), 10.0)])
+    assert learner.tables.degrees[0, 0].tolist() == [1.0, 2.0]
+    assert learner.max_return(0) == 10.0 and learner.max_return(1) == pytest.approx(9.0)
+
+
+def test_greedy_breaks_ties_by_lowest_index() -> None:
+    learner = CMARLCDStochastic([3, 3], n_states=1, seed=0)
+    assert learner.greedy(0) == (0, 0)  # all degrees equal c_init
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "parameter"),
+    [
+        ({"c_min": 2.0, "c_max": 1.0}, "c_max"),
+        ({"c_min": 0.0}, "c_min"),
+        ({"c_init": 5.0}, "c_init"),
+        ({"gamma": 0.0}, "gamma"),
+        ({"gamma": 1.5}, "gamma"),
+        ({"delta": 0.0}, "delta"),
+        ({"temperature": -1.0}, "temperature"),
+    ],
+)
+def test_bad_stochastic_config(kwargs: dict, parameter: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        StochasticConfig(**kwargs)
+    assert info.value.parameter == parameter

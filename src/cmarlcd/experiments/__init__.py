@@ -1,5 +1,30 @@
-"""The paper's experimental protocols (importing this registers them with the runner)."""
+"""The paper's experimental protocols, and the registry the runner finds them in.
+
+* :mod:`~.repeated` -- Section IV-C, Tables 1-2;
+* :mod:`~.episodic` -- learn then evaluate greedily, for any one-team game;
+* :mod:`~.sensor_network` -- Section V-A on the DSN, Tables 3-7 and Fig. 4.
+"""
+
+from __future__ import annotations
 
 from cmarlcd.experiments import repeated, sensor_network
+from cmarlcd.runs import Experiment
 
-__all__ = ["repeated", "sensor_network"]
+_REGISTRY: dict[str, Experiment] = {}
+
+
+def register(experiment: Experiment) -> Experiment:
+    """Make ``experiment`` runnable by name (also inside forked worker processes)."""
+    _REGISTRY[experiment.name] = experiment
+    return experiment
+
+
+def get_experiment(name: str) -> Experiment:
+    """The registered experiment ``name``."""
+    return _REGISTRY[name]
+
+
+for _experiment in (repeated.REPEATED, sensor_network.DSN):
+    register(_experiment)
+
+__all__ = ["get_experiment", "register", "repeated", "sensor_network"]

@@ -10,22 +10,21 @@ from __future__ import annotations
 import statistics
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
 from cmarlcd.errors import require
-from cmarlcd.games.matrix import MatrixGame, climbing_game, random_game
+from cmarlcd.games.matrix import MatrixGame, check_size, climbing_game, random_game
 from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
 from cmarlcd.paper import repeated_success
-from cmarlcd.runner import Experiment, RunSpec, register
+from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.store import RunRecord
+from cmarlcd.training.repeated import fit
 
 EXPERIMENT = "repeated"
 ALGORITHM = "cmarl-cd"
-#: Largest payoff tensor a cell may ask for (entries); ~0.8 GB of float64.
-MAX_JOINT_ACTIONS = 100_000_000
 #: The paper's protocol: Table 1 (case 1) and Table 2 (case 2).
 PAPER_AGENTS = {1: (2, 3, 4, 5, 6, 7), 2: (4, 5, 6, 7)}
 PAPER_ACTIONS = {1: (2, 3, 4, 5), 2: (3, 4, 5)}
@@ -53,13 +52,7 @@ class RepeatedSweep:
         require(min(self.actions) >= 2, "actions", f"must be >= 2 (got {min(self.actions)})")
         require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
         require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
-        size = max(self.actions) ** max(self.agents)
-        require(
-            size <= MAX_JOINT_ACTIONS,
-            "agents",
-            f"{max(self.actions)}^{max(self.agents)} joint actions exceed the limit of "
-            f"{MAX_JOINT_ACTIONS:,}",
-        )
+        check_size(max(self.agents), max(self.actions))
 
     def cells(self) -> list[dict[str, Any]]:
         """One config per (agents, actions), learner settings included."""
@@ -85,7 +78,7 @@ def paper_sweep(case: int, runs: int = PAPER_RUNS, seed: int = 0) -> RepeatedSwe
 
 def learner_config(config: Mapping[str, Any]) -> RepeatedConfig:
     """The learner settings stored in a cell config."""
-    names = RepeatedConfig.__dataclass_fields__
+    names = {f.name for f in fields(RepeatedConfig)}
     return RepeatedConfig(**{k: v for k, v in config.items() if k in names})
 
 
@@ -103,7 +96,7 @@ def prepare_run(
 def run_cell(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
     """One run: a fresh random game, CMARL-CD until pure, the paper's success test."""
     game, learner = prepare_run(config, seed)
-    result = learner.fit(game)
+    result = fit(learner, game)
     return {
         "success": result.success,
         "converged": result.converged,
@@ -116,7 +109,7 @@ def run_cell(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, 
 
 def _warm_up() -> None:
     game = climbing_game()
-    CMARLCD(game.action_counts, seed=0).fit(game, max_games=10)
+    fit(CMARLCD(game.action_counts, seed=0), game, max_games=10)
 
 
 def _cost(config: Mapping[str, Any]) -> float:
@@ -126,7 +119,7 @@ def _cost(config: Mapping[str, Any]) -> float:
     return float(config["agents"] * config["actions"])
 
 
-REPEATED = register(Experiment(EXPERIMENT, run_cell, _warm_up, _cost))
+REPEATED = Experiment(EXPERIMENT, run_cell, _warm_up, _cost)
 
 
 @dataclass(frozen=True)
@@ -142,6 +135,7 @@ class CellSummary:
     median_games: float | None
     """Median games to convergence over the converged runs (None if none converged)."""
     paper_success_rate: float | None
+    """The paper's rate for this cell; None unless the learner's settings are the paper's."""
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -150,9 +144,11 @@ class CellSummary:
 def summarize(records: Iterable[RunRecord]) -> list[CellSummary]:
     """Aggregate stored runs per cell (runs of other settings must be filtered first)."""
     groups: dict[tuple[int, int, int], list[dict[str, Any]]] = defaultdict(list)
+    paper_settings = True
     for rec in records:
         cfg = rec.config
         groups[(cfg["case"], cfg["agents"], cfg["actions"])].append(rec.metrics)
+        paper_settings &= learner_config(cfg) == RepeatedConfig()
     out = []
     for (case, n, m), metrics in sorted(groups.items(), key=lambda kv: (kv[0][2], kv[0][1])):
         games = [x["games"] for x in metrics if x["converged"]]
@@ -165,7 +161,7 @@ def summarize(records: Iterable[RunRecord]) -> list[CellSummary]:
                 success_rate=sum(bool(x["success"]) for x in metrics) / len(metrics),
                 converged_rate=sum(bool(x["converged"]) for x in metrics) / len(metrics),
                 median_games=float(statistics.median(games)) if games else None,
-                paper_success_rate=repeated_success(case, n, m),
+                paper_success_rate=repeated_success(case, n, m) if paper_settings else None,
             )
         )
     return out
@@ -185,10 +181,26 @@ def stored_tables(records: Iterable[RunRecord]) -> dict[tuple, list[RunRecord]]:
     return dict(tables)
 
 
-def table_title(records: Sequence[RunRecord]) -> str:
+def settings_text(records: Sequence[RunRecord]) -> str:
+    """What a table of runs shows: case, learner settings, seed, runs per cell."""
     cfg = records[0].config
-    table = {1: "Table 1", 2: "Table 2"}[cfg["case"]]
-    return (
-        f"{table} — success rate, case {cfg['case']} (T={cfg['temperature']:g}, "
-        f"δ={cfg['delta']:g}, seed {records[0].key.root_seed})"
+    counts = defaultdict(int)
+    for rec in records:
+        counts[(rec.config["agents"], rec.config["actions"])] += 1
+    low, high = min(counts.values()), max(counts.values())
+    runs = f"{low} runs per cell" if low == high else f"{low}-{high} runs per cell"
+    default = asdict(RepeatedConfig())
+    extra = "".join(
+        f", {name}={cfg[name]:g}"
+        for name in ("purity_threshold", "max_games", "initial_degree")
+        if cfg[name] != default[name]
     )
+    return (
+        f"case {cfg['case']}, T={cfg['temperature']:g}, δ={cfg['delta']:g}{extra}, "
+        f"seed {records[0].key.root_seed}, {runs}"
+    )
+
+
+def table_title(records: Sequence[RunRecord]) -> str:
+    table = {1: "Table 1", 2: "Table 2"}[records[0].config["case"]]
+    return f"{table} — success rate ({settings_text(records)})"

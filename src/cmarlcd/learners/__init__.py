@@ -1,5 +1,29 @@
-"""Learners: CMARL-CD (coordination degree) and the paper's baselines."""
+"""Learners: CMARL-CD (coordination degree) and the paper's baselines, one file each.
 
-from cmarlcd.learners.coordination import CMARLCD, FitResult, RepeatedConfig
+* :mod:`~.coordination` -- CMARL-CD, Algorithms 1 and 2;
+* :mod:`~.automata` -- the LA-OCA stand-in;
+* :mod:`~.deep_config`, :mod:`~.value_decomposition`, :mod:`~.deep_agent` -- VDN and QMIX
+  (the networks and the agent need the ``[deep]`` extra);
 
-__all__ = ["CMARLCD", "FitResult", "RepeatedConfig"]
+and what they share: the tabular protocol and object API (:mod:`~.tabular`), the
+max-return indicator (:mod:`~.max_return`) and acting from tables (:mod:`~.policy`).
+"""
+
+from cmarlcd.learners.automata import LAOCA, AutomatonConfig
+from cmarlcd.learners.coordination import (
+    CMARLCD,
+    CMARLCDStochastic,
+    RepeatedConfig,
+    StochasticConfig,
+)
+from cmarlcd.learners.deep_config import DeepConfig
+
+__all__ = [
+    "CMARLCD",
+    "LAOCA",
+    "AutomatonConfig",
+    "CMARLCDStochastic",
+    "DeepConfig",
+    "RepeatedConfig",
+    "StochasticConfig",
+]

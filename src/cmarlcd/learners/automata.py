@@ -2,19 +2,54 @@
 
 The paper gives no update rule for LA-OCA and its reference is not openly available.
 [choice] (SPEC §3) Per state, each agent runs a linear reward-inaction automaton driven
-by the same max-return indicator as CMARL-CD: when the return from a state reaches the
-best seen from it, the action taken is rewarded,
+by the same max-return indicator as CMARL-CD (:mod:`cmarlcd.learners.max_return`): when
+the return from a state reaches the best seen from it, the action taken is rewarded,
 
     p(s, a_t) += λ (1 - p(s, a_t)),    p(s, a) *= (1 - λ)  for every other legal a,
 
 otherwise nothing changes. Initial strategies are uniform over the legal actions;
 execution takes ``argmax p``. Reported beside the paper's published LA-OCA row.
+
+This file is the whole learner: config, tables, compiled functions, object API.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
+
 import numpy as np
 from numba import njit
+
+from cmarlcd.errors import require
+from cmarlcd.learners.max_return import (
+    BELOW,
+    MaxReturnLearner,
+    check_gamma_tolerance,
+    record_outcomes,
+)
+from cmarlcd.learners.policy import greedy_action, sample_joint_action
+from cmarlcd.learners.tabular import TabularConfig, TabularKernels, no_step_update
+
+
+class AutomatonTables(NamedTuple):
+    """The automata of every state index ``s`` (leading axis) and agent ``i``."""
+
+    probs: np.ndarray
+    """``p_i(s, a)``, shape (n_states, n_agents, width)."""
+    legal: np.ndarray
+    """Legal actions of each state, as first seen, same shape."""
+    r_max: np.ndarray
+    """``R_max(s)``: the best discounted return seen from ``s``, shape (n_states,)."""
+
+
+class AutomatonParams(NamedTuple):
+    """The stand-in's parameters, as the compiled functions read them."""
+
+    rate: float
+    gamma: float
+    tolerance: float
 
 
 @njit(cache=True)
@@ -37,3 +72,85 @@ def uniform_strategy(legal_row: np.ndarray, count: int, p_row: np.ndarray) -> No
         n_legal += legal_row[a]
     for a in range(count):
         p_row[a] = 1.0 / n_legal if legal_row[a] else 0.0
+
+
+@njit(cache=True)
+def automaton_init(tables, params, s, legal, counts) -> None:
+    """A state before any update: uniform strategies over the legal actions."""
+    tables.r_max[s] = -np.inf
+    for i in range(counts.shape[0]):
+        tables.legal[s, i] = legal[i]
+        uniform_strategy(tables.legal[s, i], counts[i], tables.probs[s, i])
+
+
+@njit(cache=True)
+def automaton_act(tables, params, s, counts, rng, joint) -> None:
+    """Every agent samples ``a_i ~ p_i(s)``."""
+    sample_joint_action(tables.probs[s], counts, rng, joint)
+
+
+@njit(cache=True)
+def automaton_greedy(tables, s, counts, joint) -> None:
+    """Execution: each agent's most probable legal action (lowest index on ties)."""
+    for i in range(counts.shape[0]):
+        joint[i] = greedy_action(tables.probs[s, i], tables.legal[s, i], counts[i])
+
+
+@njit(cache=True)
+def automaton_end_episode(tables, params, states, joints, rewards, length, counts) -> None:
+    """The max-return pass, then :func:`automaton_rule` for every agent at every visit
+    that reached its state's record (records and ties alike), backwards."""
+    outcomes = np.empty(length, dtype=np.int8)
+    record_outcomes(tables.r_max, params, states, rewards, length, outcomes)
+    for t in range(length - 1, -1, -1):
+        if outcomes[t] != BELOW:
+            s = states[t]
+            for i in range(counts.shape[0]):
+                automaton_rule(
+                    tables.probs[s, i], tables.legal[s, i], counts[i], joints[t, i], params.rate
+                )
+
+
+@dataclass(frozen=True)
+class AutomatonConfig(TabularConfig):
+    """LA-OCA stand-in (SPEC §3)."""
+
+    name: ClassVar[str] = "la-oca"
+    display_name: ClassVar[str] = "LA-OCA"
+    kernels: ClassVar[TabularKernels] = TabularKernels(
+        automaton_init, automaton_act, automaton_greedy, no_step_update, automaton_end_episode
+    )
+
+    rate: float = 0.1
+    """λ of the linear reward-inaction update, in (0, 1)."""
+    gamma: float = 0.9
+    """Discount of eq. (1), in (0, 1]."""
+    tolerance: float = 1e-9
+    """[choice] Absolute tolerance under which two returns count as equal."""
+
+    def __post_init__(self) -> None:
+        require(0 < self.rate < 1, "rate", f"must be in (0, 1) (got {self.rate})")
+        check_gamma_tolerance(self.gamma, self.tolerance)
+
+    def params(self) -> AutomatonParams:
+        return AutomatonParams(self.rate, self.gamma, self.tolerance)
+
+    def new_tables(self, n_states: int, counts: np.ndarray) -> AutomatonTables:
+        shape = (n_states, counts.shape[0], int(counts.max()))
+        return AutomatonTables(
+            np.zeros(shape), np.zeros(shape, dtype=np.bool_), np.full(n_states, -np.inf)
+        )
+
+
+class LAOCA(MaxReturnLearner):
+    """The LA-OCA stand-in (SPEC §3), step by step (see
+    :class:`cmarlcd.learners.tabular.TabularLearner`)."""
+
+    def __init__(
+        self,
+        action_counts: Sequence[int],
+        config: AutomatonConfig | None = None,
+        n_states: int | None = None,
+        seed: int | np.random.SeedSequence | np.random.Generator | None = None,
+    ) -> None:
+        super().__init__(action_counts, config or AutomatonConfig(), n_states, seed)

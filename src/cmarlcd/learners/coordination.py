@@ -4,32 +4,44 @@ Each agent ``i`` keeps a coordination degree ``c_i[a]`` per action and plays the
 Boltzmann strategy ``p_i = softmax(c_i / T)`` (eq. 5). After every game the global
 reward ``r`` is compared with the largest reward seen so far, ``r_max``; when
 ``r >= r_max`` (eq. 4) the selected action's degree rises by ``delta`` and every other
-action's degree falls by ``delta`` (eqs. 2-3).
+action's degree falls by ``delta`` (eqs. 2-3). Every agent observes the same global
+reward, so the per-agent maxima ``r_i_max`` of Algorithm 1 are always equal; they are
+kept as one shared value.
 
-The rules are numba-compiled functions over plain arrays, written once and used both
-by the object API (:class:`CMARLCD`) and by the fast experiment loop
-(:func:`play_repeated`). Agents may have different action counts: per-agent rows are
-padded to the largest count and ``counts[i]`` says how many entries of row ``i`` are
-real.
+For stochastic games (Algorithm 2) the same rules apply per state, driven by the
+max-return indicator of :mod:`cmarlcd.learners.max_return` (eqs. 14-17).
 
-Every agent observes the same global reward, so the per-agent maxima ``r_i_max`` of
-Algorithm 1 are always equal; they are kept as one shared value.
-
-For stochastic games (Algorithm 2) the same rules apply per state; the per-state rule is
-:func:`coordination_rule`, driven by the backward pass in :mod:`cmarlcd.learners.stochastic`.
+This file is the whole learner: its configs (:class:`RepeatedConfig`,
+:class:`StochasticConfig`), its tables, its compiled functions (the rules, written once,
+over plain arrays) and its object APIs (:class:`CMARLCD`, :class:`CMARLCDStochastic`).
+Agents may have different action counts: per-agent rows are padded to the largest count
+and ``counts[i]`` says how many entries of row ``i`` are real.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 from numba import njit
 
 from cmarlcd.errors import require
-from cmarlcd.games.matrix import MatrixGame
-from cmarlcd.learners.policy import greedy_actions, sample_joint_action
+from cmarlcd.learners.max_return import (
+    BELOW,
+    RECORD,
+    MaxReturnLearner,
+    check_gamma_tolerance,
+    record_outcomes,
+)
+from cmarlcd.learners.policy import greedy_action, sample_joint_action
+from cmarlcd.learners.tabular import (
+    RepeatedKernels,
+    TabularConfig,
+    TabularKernels,
+    no_step_update,
+)
 
 # --------------------------------------------------------------------------- rules
 
@@ -69,30 +81,41 @@ def clip_degrees(c_row: np.ndarray, count: int, c_min: float, c_max: float) -> N
 
 
 @njit(cache=True)
-def coordination_rule(
-    c_row: np.ndarray,
-    p_row: np.ndarray,
-    legal_row: np.ndarray,
-    count: int,
-    action: int,
-    new_record: bool,
-    params,
-) -> None:
-    """Algorithm 2, lines 16-19, for one agent at one visited state (eqs. 14-17).
+def is_pure(p: np.ndarray, counts: np.ndarray, threshold: float) -> bool:
+    """The stopping rule: every agent has some action with probability above ``threshold``."""
+    for i in range(counts.shape[0]):
+        pure = False
+        for a in range(counts[i]):
+            if p[i, a] > threshold:
+                pure = True
+                break
+        if not pure:
+            return False
+    return True
 
-    On a new record of the return from this state the degrees are first reset to
-    ``c_init`` and the large step ``delta_reset`` is used (the paper's "exploration near
-    local optima" rule, Section V-A); on a tie the step is ``delta``. Then the degrees are
-    clipped to ``[c_min, c_max]`` and the strategy recomputed by eq. (17).
-    """
-    step = params.delta
-    if new_record:
-        for a in range(count):
-            c_row[a] = params.c_init
-        step = params.delta_reset
-    reinforce(c_row, count, action, step)
-    clip_degrees(c_row, count, params.c_min, params.c_max)
-    softmax_strategy(c_row, legal_row, count, params.temperature, p_row)
+
+# ------------------------------------------------------- Algorithm 1: repeated games
+
+
+class RepeatedTables(NamedTuple):
+    """Algorithm 1's state: per agent, degrees, strategy and legal actions; and r_max."""
+
+    degrees: np.ndarray
+    """``c_i[a]``, shape (n_agents, width)."""
+    probs: np.ndarray
+    """``p_i[a]`` of eq. (5), same shape."""
+    legal: np.ndarray
+    """Real (not padding) actions, same shape."""
+    r_max: np.ndarray
+    """One element: the largest reward seen so far (``-inf`` before any game)."""
+
+
+class RepeatedParams(NamedTuple):
+    """Algorithm 1's parameters, as the compiled functions read them."""
+
+    delta: float
+    temperature: float
+    purity_threshold: float
 
 
 @njit(cache=True)
@@ -122,64 +145,49 @@ def repeated_update(
 
 
 @njit(cache=True)
-def is_pure(p: np.ndarray, counts: np.ndarray, threshold: float) -> bool:
-    """The stopping rule: every agent has some action with probability above ``threshold``."""
+def repeated_act(tables, params, counts: np.ndarray, rng, joint: np.ndarray) -> None:
+    """Every agent samples ``a_i ~ p_i`` (Algorithm 1, line 4)."""
+    sample_joint_action(tables.probs, counts, rng, joint)
+
+
+@njit(cache=True)
+def repeated_learn(tables, params, counts: np.ndarray, joint: np.ndarray, reward: float) -> bool:
+    """Eqs. (2)-(5) after one game; True when the indicator of eq. (4) fired."""
+    return repeated_update(
+        tables.degrees,
+        tables.probs,
+        tables.legal,
+        counts,
+        joint,
+        reward,
+        tables.r_max,
+        params.delta,
+        params.temperature,
+    )
+
+
+@njit(cache=True)
+def repeated_converged(tables, params, counts: np.ndarray) -> bool:
+    """Algorithm 1's stopping rule: every strategy is pure."""
+    return is_pure(tables.probs, counts, params.purity_threshold)
+
+
+@njit(cache=True)
+def repeated_greedy(tables, counts: np.ndarray, joint: np.ndarray) -> None:
+    """Each agent's action with the largest coordination degree (lowest index on ties)."""
     for i in range(counts.shape[0]):
-        pure = False
-        for a in range(counts[i]):
-            if p[i, a] > threshold:
-                pure = True
-                break
-        if not pure:
-            return False
-    return True
-
-
-@njit(cache=True)
-def flat_index(joint: np.ndarray, strides: np.ndarray) -> int:
-    """Position of ``joint`` in a C-order flattened payoff tensor."""
-    index = 0
-    for i in range(joint.shape[0]):
-        index += joint[i] * strides[i]
-    return index
-
-
-@njit(cache=True)
-def play_repeated(
-    flat_payoffs: np.ndarray,
-    strides: np.ndarray,
-    c: np.ndarray,
-    p: np.ndarray,
-    legal: np.ndarray,
-    counts: np.ndarray,
-    r_max: np.ndarray,
-    delta: float,
-    temperature: float,
-    threshold: float,
-    max_games: int,
-    rng,
-) -> tuple[int, bool]:
-    """Algorithm 1: play until every strategy is pure or ``max_games`` games are played.
-
-    Returns ``(games_played, converged)``. The state arrays are updated in place, so a
-    call continues from wherever the learner stands.
-    """
-    joint = np.zeros(counts.shape[0], dtype=np.int64)
-    for game in range(max_games):
-        sample_joint_action(p, counts, rng, joint)
-        reward = flat_payoffs[flat_index(joint, strides)]
-        fired = repeated_update(c, p, legal, counts, joint, reward, r_max, delta, temperature)
-        if fired and is_pure(p, counts, threshold):  # p changes only when eq. (4) fires
-            return game + 1, True
-    return max_games, False
-
-
-# ---------------------------------------------------------------------- object API
+        joint[i] = greedy_action(tables.degrees[i], tables.legal[i], counts[i])
 
 
 @dataclass(frozen=True)
 class RepeatedConfig:
     """Hyper-parameters of CMARL-CD for repeated games (Section IV-C settings)."""
+
+    name: ClassVar[str] = "cmarl-cd"
+    display_name: ClassVar[str] = "CMARL-CD"
+    kernels: ClassVar[RepeatedKernels] = RepeatedKernels(
+        repeated_act, repeated_learn, repeated_converged, repeated_greedy
+    )
 
     temperature: float = 1.0
     """T of eq. (5), > 0."""
@@ -202,31 +210,32 @@ class RepeatedConfig:
         init = self.initial_degree
         require(bool(np.isfinite(init)), "initial_degree", f"must be finite (got {init})")
 
+    def params(self) -> RepeatedParams:
+        return RepeatedParams(self.delta, self.temperature, self.purity_threshold)
 
-@dataclass(frozen=True)
-class FitResult:
-    """Outcome of :meth:`CMARLCD.fit`."""
-
-    games: int
-    """Games played in this call."""
-    converged: bool
-    """Every strategy became pure before the cap."""
-    greedy_joint_action: tuple[int, ...]
-    """argmax of each agent's coordination degrees."""
-    greedy_payoff: float
-    """Payoff of the greedy joint action."""
-    success: bool
-    """Converged and the greedy joint action is optimal (the paper's success)."""
+    def new_tables(self, counts: np.ndarray) -> RepeatedTables:
+        """Degrees at ``initial_degree`` and the uniform strategy of eq. (5)."""
+        width = int(counts.max())
+        degrees = np.full((counts.shape[0], width), self.initial_degree)
+        legal = np.arange(width)[None, :] < counts[:, None]
+        probs = np.zeros_like(degrees)
+        for i in range(counts.shape[0]):
+            softmax_strategy(degrees[i], legal[i], counts[i], self.temperature, probs[i])
+        return RepeatedTables(degrees, probs, legal, np.array([-np.inf]))
 
 
 class CMARLCD:
-    """CMARL-CD learners for an n-agent repeated game (Algorithm 1).
+    """CMARL-CD learners for an n-agent repeated game (Algorithm 1), step by step.
+
+    ``act`` samples a joint action, ``update`` learns from its reward (eqs. 2-5);
+    :func:`cmarlcd.training.fit` plays a whole run with the compiled loop on the same
+    tables and random stream.
 
     Example:
-        >>> from cmarlcd import CMARLCD, games
+        >>> from cmarlcd import CMARLCD, fit, games
         >>> game = games.climbing_game()
         >>> learner = CMARLCD(game.action_counts, seed=0)
-        >>> learner.fit(game).success
+        >>> fit(learner, game).success
         True
     """
 
@@ -240,91 +249,55 @@ class CMARLCD:
         require(len(counts) >= 2, "agents", f"must be >= 2 (got {len(counts)})")
         require(min(counts) >= 2, "actions", f"every agent needs >= 2 actions (got {counts})")
         self.config = config or RepeatedConfig()
+        self.params = self.config.params()
         self.counts = np.array(counts, dtype=np.int64)
         self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-        self.degrees = np.full((len(counts), max(counts)), self.config.initial_degree)
-        self.legal = np.arange(max(counts))[None, :] < self.counts[:, None]
-        self.strategies = np.zeros_like(self.degrees)
-        for i, count in enumerate(counts):
-            softmax_strategy(
-                self.degrees[i], self.legal[i], count, self.config.temperature, self.strategies[i]
-            )
-        self._r_max = np.array([-np.inf])
+        self.tables = self.config.new_tables(self.counts)
 
     @property
     def n_agents(self) -> int:
         return int(self.counts.shape[0])
 
     @property
+    def degrees(self) -> np.ndarray:
+        """The coordination degrees ``c_i[a]`` (rows padded to the widest agent)."""
+        return self.tables.degrees
+
+    @property
+    def strategies(self) -> np.ndarray:
+        """The strategies ``p_i[a]`` of eq. (5)."""
+        return self.tables.probs
+
+    @property
     def max_reward(self) -> float:
         """``r_max``: the largest global reward seen so far (``-inf`` before any game)."""
-        return float(self._r_max[0])
+        return float(self.tables.r_max[0])
 
     def act(self) -> tuple[int, ...]:
         """Sample a joint action from the current strategies."""
         joint = np.zeros(self.n_agents, dtype=np.int64)
-        sample_joint_action(self.strategies, self.counts, self.rng, joint)
+        repeated_act(self.tables, self.params, self.counts, self.rng, joint)
         return tuple(int(a) for a in joint)
 
     def update(self, joint_action: Sequence[int], reward: float) -> bool:
         """Learn from one game; returns True when the indicator of eq. (4) fired."""
         joint = self._check_joint(joint_action)
         require(bool(np.isfinite(reward)), "reward", f"must be finite (got {reward})")
-        cfg = self.config
-        return bool(
-            repeated_update(
-                self.degrees,
-                self.strategies,
-                self.legal,
-                self.counts,
-                joint,
-                float(reward),
-                self._r_max,
-                cfg.delta,
-                cfg.temperature,
-            )
-        )
+        return bool(repeated_learn(self.tables, self.params, self.counts, joint, float(reward)))
 
     def is_pure(self) -> bool:
         """The paper's stopping rule (every agent has an action above the threshold)."""
-        return bool(is_pure(self.strategies, self.counts, self.config.purity_threshold))
+        return bool(repeated_converged(self.tables, self.params, self.counts))
 
     def greedy_joint_action(self) -> tuple[int, ...]:
         """Each agent's action with the largest coordination degree."""
-        return tuple(int(a) for a in greedy_actions(self.degrees, self.legal, self.counts))
+        joint = np.zeros(self.n_agents, dtype=np.int64)
+        repeated_greedy(self.tables, self.counts, joint)
+        return tuple(int(a) for a in joint)
 
     def strategy(self, agent: int) -> np.ndarray:
         """Agent ``agent``'s current strategy ``p_i`` (a copy)."""
-        return self.strategies[agent, : self.counts[agent]].copy()
-
-    def fit(self, game: MatrixGame, max_games: int | None = None) -> FitResult:
-        """Play ``game`` until every strategy is pure (or the cap), via the compiled loop."""
-        require(
-            game.action_counts == tuple(int(k) for k in self.counts),
-            "game",
-            f"has action counts {game.action_counts}, the learners {tuple(self.counts)}",
-        )
-        cfg = self.config
-        cap = cfg.max_games if max_games is None else int(max_games)
-        require(cap >= 1, "max_games", f"must be >= 1 (got {cap})")
-        games, converged = play_repeated(
-            game.flat_payoffs,
-            game.strides,
-            self.degrees,
-            self.strategies,
-            self.legal,
-            self.counts,
-            self._r_max,
-            cfg.delta,
-            cfg.temperature,
-            cfg.purity_threshold,
-            cap,
-            self.rng,
-        )
-        greedy = self.greedy_joint_action()
-        payoff = game.payoff(greedy)
-        success = bool(converged) and payoff == game.max_payoff
-        return FitResult(int(games), bool(converged), greedy, payoff, success)
+        return self.tables.probs[agent, : self.counts[agent]].copy()
 
     def _check_joint(self, joint_action: Sequence[int]) -> np.ndarray:
         joint = np.asarray(joint_action, dtype=np.int64)
@@ -336,3 +309,187 @@ class CMARLCD:
         ok = bool(((joint >= 0) & (joint < self.counts)).all())
         require(ok, "joint_action", f"actions must lie in [0, counts) = {tuple(self.counts)}")
         return joint
+
+
+# --------------------------------------------------- Algorithm 2: stochastic games
+
+
+class DegreeTables(NamedTuple):
+    """Algorithm 2's state, per state index ``s`` (leading axis) and agent ``i``."""
+
+    degrees: np.ndarray
+    """``c_i(s, a)``, shape (n_states, n_agents, width)."""
+    probs: np.ndarray
+    """``p_i(s, a)`` of eq. (17), same shape."""
+    legal: np.ndarray
+    """Legal actions of each state, as first seen, same shape."""
+    r_max: np.ndarray
+    """``R_max(s)``: the best discounted return seen from ``s``, shape (n_states,)."""
+
+
+class CoordinationParams(NamedTuple):
+    """Algorithm 2's parameters, as the compiled functions read them."""
+
+    delta: float
+    delta_reset: float
+    temperature: float
+    c_min: float
+    c_max: float
+    c_init: float
+    gamma: float
+    tolerance: float
+
+
+@njit(cache=True)
+def coordination_rule(
+    c_row: np.ndarray,
+    p_row: np.ndarray,
+    legal_row: np.ndarray,
+    count: int,
+    action: int,
+    new_record: bool,
+    params,
+) -> None:
+    """Algorithm 2, lines 16-19, for one agent at one visited state (eqs. 14-17).
+
+    On a new record of the return from this state the degrees are first reset to
+    ``c_init`` and the large step ``delta_reset`` is used (the paper's "exploration near
+    local optima" rule, Section V-A); on a tie the step is ``delta``. Then the degrees are
+    clipped to ``[c_min, c_max]`` and the strategy recomputed by eq. (17).
+    """
+    step = params.delta
+    if new_record:
+        for a in range(count):
+            c_row[a] = params.c_init
+        step = params.delta_reset
+    reinforce(c_row, count, action, step)
+    clip_degrees(c_row, count, params.c_min, params.c_max)
+    softmax_strategy(c_row, legal_row, count, params.temperature, p_row)
+
+
+@njit(cache=True)
+def coordination_init(tables, params, s, legal, counts) -> None:
+    """A state before any update: ``c = c_init``, ``p`` uniform over the legal actions."""
+    tables.r_max[s] = -np.inf
+    for i in range(counts.shape[0]):
+        tables.legal[s, i] = legal[i]
+        tables.degrees[s, i, : counts[i]] = params.c_init
+        softmax_strategy(
+            tables.degrees[s, i],
+            tables.legal[s, i],
+            counts[i],
+            params.temperature,
+            tables.probs[s, i],
+        )
+
+
+@njit(cache=True)
+def coordination_act(tables, params, s, counts, rng, joint) -> None:
+    """Every agent samples ``a_i ~ p_i(s)`` (eq. 17)."""
+    sample_joint_action(tables.probs[s], counts, rng, joint)
+
+
+@njit(cache=True)
+def coordination_greedy(tables, s, counts, joint) -> None:
+    """Execution: each agent's legal action with the largest degree (lowest index on ties)."""
+    for i in range(counts.shape[0]):
+        joint[i] = greedy_action(tables.degrees[s, i], tables.legal[s, i], counts[i])
+
+
+@njit(cache=True)
+def coordination_end_episode(tables, params, states, joints, rewards, length, counts) -> None:
+    """Algorithm 2, lines 13-22: the max-return pass, then :func:`coordination_rule` for
+    every agent at every visit that reached its state's record, backwards."""
+    outcomes = np.empty(length, dtype=np.int8)
+    record_outcomes(tables.r_max, params, states, rewards, length, outcomes)
+    for t in range(length - 1, -1, -1):
+        if outcomes[t] == BELOW:
+            continue
+        s = states[t]
+        for i in range(counts.shape[0]):
+            c_row, p_row, legal_row = tables.degrees[s, i], tables.probs[s, i], tables.legal[s, i]
+            action, record = joints[t, i], outcomes[t] == RECORD
+            coordination_rule(c_row, p_row, legal_row, counts[i], action, record, params)
+
+
+@dataclass(frozen=True)
+class StochasticConfig(TabularConfig):
+    """CMARL-CD for stochastic games (Algorithm 2); defaults are the paper's DSN settings."""
+
+    name: ClassVar[str] = "cmarl-cd"
+    display_name: ClassVar[str] = "CMARL-CD"
+    kernels: ClassVar[TabularKernels] = TabularKernels(
+        coordination_init,
+        coordination_act,
+        coordination_greedy,
+        no_step_update,
+        coordination_end_episode,
+    )
+
+    delta: float = 0.05
+    """Step of eqs. (14)-(15) when a return ties the record, > 0."""
+    delta_reset: float = 0.5
+    """Step used right after a new record resets the degrees to ``c_init`` (Section V-A)."""
+    temperature: float = 1.0
+    """T of eq. (17), > 0."""
+    c_min: float = 0.5
+    """Lower clip of the coordination degrees (positive, Section IV-D)."""
+    c_max: float = 3.0
+    """Upper clip of the coordination degrees."""
+    c_init: float = 1.5
+    """Initial degree, and the value a new record resets a state's degrees to."""
+    gamma: float = 0.9
+    """Discount of eq. (1), in (0, 1]."""
+    tolerance: float = 1e-9
+    """[choice] Absolute tolerance under which two returns count as equal."""
+
+    def __post_init__(self) -> None:
+        for name in ("delta", "delta_reset", "temperature"):
+            value = getattr(self, name)
+            require(bool(np.isfinite(value)) and value > 0, name, f"must be > 0 (got {value})")
+        lo, hi, init = self.c_min, self.c_max, self.c_init
+        require(bool(np.isfinite(lo)) and lo > 0, "c_min", f"must be > 0 (got {lo})")
+        require(bool(np.isfinite(hi)) and lo <= hi, "c_max", f"must be >= c_min = {lo} (got {hi})")
+        require(
+            lo <= init <= hi, "c_init", f"must lie in [c_min, c_max] = [{lo}, {hi}] (got {init})"
+        )
+        check_gamma_tolerance(self.gamma, self.tolerance)
+
+    def params(self) -> CoordinationParams:
+        return CoordinationParams(
+            self.delta,
+            self.delta_reset,
+            self.temperature,
+            self.c_min,
+            self.c_max,
+            self.c_init,
+            self.gamma,
+            self.tolerance,
+        )
+
+    def new_tables(self, n_states: int, counts: np.ndarray) -> DegreeTables:
+        shape = (n_states, counts.shape[0], int(counts.max()))
+        return DegreeTables(
+            np.zeros(shape),
+            np.zeros(shape),
+            np.zeros(shape, dtype=np.bool_),
+            np.full(n_states, -np.inf),
+        )
+
+
+#: The paper's battlefield settings (Section V-B): c_max = 2.5, T = 0.8, the rest as DSN.
+BATTLEFIELD_CMARLCD = StochasticConfig(c_max=2.5, temperature=0.8)
+
+
+class CMARLCDStochastic(MaxReturnLearner):
+    """CMARL-CD for stochastic games (Algorithm 2), step by step (see
+    :class:`cmarlcd.learners.tabular.TabularLearner`)."""
+
+    def __init__(
+        self,
+        action_counts: Sequence[int],
+        config: StochasticConfig | None = None,
+        n_states: int | None = None,
+        seed: int | np.random.SeedSequence | np.random.Generator | None = None,
+    ) -> None:
+        super().__init__(action_counts, config or StochasticConfig(), n_states, seed)

@@ -12,6 +12,8 @@ from cmarlcd.errors import require
 from cmarlcd.learners.policy import annealed_epsilon
 
 MIXERS = ("vdn", "qmix")
+#: How the mixers are named in tables and figures.
+DISPLAY_NAMES = {"vdn": "VDN", "qmix": "QMIX"}
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,15 @@ class DeepConfig:
     """Fraction of the L learning episodes over which ε is annealed (eq. 18: 0.8)."""
     eps_after: float = 0.01
     """ε for the remaining episodes (eq. 18: 0.01)."""
+
+    @property
+    def name(self) -> str:
+        """The learner's registry name: its mixer (``"vdn"`` or ``"qmix"``)."""
+        return self.mixer
+
+    @property
+    def display_name(self) -> str:
+        return DISPLAY_NAMES[self.mixer]
 
     def __post_init__(self) -> None:
         known = ", ".join(MIXERS)

@@ -48,15 +48,6 @@ def greedy_action(values_row: np.ndarray, legal_row: np.ndarray, count: int) -> 
 
 
 @njit(cache=True)
-def greedy_actions(values: np.ndarray, legal: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Execution: each agent's greedy legal action (Algorithms 1 and 2)."""
-    out = np.zeros(counts.shape[0], dtype=np.int64)
-    for i in range(counts.shape[0]):
-        out[i] = greedy_action(values[i], legal[i], counts[i])
-    return out
-
-
-@njit(cache=True)
 def annealed_epsilon(
     episode: int, total: int, start: float, end: float, fraction: float, after: float
 ) -> float:
@@ -72,12 +63,33 @@ def annealed_epsilon(
 
 
 @njit(cache=True)
+def uniform_legal_action(legal_row: np.ndarray, count: int, u: float) -> int:
+    """The ``floor(u * k)``-th of the ``k`` legal actions, ``u ~ U[0, 1)``: a uniform
+    draw (with every action legal, simply ``floor(u * count)``)."""
+    n_legal = 0
+    for a in range(count):
+        n_legal += legal_row[a]
+    pick = int(u * n_legal)
+    for a in range(count):
+        if legal_row[a]:
+            if pick == 0:
+                return a
+            pick -= 1
+    return -1
+
+
+@njit(cache=True)
 def epsilon_greedy(
-    greedy_row: np.ndarray, counts: np.ndarray, epsilon: float, rng, joint: np.ndarray
+    greedy_row: np.ndarray,
+    legal: np.ndarray,
+    counts: np.ndarray,
+    epsilon: float,
+    rng,
+    joint: np.ndarray,
 ) -> None:
-    """Each agent independently: with probability ε a uniform random action, else greedy."""
+    """Each agent independently: with probability ε a uniform legal action, else greedy."""
     for i in range(counts.shape[0]):
         if rng.random() < epsilon:
-            joint[i] = int(rng.random() * counts[i])
+            joint[i] = uniform_legal_action(legal[i], counts[i], rng.random())
         else:
             joint[i] = greedy_row[i]

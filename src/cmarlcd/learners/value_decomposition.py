@@ -220,6 +220,7 @@ class ValueDecomposition(nn.Module):
         self.target_agents = copy.deepcopy(self.agents).requires_grad_(False)
         self.target_mixer = copy.deepcopy(self.mixer).requires_grad_(False)
         self._next_value_table: torch.Tensor | None = None  # see _next_values
+        self.state_legal: torch.Tensor | None = None  # see set_state_legal
         self.optimizer = torch.optim.Adam(
             list(self.agents.parameters()) + list(self.mixer.parameters()),
             lr=config.lr,
@@ -239,17 +240,25 @@ class ValueDecomposition(nn.Module):
         """Greedy legal joint actions (B, N, n) for the states (B, N[, in])."""
         return self.q_values(state, legal).argmax(dim=-1)
 
+    def set_state_legal(self, legal: torch.Tensor) -> None:
+        """The legal actions of every integer state, (S, n, A) bool, for games whose
+        masks depend on the state: used by :meth:`greedy_table` and for the next states
+        of :meth:`td_step` (default: every action legal everywhere)."""
+        self.state_legal = legal
+        self._next_value_table = None
+
     @torch.no_grad()
     def greedy_table(self) -> torch.Tensor:
-        """Greedy joint action (B, S, n) in every integer state, all actions legal."""
-        return self._masked(self.agents.tables(), None).argmax(dim=-1)
+        """Greedy joint action (B, S, n) in every integer state (its legal actions)."""
+        return self._masked(self.agents.tables(), self.state_legal).argmax(dim=-1)
 
     def td_step(self, batch: dict[str, torch.Tensor]) -> float:
         """One Adam step on the summed per-seed one-step TD losses; returns the mean loss.
 
         ``batch``: state (B, N[, in]), actions (B, N, n), reward (B, N), next_state,
-        terminal (B, N) bool, and optionally next_legal (B, N, n, A) bool (default: every
-        action legal).
+        terminal (B, N) bool, and optionally next_legal (B, N, n, A) bool (default: the
+        per-state masks of :meth:`set_state_legal` for integer states, else every action
+        legal).
         """
         chosen = self._chosen_q(batch["state"], batch["actions"])
         q_tot = self.mixer(chosen, batch["state"])
@@ -274,13 +283,14 @@ class ValueDecomposition(nn.Module):
 
     def _next_values(self, state: torch.Tensor, legal: torch.Tensor | None) -> torch.Tensor:
         """The target networks' ``Q_tot`` at ``state`` (B, N) with each agent's best legal
-        action. For integer states with every action legal it depends on the state
-        alone, so it is a (B, S) table, computed once per target copy and looked up."""
+        action. For integer states with per-state masks it depends on the state alone, so
+        it is a (B, S) table, computed once per target copy and looked up."""
         if state.dtype != torch.int64 or legal is not None:
             best = self._masked(self.target_agents(state), legal).max(dim=-1).values
             return self.target_mixer(best, state)
         if self._next_value_table is None:
-            best = self._masked(self.target_agents.tables(), None).max(dim=-1).values
+            masked = self._masked(self.target_agents.tables(), self.state_legal)
+            best = masked.max(dim=-1).values
             every_state = torch.arange(best.shape[1]).expand(best.shape[0], -1)
             self._next_value_table = self.target_mixer(best, every_state)
         return torch.gather(self._next_value_table, 1, state)

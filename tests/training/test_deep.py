@@ -7,11 +7,13 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from cmarlcd.deep_training import DeepAgent, DsnDeepBatch  # noqa: E402
+from cmarlcd.experiments import episodic  # noqa: E402
 from cmarlcd.experiments import sensor_network as sn  # noqa: E402
 from cmarlcd.games import sensor_network as dsn  # noqa: E402
+from cmarlcd.learners.deep_agent import DeepAgent  # noqa: E402
 from cmarlcd.learners.deep_config import DeepConfig  # noqa: E402
-from cmarlcd.rollouts import play_episodes  # noqa: E402
+from cmarlcd.training.deep import DeepBatch  # noqa: E402
+from cmarlcd.training.episodes import play_episodes  # noqa: E402
 
 SMALL = DeepConfig(buffer_size=2_000, batch_size=100, train_every=50, target_every=200)
 
@@ -22,16 +24,12 @@ def test_seed_b_of_a_batch_equals_that_seed_alone(algorithm: str) -> None:
         mixer=algorithm, buffer_size=1_000, batch_size=50, train_every=50, target_every=200
     )
     sweep = sn.DsnSweep(
-        algorithms=(algorithm,),
-        episodes=(150,),
-        runs=3,
-        eval_episodes=200,
-        curve_points=3,
-        **{algorithm: small},
+        learners=(small,), episodes=(150,), runs=3, eval_episodes=200, curve_points=3
     )
     specs = sweep.specs()
-    batch = sn.run_dsn_batch(specs[0].config, [s.seed_sequence() for s in specs])
-    alone = sn.run_dsn(specs[1].config, specs[1].seed_sequence())
+    seeds = [s.seed_sequence() for s in specs]
+    batch = episodic.run_batch(sn.DSN_GAME, specs[0].config, seeds)
+    alone = episodic.run(sn.DSN_GAME, specs[1].config, specs[1].seed_sequence())
     assert batch[1]["policy"] == alone["policy"]
     assert batch[1]["checkpoints"] == alone["checkpoints"]
     assert [c[:2] for c in batch[1]["curve"]] == [c[:2] for c in alone["curve"]]
@@ -40,7 +38,7 @@ def test_seed_b_of_a_batch_equals_that_seed_alone(algorithm: str) -> None:
 
 def test_gradient_and_target_cadence(monkeypatch) -> None:
     seeds = [np.random.SeedSequence(0)]
-    run = DsnDeepBatch(SMALL, seeds, total_episodes=60)
+    run = DeepBatch(dsn.SPEC, SMALL, seeds, total_episodes=60)
     trained, synced = [], []
     monkeypatch.setattr(run.model, "td_step", lambda batch: trained.append(run.steps))
     monkeypatch.setattr(run.model, "sync_target", lambda: synced.append(run.steps))
@@ -51,7 +49,7 @@ def test_gradient_and_target_cadence(monkeypatch) -> None:
 
 
 def test_every_seed_stops_at_its_episode_budget() -> None:
-    run = DsnDeepBatch(SMALL, [np.random.SeedSequence(k) for k in range(3)], 25)
+    run = DeepBatch(dsn.SPEC, SMALL, [np.random.SeedSequence(k) for k in range(3)], 25)
     seen = []
     run.train([10], lambda k, budget, table: seen.append((k, budget, table.shape)))
     assert run.episodes.tolist() == [25, 25, 25]

@@ -15,6 +15,7 @@ The random generators follow Section IV-C of the paper and SPEC §1:
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -23,6 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from cmarlcd.errors import ConfigError, require
+from cmarlcd.games.matrix import kernels
+from cmarlcd.games.spec import GameKernels, GameSpec
 
 #: [choice] payoff of every optimal joint action in the random games.
 OPTIMAL_PAYOFF = 1.0
@@ -30,6 +33,13 @@ OPTIMAL_PAYOFF = 1.0
 SUBOPTIMAL_SCALE = 0.9
 #: case 2: the fraction of joint actions that are optimal (the paper's 0.1).
 CASE2_OPTIMAL_FRACTION = 0.1
+#: Largest payoff tensor accepted, in joint actions (entries): about 0.8 GB of float64.
+MAX_JOINT_ACTIONS = 100_000_000
+
+#: The compiled protocol of every repeated game (one state, one step per episode).
+KERNELS = GameKernels(
+    kernels.env_reset, kernels.env_step, kernels.env_state, kernels.env_done, kernels.env_legal
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,6 +100,20 @@ class MatrixGame:
         """True when ``joint_action`` attains the game's maximal payoff."""
         return self.payoff(joint_action) == self.max_payoff
 
+    def spec(self) -> GameSpec:
+        """This game as a one-state game of the compiled protocol."""
+        counts = np.array(self.action_counts, dtype=np.int64)
+        return GameSpec(
+            name="matrix_game_v0",
+            kernels=KERNELS,
+            new_env=lambda: (self._flat, self._strides, counts),
+            agents=tuple(f"agent_{i}" for i in range(self.n_agents)),
+            action_counts=counts,
+            n_states=1,
+            max_steps=1,
+            teams=(tuple(range(self.n_agents)),),
+        )
+
 
 def validate_payoffs(payoffs: object) -> np.ndarray:
     """Return ``payoffs`` as a fresh float64 array, or raise :class:`ConfigError`.
@@ -103,19 +127,33 @@ def validate_payoffs(payoffs: object) -> np.ndarray:
         raise ConfigError(
             "payoffs", f"must be a rectangular numeric array ({type(exc).__name__})"
         ) from None
-    require(array.ndim >= 2, "payoffs", f"needs one axis per agent, at least 2 (got {array.ndim})")
-    require(
-        min(array.shape) >= 2,
-        "payoffs",
-        f"every agent needs at least 2 actions (got shape {array.shape})",
-    )
+    check_shape(array.shape)
     require(bool(np.isfinite(array).all()), "payoffs", "must contain only finite values")
     return np.ascontiguousarray(array)
 
 
-def _check_size(n_agents: int, n_actions: int) -> None:
+def check_shape(shape: tuple[int, ...]) -> None:
+    """A payoff tensor's shape: at least 2 agents, 2 actions each, at most the size limit."""
+    require(len(shape) >= 2, "payoffs", f"needs one axis per agent, at least 2 (got {len(shape)})")
+    require(min(shape) >= 2, "payoffs", f"every agent needs at least 2 actions (got shape {shape})")
+    require(
+        math.prod(shape) <= MAX_JOINT_ACTIONS,
+        "payoffs",
+        f"shape {shape} has more than {MAX_JOINT_ACTIONS:,} joint actions",
+    )
+
+
+def check_size(n_agents: int, n_actions: int, parameter: str = "agents") -> None:
+    """``n_actions ** n_agents`` joint actions fit the size limit, checked in O(1) time
+    (the power of two huge numbers is never formed)."""
     require(n_agents >= 2, "agents", f"must be >= 2 (got {n_agents})")
     require(n_actions >= 2, "actions", f"must be >= 2 (got {n_actions})")
+    fits = n_agents * math.log(n_actions) <= math.log(MAX_JOINT_ACTIONS) + 1e-9
+    require(
+        fits and n_actions**n_agents <= MAX_JOINT_ACTIONS,
+        parameter,
+        f"{n_actions}^{n_agents} joint actions exceed the limit of {MAX_JOINT_ACTIONS:,}",
+    )
 
 
 def _random_background(shape: tuple[int, ...], rng: np.random.Generator) -> np.ndarray:
@@ -128,7 +166,7 @@ def random_case1(n_agents: int, n_actions: int, rng: np.random.Generator) -> Mat
     Agent ``i``'s component actions across the ``m`` optima are a random permutation of
     its ``m`` actions, so every action of every agent belongs to exactly one optimum.
     """
-    _check_size(n_agents, n_actions)
+    check_size(n_agents, n_actions)
     shape = (n_actions,) * n_agents
     payoffs = _random_background(shape, rng)
     components = np.stack([rng.permutation(n_actions) for _ in range(n_agents)])
@@ -148,7 +186,7 @@ def case2_optimum_count(n_agents: int, n_actions: int) -> int:
 
 def random_case2(n_agents: int, n_actions: int, rng: np.random.Generator) -> MatrixGame:
     """Case 2 of Section IV-C: ``round(0.1 m^n)`` optima drawn without replacement."""
-    _check_size(n_agents, n_actions)
+    check_size(n_agents, n_actions)
     shape = (n_actions,) * n_agents
     payoffs = _random_background(shape, rng)
     total = n_actions**n_agents
@@ -189,24 +227,41 @@ def from_payoffs(payoffs: object, name: str = "custom") -> MatrixGame:
 
 def load_payoffs(path: str | Path) -> MatrixGame:
     """A game from a file: ``.npy`` (any number of agents), ``.json`` (nested lists) or
-    ``.csv`` / ``.txt`` (a 2-agent matrix, comma separated)."""
+    ``.csv`` / ``.txt`` (a 2-agent matrix, comma separated).
+
+    A ``.npy`` file's shape is checked from its header before anything is loaded."""
     path = Path(path)
+    require(not path.is_dir(), "payoffs", f"{path} is a directory, not a payoff file")
     require(path.is_file(), "payoffs", f"no such file: {path}")
     suffix = path.suffix.lower()
+    require(
+        suffix in (".npy", ".json", ".csv", ".txt"),
+        "payoffs",
+        f"unsupported file type {suffix!r}; use .npy, .json or .csv",
+    )
+    require(path.stat().st_size > 0, "payoffs", f"{path.name} is empty")
     try:
         if suffix == ".npy":
-            data = np.load(path, allow_pickle=False)
+            data = _load_npy(path)
         elif suffix == ".json":
             data = json.loads(path.read_text())
-        elif suffix in (".csv", ".txt"):
-            data = np.loadtxt(path, delimiter=",", ndmin=2)
         else:
-            raise ConfigError(
-                "payoffs", f"unsupported file type {suffix!r}; use .npy, .json or .csv"
-            )
-    except (OSError, ValueError) as exc:
+            data = np.loadtxt(path, delimiter=",", ndmin=2)
+    except (OSError, ValueError, EOFError) as exc:
         if isinstance(exc, ConfigError):
             raise
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise ConfigError("payoffs", f"cannot read {path.name}: {reason}") from None
     return from_payoffs(data, name=path.stem)
+
+
+def _load_npy(path: Path) -> np.ndarray:
+    """An ``.npy`` array whose header promises a numeric payoff tensor of a sane size."""
+    with path.open("rb") as file:
+        fmt = np.lib.format
+        version = fmt.read_magic(file)
+        read = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+        shape, _, dtype = read(file)
+    require(dtype.kind in "biuf", "payoffs", f"{path.name} holds {dtype} values, not numbers")
+    check_shape(tuple(shape))
+    return np.load(path, allow_pickle=False)

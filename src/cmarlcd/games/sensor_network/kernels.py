@@ -23,22 +23,71 @@ which every sensor learns from, is the sum.
 
 The transition is written once, as numba kernels over plain arrays (``targets``: the
 cell of each target or ``-1`` when captured; ``energy``; ``joint``: one action per
-sensor), used both by the fast learning loops and by :class:`SensorNetworkEnv`, the
-PettingZoo ``ParallelEnv`` face of the game.
+sensor). The game protocol (:mod:`cmarlcd.games.spec`) wraps them as :data:`SPEC`, over
+the state arrays ``env = (targets, energy, individual)``, where ``individual`` holds each
+sensor's own reward of the last step; the training loops and
+:class:`cmarlcd.games.sensor_network.SensorNetworkEnv` both run :data:`SPEC`.
 """
 
 from __future__ import annotations
 
 import operator
-from collections.abc import Mapping
-from typing import Any, ClassVar
 
-import gymnasium
 import numpy as np
-import pettingzoo
 from numba import njit
 
 from cmarlcd.errors import ConfigError, require
+from cmarlcd.games.spec import GameKernels, GameSpec
+
+__all__ = [
+    "ACTION_COUNTS",
+    "AGENTS",
+    "CAPTURED",
+    "CAPTURE_CREDITED",
+    "CAPTURE_REWARD",
+    "CELL_ACTIONS",
+    "CELL_SENSORS",
+    "FOCUS_REWARD",
+    "HIT_THRESHOLD",
+    "IDLE",
+    "MAX_ACTIONS",
+    "MAX_STEPS",
+    "MOVE_COL",
+    "MOVE_ROW",
+    "NO_CELL",
+    "N_CELLS",
+    "N_COLS",
+    "N_MOVES",
+    "N_ROWS",
+    "N_SENSORS",
+    "N_STATES",
+    "N_STATE_INDICES",
+    "N_TARGETS",
+    "OPTIMAL_RETURN",
+    "OPTIMAL_STEPS",
+    "SENSOR_CELLS",
+    "SPEC",
+    "TARGET_ENERGY",
+    "TERMINAL_STATE",
+    "decode_state",
+    "done",
+    "dsn_move_targets",
+    "dsn_reset",
+    "dsn_sensor_phase",
+    "dsn_state",
+    "dsn_step",
+    "encode_state",
+    "env_done",
+    "env_legal",
+    "env_reset",
+    "env_state",
+    "env_step",
+    "focused_cell",
+    "move_cell",
+    "new_env",
+    "optimal_joint_action",
+    "validate_joint",
+]
 
 # ------------------------------------------------------------------------ geometry
 
@@ -319,177 +368,61 @@ def validate_joint(joint: object) -> np.ndarray:
     return array
 
 
-_CELL_WIDTH = 13
+# ------------------------------------------------------------------ game protocol
 
 
-def render_text(targets: np.ndarray, energy: np.ndarray, joint: np.ndarray | None = None) -> str:
-    """A text picture of the grid: each cell's target (``T0 e=3``) and, when ``joint`` is
-    given, the sensors focusing it (``s1,s4,s5``); then the captured targets."""
-    border = "+" + "+".join(["-" * _CELL_WIDTH] * N_COLS) + "+"
-    focus: list[list[int]] = [[] for _ in range(N_CELLS)]
-    if joint is not None:
-        for s, action in enumerate(validate_joint(joint)):
-            if action != IDLE:
-                focus[SENSOR_CELLS[s, action - 1]].append(s)
-    lines = [border]
-    for row in range(N_ROWS):
-        top, bottom = [], []
-        for cell in range(row * N_COLS, (row + 1) * N_COLS):
-            here = [k for k in range(N_TARGETS) if targets[k] == cell]
-            label = " ".join(f"T{k} e={int(energy[k])}" for k in here) or f"c{cell}"
-            top.append(f" {label:<{_CELL_WIDTH - 1}}")
-            seen = ",".join(f"s{s}" for s in focus[cell]) if focus[cell] else ""
-            bottom.append(f" {seen:<{_CELL_WIDTH - 1}}")
-        lines += ["|" + "|".join(top) + "|", "|" + "|".join(bottom) + "|", border]
-    captured = [f"T{k}" for k in range(N_TARGETS) if targets[k] < 0]
-    lines.append("captured: " + (", ".join(captured) if captured else "none"))
-    return "\n".join(lines)
+@njit(cache=True)
+def env_reset(env, rng) -> None:
+    """Protocol ``reset``: :func:`dsn_reset` on ``env = (targets, energy, individual)``."""
+    dsn_reset(env[0], env[1], rng)
 
 
-# --------------------------------------------------------------------- ParallelEnv
+@njit(cache=True)
+def env_step(env, joint: np.ndarray, rng, rewards: np.ndarray) -> None:
+    """Protocol ``step``: :func:`dsn_step`; the global reward goes to the one team."""
+    rewards[0] = dsn_step(env[0], env[1], joint, rng, env[2])
+
+
+@njit(cache=True)
+def env_state(env, team: int) -> int:
+    """Protocol ``state``: every sensor observes :func:`dsn_state`."""
+    return dsn_state(env[0])
+
+
+@njit(cache=True)
+def env_done(env) -> bool:
+    """Protocol ``done``: both targets captured."""
+    return done(env[0])
+
+
+@njit(cache=True)
+def env_legal(env, masks: np.ndarray) -> None:
+    """Protocol ``legal``: every action of every sensor is always legal."""
+    for s in range(N_SENSORS):
+        for a in range(masks.shape[1]):
+            masks[s, a] = a < ACTION_COUNTS[s]
+
+
+def new_env() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fresh state arrays ``(targets, energy, individual)``: no episode started yet."""
+    return (
+        np.full(N_TARGETS, CAPTURED, dtype=np.int64),
+        np.zeros(N_TARGETS, dtype=np.int64),
+        np.zeros(N_SENSORS),
+    )
+
 
 AGENTS = tuple(f"sensor_{s}" for s in range(N_SENSORS))
-_AGENT_INDEX = {agent: s for s, agent in enumerate(AGENTS)}
 
-
-class SensorNetworkEnv(pettingzoo.ParallelEnv):
-    """The DSN as a PettingZoo ``ParallelEnv`` over the compiled kernels above.
-
-    Every sensor observes the global state index (``Discrete(43)``, as in the paper) and
-    receives the global reward; ``infos[agent]`` carries an all-ones ``"action_mask"``
-    and, after a step, the sensor's ``"individual_reward"``. ``reset(seed=s)`` reseeds
-    ``self.np_random``; ``reset()`` continues its stream.
-    """
-
-    metadata: ClassVar[dict[str, Any]] = {
-        "name": "sensor_network_v0",
-        "render_modes": ["ansi", "human"],
-    }
-
-    def __init__(self, render_mode: str | None = None, max_steps: int = MAX_STEPS) -> None:
-        require(
-            render_mode is None or render_mode in self.metadata["render_modes"],
-            "render_mode",
-            f"must be None, 'ansi' or 'human' (got {render_mode!r})",
-        )
-        require(max_steps >= 1, "max_steps", f"must be >= 1 (got {max_steps})")
-        self.render_mode = render_mode
-        self.max_steps = max_steps
-        self.possible_agents = list(AGENTS)
-        self.agents: list[str] = []
-        self.state_space = gymnasium.spaces.Discrete(N_STATE_INDICES)
-        self.np_random: np.random.Generator | None = None
-        self.targets = np.full(N_TARGETS, CAPTURED, dtype=np.int64)
-        self.energy = np.zeros(N_TARGETS, dtype=np.int64)
-        self.individual = np.zeros(N_SENSORS, dtype=np.float64)
-        self.steps = 0
-        self._joint = np.zeros(N_SENSORS, dtype=np.int64)
-        self._last_joint: np.ndarray | None = None
-        # One space object per agent, as the PettingZoo API asks (seeding works on them).
-        self._observation_spaces = {
-            agent: gymnasium.spaces.Discrete(N_STATE_INDICES) for agent in AGENTS
-        }
-        self._action_spaces = {
-            agent: gymnasium.spaces.Discrete(int(count))
-            for agent, count in zip(AGENTS, ACTION_COUNTS, strict=True)
-        }
-        self._masks = {}
-        for agent, count in zip(AGENTS, ACTION_COUNTS, strict=True):
-            mask = np.ones(int(count), dtype=np.int8)
-            mask.setflags(write=False)
-            self._masks[agent] = mask
-
-    def observation_space(self, agent: str) -> gymnasium.spaces.Discrete:
-        return self._observation_spaces[self._check_agent(agent)]
-
-    def action_space(self, agent: str) -> gymnasium.spaces.Discrete:
-        return self._action_spaces[self._check_agent(agent)]
-
-    @staticmethod
-    def _check_agent(agent: str) -> str:
-        if agent not in AGENTS:
-            raise ConfigError("agent", f"unknown agent {agent!r}; expected sensor_0..sensor_11")
-        return agent
-
-    def state(self) -> int:
-        """The global state index (0..42)."""
-        return int(dsn_state(self.targets))
-
-    def reset(
-        self, seed: int | None = None, options: dict | None = None
-    ) -> tuple[dict[str, int], dict[str, dict[str, Any]]]:
-        if seed is not None or self.np_random is None:
-            self.np_random = np.random.default_rng(seed)
-        dsn_reset(self.targets, self.energy, self.np_random)
-        self.agents = list(AGENTS)
-        self.steps = 0
-        self._last_joint = None
-        state = self.state()
-        observations = dict.fromkeys(self.agents, state)
-        infos = {agent: {"action_mask": self._masks[agent]} for agent in self.agents}
-        return observations, infos
-
-    def _joint_action(self, actions: Mapping[str, object]) -> np.ndarray:
-        unknown = [agent for agent in actions if agent not in self.agents]
-        if unknown:
-            raise ConfigError("actions", f"unknown or finished agent {unknown[0]!r}")
-        missing = [agent for agent in self.agents if agent not in actions]
-        if missing:
-            raise ConfigError("actions", f"no action for {missing[0]!r}")
-        for s, agent in enumerate(AGENTS):
-            action = actions[agent]
-            try:
-                if isinstance(action, (bool, np.bool_)):
-                    raise TypeError
-                value = operator.index(action)  # type: ignore[arg-type]
-            except TypeError:
-                raise ConfigError(
-                    "actions", f"{agent}: action must be an integer (got {action!r})"
-                ) from None
-            count = int(ACTION_COUNTS[s])
-            require(
-                0 <= value < count,
-                "actions",
-                f"{agent}: action must be in 0..{count - 1} (got {value})",
-            )
-            self._joint[s] = value
-        return self._joint
-
-    def step(self, actions: Mapping[str, object]) -> tuple[dict, dict, dict, dict, dict]:
-        if not self.agents or self.np_random is None:
-            raise RuntimeError("the episode is over (or never started); call reset() first")
-        joint = self._joint_action(actions)
-        reward = float(dsn_step(self.targets, self.energy, joint, self.np_random, self.individual))
-        self.steps += 1
-        self._last_joint = joint.copy()
-        state = self.state()
-        terminated = bool(done(self.targets))
-        truncated = not terminated and self.steps >= self.max_steps
-        agents = self.agents
-        observations = dict.fromkeys(agents, state)
-        rewards = dict.fromkeys(agents, reward)
-        terminations = dict.fromkeys(agents, terminated)
-        truncations = dict.fromkeys(agents, truncated)
-        infos = {
-            agent: {
-                "action_mask": self._masks[agent],
-                "individual_reward": float(self.individual[_AGENT_INDEX[agent]]),
-            }
-            for agent in agents
-        }
-        if terminated or truncated:
-            self.agents = []
-        return observations, rewards, terminations, truncations, infos
-
-    def render(self) -> str | None:
-        """The text grid: targets where they stand now and, after a step, the cells the
-        last joint action focused (before the targets moved). Returned for ``"ansi"`` and
-        ``None``, printed for ``"human"``."""
-        text = render_text(self.targets, self.energy, self._last_joint)
-        if self.render_mode == "human":
-            print(text)
-            return None
-        return text
-
-    def close(self) -> None:
-        """Nothing to release."""
+#: The DSN as the training loops and the ParallelEnv see it: 43 state indices (42 +
+#: the absorbing terminal state), one team of twelve sensors, episodes of at most 40 steps.
+SPEC = GameSpec(
+    name="sensor_network_v0",
+    kernels=GameKernels(env_reset, env_step, env_state, env_done, env_legal),
+    new_env=new_env,
+    agents=AGENTS,
+    action_counts=ACTION_COUNTS,
+    n_states=N_STATE_INDICES,
+    max_steps=MAX_STEPS,
+    teams=(tuple(range(N_SENSORS)),),
+)

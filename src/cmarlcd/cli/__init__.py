@@ -1,0 +1,7 @@
+"""The ``cmarl-cd`` command line: :mod:`~.commands` (the commands), :mod:`~.options`
+(parsing and clean failures) and :mod:`~.progress` (the progress bar)."""
+
+from cmarlcd.cli.commands import app
+from cmarlcd.cli.options import parse_range
+
+__all__ = ["app", "parse_range"]

@@ -1,0 +1,561 @@
+"""The ``cmarl-cd`` commands: check the input, run the experiments, hand the stored runs
+to :mod:`cmarlcd.report`. Defaults of learner settings are read from the learners'
+configs (:mod:`cmarlcd.registry`), never restated here."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+
+from cmarlcd import __version__, registry, report
+from cmarlcd.cli.options import (
+    DEFAULT_FIGURES,
+    FiguresOption,
+    JsonOption,
+    ProgressOption,
+    SeedOption,
+    StoreOption,
+    WorkersOption,
+    check_outputs,
+    check_workers,
+    fails_cleanly,
+    parse_count,
+    parse_counts,
+    parse_names,
+    parse_range,
+)
+from cmarlcd.cli.progress import RichSweepView
+from cmarlcd.errors import require
+from cmarlcd.experiments import episodic
+from cmarlcd.experiments import repeated as rep
+from cmarlcd.experiments import sensor_network as dsn_exp
+from cmarlcd.games.matrix import MAX_JOINT_ACTIONS
+from cmarlcd.learners.coordination import RepeatedConfig
+from cmarlcd.registry import LearnerConfig
+from cmarlcd.runner import SweepResult, run_sweep
+from cmarlcd.runs import RunSpec
+from cmarlcd.store import DEFAULT_STORE, ResultStore, RunRecord
+
+app = typer.Typer(
+    help="CMARL-CD: cooperative multi-agent RL by coordination degree; paper reproduction.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # help text is plain: [brackets] are words, not markup
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+#: Agents and actions a repeated-game sweep may ask for (2 actions each: 2^26 < 10^8).
+MAX_AGENTS = MAX_JOINT_ACTIONS.bit_length() - 1
+MAX_ACTIONS = int(MAX_JOINT_ACTIONS**0.5)
+ALGORITHM = registry.REPEATED_LEARNERS[RepeatedConfig.name]
+CMARLCD, LAOCA = registry.LEARNERS["cmarl-cd"], registry.LEARNERS["la-oca"]
+
+
+def _version(value: bool) -> None:
+    if value:
+        print(f"cmarl-cd {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
+    ] = False,
+) -> None:
+    """CMARL-CD: cooperative multi-agent RL by coordination degree; paper reproduction."""
+
+
+# ------------------------------------------------------------------------ sweeps
+
+
+def _sweep(
+    specs: Sequence[RunSpec],
+    store_path: Path,
+    workers: int | None,
+    progress: bool,
+    label: str,
+    seed_batch: int = 1,
+) -> tuple[list[RunRecord], SweepResult]:
+    """Compute what the store lacks of ``specs``; return their records and the tally."""
+    with ResultStore(store_path) as store:
+        done = run_sweep(
+            specs,
+            store,
+            workers=workers,
+            version=__version__,
+            observer=RichSweepView(show=progress),
+            description=label,
+            seed_batch=seed_batch,
+        )
+        return store.get(s.key for s in specs), done
+
+
+def _run_counts(done: SweepResult, store_path: Path, console: Console | None) -> dict[str, Any]:
+    if console is not None:
+        report.say(
+            console,
+            f"{done.computed} runs computed, {done.reused} from the store in "
+            f"{done.wall_seconds:.1f} s",
+        )
+    return {
+        "runs_computed": done.computed,
+        "runs_reused": done.reused,
+        "wall_seconds": done.wall_seconds,
+        "store": str(store_path),
+    }
+
+
+def _where(store: Path, figures: Path, console: Console | None) -> None:
+    """The last line of a command: where its results went."""
+    if console is not None:
+        report.say(console, f"results: runs in {store}, figures in {figures}/")
+
+
+def _console(as_json: bool) -> Console | None:
+    """The console tables go to, or None when stdout carries JSON alone."""
+    return None if as_json else Console()
+
+
+def _run_repeated(
+    sweep: rep.RepeatedSweep,
+    store: Path,
+    figures: Path,
+    workers: int | None,
+    progress: bool,
+    console: Console | None,
+) -> dict[str, Any]:
+    """Run (or resume) one sweep of Tables 1-2 and report it; return its JSON document."""
+    records, done = _sweep(sweep.specs(), store, workers, progress, f"case {sweep.case}")
+    doc = report.repeated_report(records, figures, console)
+    return {**doc, "learner": asdict(sweep.learner), **_run_counts(done, store, console)}
+
+
+@app.command()
+@fails_cleanly
+def repeated(
+    case: Annotated[int, typer.Option(help="1: unique component actions; 2: 0.1·m^n optima.")] = 1,
+    agents: Annotated[
+        str | None,
+        typer.Option(
+            help="Agents n: N, LOW-HIGH or list [default: the paper's].", show_default=False
+        ),
+    ] = None,
+    actions: Annotated[
+        str | None,
+        typer.Option(
+            help="Actions m: N, LOW-HIGH or list [default: the paper's].", show_default=False
+        ),
+    ] = None,
+    runs: Annotated[int, typer.Option(help="Runs per cell.")] = rep.PAPER_RUNS,
+    seed: Annotated[int, typer.Option(help="Root seed of the sweep.")] = 0,
+    temperature: Annotated[float, typer.Option(help="T of eq. (5).")] = ALGORITHM.temperature,
+    delta: Annotated[float, typer.Option(help="δ of eqs. (2)-(3).")] = ALGORITHM.delta,
+    max_games: Annotated[
+        int, typer.Option(help="Cap on games per run (a failure).")
+    ] = ALGORITHM.max_games,
+    workers: WorkersOption = None,
+    as_json: JsonOption = False,
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    progress: ProgressOption = True,
+) -> None:
+    """Tables 1-2: CMARL-CD on random cooperative repeated games (Section IV-C)."""
+    require(case in (1, 2), "case", f"must be 1 or 2 (got {case})")
+    sweep = rep.RepeatedSweep(
+        case=case,
+        agents=rep.PAPER_AGENTS[case]
+        if agents is None
+        else parse_range(agents, "agents", 2, MAX_AGENTS),
+        actions=rep.PAPER_ACTIONS[case]
+        if actions is None
+        else parse_range(actions, "actions", 2, MAX_ACTIONS),
+        runs=runs,
+        seed=seed,
+        learner=replace(ALGORITHM, temperature=temperature, delta=delta, max_games=max_games),
+    )
+    check_workers(workers)
+    check_outputs(store, figures)
+    console = _console(as_json)
+    doc = _run_repeated(sweep, store, figures, workers, progress, console)
+    _where(store, figures, console)
+    if as_json:
+        print(json.dumps(doc, indent=2))
+
+
+# --------------------------------------------------------------------------- DSN
+
+
+def _has_torch() -> bool:
+    return importlib.util.find_spec("torch") is not None
+
+
+def _needs_torch(algorithms: Iterable[str]) -> str:
+    return f"{' and '.join(algorithms)} need PyTorch: pip install 'cmarl-cd[deep]'"
+
+
+def _learners(
+    names: Sequence[str], overrides: dict[str, dict[str, Any]]
+) -> tuple[LearnerConfig, ...]:
+    """The configs of ``names``: each learner's defaults with the options given for it."""
+    configs = []
+    for name in names:
+        default = registry.require_learner(name)
+        settings = {k: v for k, v in overrides.get(name, {}).items() if v is not None}
+        configs.append(replace(default, **settings))
+    return tuple(configs)
+
+
+def _default(config: Any, name: str) -> str:
+    return f"[default: {getattr(config, name):g}]"
+
+
+@app.command()
+@fails_cleanly
+def dsn(
+    algorithms: Annotated[
+        str, typer.Option(help=f"Comma list of {registry.learner_names()}.")
+    ] = "cmarl-cd,la-oca",
+    episodes: Annotated[
+        str, typer.Option(help="Learning budgets L (comma list; 100k allowed).")
+    ] = "100000,300000,500000",
+    runs: Annotated[int, typer.Option(help="Runs per algorithm.")] = dsn_exp.PAPER_RUNS,
+    eval_episodes: Annotated[
+        str, typer.Option(help="Greedy evaluation episodes at each L (50k allowed).")
+    ] = str(dsn_exp.PAPER_EVAL_EPISODES),
+    seed: SeedOption = 0,
+    delta: Annotated[
+        float | None,
+        typer.Option(
+            help=f"CMARL-CD δ (eqs. 14-15) {_default(CMARLCD, 'delta')}.", show_default=False
+        ),
+    ] = None,
+    delta_reset: Annotated[
+        float | None,
+        typer.Option(
+            help=f"CMARL-CD step after a new record {_default(CMARLCD, 'delta_reset')}.",
+            show_default=False,
+        ),
+    ] = None,
+    temperature: Annotated[
+        float | None,
+        typer.Option(
+            help=f"CMARL-CD T (eq. 17) {_default(CMARLCD, 'temperature')}.", show_default=False
+        ),
+    ] = None,
+    c_min: Annotated[
+        float | None,
+        typer.Option(help=f"CMARL-CD lower clip {_default(CMARLCD, 'c_min')}.", show_default=False),
+    ] = None,
+    c_max: Annotated[
+        float | None,
+        typer.Option(help=f"CMARL-CD upper clip {_default(CMARLCD, 'c_max')}.", show_default=False),
+    ] = None,
+    c_init: Annotated[
+        float | None,
+        typer.Option(
+            help=f"CMARL-CD initial / reset degree {_default(CMARLCD, 'c_init')}.",
+            show_default=False,
+        ),
+    ] = None,
+    rate: Annotated[
+        float | None,
+        typer.Option(help=f"LA-OCA λ {_default(LAOCA, 'rate')}.", show_default=False),
+    ] = None,
+    gamma: Annotated[
+        float | None,
+        typer.Option(
+            help="Discount γ of every learner [default: each learner's own, 0.9 for all].",
+            show_default=False,
+        ),
+    ] = None,
+    seed_batch: Annotated[
+        int, typer.Option(help="VDN/QMIX seeds trained together in one stacked model.")
+    ] = dsn_exp.SEED_BATCH,
+    workers: WorkersOption = None,
+    as_json: JsonOption = False,
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    progress: ProgressOption = True,
+) -> None:
+    """Tables 3-7 and Fig. 4: the distributed sensor network task (Section V-A)."""
+    names = parse_names(algorithms, "algorithms")
+    cmarlcd_settings = dict(
+        delta=delta, delta_reset=delta_reset, temperature=temperature, c_min=c_min,
+        c_max=c_max, c_init=c_init, gamma=gamma,
+    )  # fmt: skip
+    sweep = dsn_exp.DsnSweep(
+        learners=_learners(
+            names,
+            {
+                "cmarl-cd": cmarlcd_settings,
+                "la-oca": {"rate": rate, "gamma": gamma},
+                "vdn": {"gamma": gamma},
+                "qmix": {"gamma": gamma},
+            },
+        ),
+        episodes=parse_counts(episodes, "episodes"),
+        runs=runs,
+        eval_episodes=parse_count(eval_episodes, "eval_episodes"),
+        seed=seed,
+    )
+    check_workers(workers)
+    require(seed_batch >= 1, "seed_batch", f"must be >= 1 (got {seed_batch})")
+    deep = [name for name in names if registry.needs_torch(name)]
+    require(not deep or _has_torch(), "algorithms", _needs_torch(deep))
+    check_outputs(store, figures)
+    console = _console(as_json)
+    doc = _run_dsn(sweep, store, figures, workers, progress, console, seed_batch)
+    _where(store, figures, console)
+    if as_json:
+        print(json.dumps(doc, indent=2))
+
+
+def _run_dsn(
+    sweep: dsn_exp.DsnSweep,
+    store: Path,
+    figures: Path,
+    workers: int | None,
+    progress: bool,
+    console: Console | None,
+    seed_batch: int = dsn_exp.SEED_BATCH,
+) -> dict[str, Any]:
+    records, done = _sweep(sweep.specs(), store, workers, progress, "DSN", seed_batch)
+    doc = report.dsn_report(dsn_exp.DSN_GAME, records, figures, console)
+    return {**doc, **_run_counts(done, store, console)}
+
+
+# --------------------------------------------------------------------- reproduce
+
+
+@dataclass(frozen=True)
+class Preset:
+    """How much of the paper's protocol ``reproduce`` runs."""
+
+    repeated_runs: int
+    """Runs per cell of Tables 1-2 (the paper: 50)."""
+    dsn_runs: int
+    """Runs per algorithm of Tables 3-7 (the paper: 50)."""
+    dsn_eval_episodes: int
+    """Greedy evaluation episodes per DSN checkpoint (the paper: 50,000)."""
+    dsn_episodes: tuple[int, ...] = dsn_exp.DSN_EPISODES
+    """DSN learning budgets L (the paper: 100k, 300k, 500k)."""
+    deep: bool = False
+    """Also the VDN and QMIX rows (needs the ``[deep]`` extra; about 30 min on 2 cores
+    at the paper's protocol)."""
+
+
+PRESETS = {
+    "quick": Preset(repeated_runs=20, dsn_runs=10, dsn_eval_episodes=10_000),
+    "paper": Preset(rep.PAPER_RUNS, dsn_exp.PAPER_RUNS, dsn_exp.PAPER_EVAL_EPISODES, deep=True),
+}
+
+
+def _reproduced_learners(
+    preset: Preset, doc: dict[str, Any], as_json: bool
+) -> tuple[LearnerConfig, ...]:
+    """The DSN rows of a preset; VDN and QMIX are skipped, with a note, without torch."""
+    tabular = tuple(c for name, c in registry.LEARNERS.items() if not registry.needs_torch(name))
+    if not preset.deep:
+        return tabular
+    deep = tuple(c for name, c in registry.LEARNERS.items() if registry.needs_torch(name))
+    if _has_torch():
+        return (*tabular, *deep)
+    doc["skipped"] = _needs_torch(c.display_name for c in deep) + " (their rows are left out)"
+    if not as_json:
+        typer.echo(f"note: {doc['skipped']}", err=True)
+    return tabular
+
+
+@app.command()
+@fails_cleanly
+def reproduce(
+    preset: Annotated[
+        str,
+        typer.Option(
+            help="quick: 20 runs per cell of Tables 1-2, 10 DSN runs of CMARL-CD and "
+            "LA-OCA with 10k-episode evaluations; paper: the full protocol (50 runs, 50k "
+            "evaluations), VDN and QMIX included when the [deep] extra is installed."
+        ),
+    ] = "quick",
+    seed: SeedOption = 0,
+    workers: WorkersOption = None,
+    as_json: JsonOption = False,
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    progress: ProgressOption = True,
+) -> None:
+    """Reproduce the paper: Tables 1-7, Fig. 4 and the Theorem 1 check (resumable)."""
+    from cmarlcd.theory import check_theorem1, plot_phase_portrait
+
+    require(preset in PRESETS, "preset", f"must be one of {', '.join(PRESETS)} (got {preset!r})")
+    require(seed >= 0, "seed", f"must be >= 0 (got {seed})")
+    check_workers(workers)
+    check_outputs(store, figures)
+    chosen, console = PRESETS[preset], _console(as_json)
+    doc: dict[str, Any] = {"preset": preset, "repeated": [], "dsn": None}
+    sweep = dsn_exp.DsnSweep(
+        learners=_reproduced_learners(chosen, doc, as_json),
+        episodes=chosen.dsn_episodes,
+        runs=chosen.dsn_runs,
+        eval_episodes=chosen.dsn_eval_episodes,
+        seed=seed,
+    )
+    for case in (1, 2):
+        cases = rep.paper_sweep(case, chosen.repeated_runs, seed)
+        doc["repeated"].append(_run_repeated(cases, store, figures, workers, progress, console))
+    doc["dsn"] = _run_dsn(sweep, store, figures, workers, progress, console)
+    doc["theorem1"] = [check_theorem1(n, m, 1.0, seed=seed).to_dict() for n, m in ((2, 2), (7, 5))]
+    portrait = plot_phase_portrait(figures / "theorem1-phase-T1.png", temperature=1.0, seed=seed)
+    doc["phase_portrait"] = str(portrait)
+    if console is None:
+        print(json.dumps(doc, indent=2))
+        return
+    for check in doc["theorem1"]:
+        report.theory_report(check, console)
+    report.say(console, f"phase portrait: {portrait}")
+    _where(store, figures, console)
+
+
+# ------------------------------------------------------------------------ report
+
+
+@app.command("report")
+@fails_cleanly
+def report_command(
+    case: Annotated[
+        int | None, typer.Option(help="Only Table 1 or 2 of this case.", show_default=False)
+    ] = None,
+    seed: Annotated[
+        int | None, typer.Option(help="Only sweeps with this root seed.", show_default=False)
+    ] = None,
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    as_json: JsonOption = False,
+) -> None:
+    """Re-render the tables and figures from the results store (computes nothing)."""
+    require(case in (None, 1, 2), "case", f"must be 1 or 2 (got {case})")
+    with ResultStore(store, create=False) as db:
+        check_outputs(figures=figures)
+        repeated_groups = rep.stored_tables(db.records(rep.EXPERIMENT))
+        dsn_groups = _groups(db.records(dsn_exp.EXPERIMENT), episodic.protocol_key)
+    console = _console(as_json)
+    docs: dict[str, list] = {"repeated": [], "dsn": []}
+    for records in repeated_groups.values():
+        if case in (None, records[0].config["case"]) and seed in (None, records[0].key.root_seed):
+            docs["repeated"].append(report.repeated_report(records, figures, console))
+    for records in dsn_groups.values():
+        if case is None and seed in (None, records[0].key.root_seed):
+            docs["dsn"].append(report.dsn_report(dsn_exp.DSN_GAME, records, figures, console))
+    if as_json:
+        print(json.dumps({"store": str(store), **docs}, indent=2))
+    elif not any(docs.values()):
+        print(f"the store {store} holds no finished runs matching the filters")
+    else:
+        report.say(console, f"results: read from {store}, figures in {figures}/")
+
+
+def _groups(records: Iterable[Any], key: Callable[[Any], Any]) -> dict[Any, list]:
+    groups: dict[Any, list] = {}
+    for rec in records:
+        groups.setdefault(key(rec), []).append(rec)
+    return groups
+
+
+# -------------------------------------------------------------- play and theory
+
+
+@app.command()
+@fails_cleanly
+def play(
+    payoffs: Annotated[
+        Path, typer.Option(help="Payoff tensor: .npy, .json (nested lists) or .csv (2 agents).")
+    ],
+    runs: Annotated[int, typer.Option(help="Independent learning runs.")] = 10,
+    seed: SeedOption = 0,
+    temperature: Annotated[float, typer.Option(help="T of eq. (5).")] = ALGORITHM.temperature,
+    delta: Annotated[float, typer.Option(help="δ of eqs. (2)-(3).")] = ALGORITHM.delta,
+    max_games: Annotated[
+        int, typer.Option(help="Cap on games per run (a failure).")
+    ] = ALGORITHM.max_games,
+    as_json: JsonOption = False,
+) -> None:
+    """Learn your own common-payoff game with CMARL-CD (Algorithm 1); nothing is stored."""
+    import numpy as np
+
+    from cmarlcd.games.matrix import load_payoffs
+    from cmarlcd.learners.coordination import CMARLCD as Learner
+    from cmarlcd.training import fit
+
+    config = replace(ALGORITHM, temperature=temperature, delta=delta, max_games=max_games)
+    require(runs >= 1, "runs", f"must be >= 1 (got {runs})")
+    require(seed >= 0, "seed", f"must be >= 0 (got {seed})")
+    game = load_payoffs(payoffs)
+    seeds = np.random.SeedSequence(seed).spawn(runs)
+    results = [fit(Learner(game.action_counts, config, seed=s), game) for s in seeds]
+    doc = {
+        "game": game.name,
+        "action_counts": list(game.action_counts),
+        "max_payoff": game.max_payoff,
+        "optimal_joint_actions": [list(a) for a in game.optimal_joint_actions],
+        "success_rate": sum(r.success for r in results) / runs,
+        "runs": [
+            {
+                "greedy_joint_action": list(r.greedy_joint_action),
+                "payoff": r.greedy_payoff,
+                "games": r.games,
+                "converged": r.converged,
+                "success": r.success,
+            }
+            for r in results
+        ],
+    }
+    if as_json:
+        print(json.dumps(doc, indent=2))
+        return
+    out = Console()
+    out.print(
+        f"{game.name}: {game.n_agents} agents, actions {game.action_counts}, "
+        f"max payoff {game.max_payoff:g} at {game.optimal_joint_actions}"
+    )
+    for k, r in enumerate(results):
+        out.print(
+            f"run {k}: greedy {r.greedy_joint_action} payoff {r.greedy_payoff:g} "
+            f"after {r.games:,} games{'' if r.converged else ' (cap reached)'}"
+        )
+    out.print(f"success rate {100 * doc['success_rate']:.0f}% over {runs} runs (nothing stored)")
+
+
+@app.command()
+@fails_cleanly
+def theory(
+    agents: Annotated[int, typer.Option(help="Agents n.")] = 2,
+    optima: Annotated[int, typer.Option(help="Optimal joint actions m (unique components).")] = 2,
+    temperature: Annotated[float, typer.Option(help="T of eq. (5).")] = 1.0,
+    starts: Annotated[int, typer.Option(help="Random interior starting points.")] = 100,
+    seed: Annotated[int, typer.Option(help="Seed of the starting points.")] = 0,
+    as_json: JsonOption = False,
+    figures: FiguresOption = DEFAULT_FIGURES,
+) -> None:
+    """Theorem 1: integrate the mean-field ODE (8) and check the Jacobian (13) is -(2/T)·I."""
+    from cmarlcd.theory import check_theorem1, plot_phase_portrait
+
+    check_outputs(figures=figures)
+    result = check_theorem1(agents, optima, temperature, starts=starts, seed=seed)
+    doc = result.to_dict()
+    if agents == 2 and optima == 2:
+        path = figures / f"theorem1-phase-T{temperature:g}.png"
+        doc["figure"] = str(plot_phase_portrait(path, temperature=temperature, seed=seed))
+    if as_json:
+        print(json.dumps(doc, indent=2))
+        return
+    report.theory_report(doc, Console())

@@ -1,0 +1,121 @@
+"""Parsing and checking what the user typed: option types, value parsers, clean failures.
+
+Every failure a user can cause ends in one line, ``error: --option: what is wrong``, and
+exit status 2, before anything is computed or written.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import typer
+
+from cmarlcd.errors import ConfigError, require
+from cmarlcd.runner import SweepInterrupted
+from cmarlcd.store import check_output_directory, check_store
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+DEFAULT_FIGURES = Path("results") / "figures"
+
+StoreOption = Annotated[Path, typer.Option("--store", help="SQLite results store.")]
+FiguresOption = Annotated[Path, typer.Option("--figures", help="Folder for PNG figures.")]
+WorkersOption = Annotated[
+    int | None,
+    typer.Option("--workers", help="Worker processes [default: all cores].", show_default=False),
+]
+JsonOption = Annotated[
+    bool, typer.Option("--json", help="Print one JSON document to stdout.", show_default=False)
+]
+ProgressOption = Annotated[
+    bool, typer.Option("--progress/--no-progress", help="Progress bar (on stderr).")
+]
+SeedOption = Annotated[int, typer.Option(help="Root seed.")]
+
+
+def fails_cleanly(command: F) -> F:
+    """Turn bad input into one line on stderr and exit status 2; Ctrl-C into exit 130."""
+
+    @functools.wraps(command)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return command(*args, **kwargs)
+        except ConfigError as err:
+            option = "--" + err.parameter.replace("_", "-")
+            print(f"error: {option}: {err.message}", file=sys.stderr)
+            raise typer.Exit(2) from None
+        except SweepInterrupted as err:
+            print(str(err), file=sys.stderr)
+            raise typer.Exit(130) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def check_outputs(store: Path | None = None, figures: Path | None = None) -> None:
+    """Every output path is usable, checked before anything is computed (nothing is
+    created here)."""
+    if store is not None:
+        check_store(store)
+    if figures is not None:
+        check_output_directory(figures, "figures")
+
+
+def check_workers(workers: int | None) -> None:
+    require(workers is None or workers >= 1, "workers", f"must be >= 1 (got {workers})")
+
+
+def parse_range(text: str, parameter: str, low: int, high: int) -> tuple[int, ...]:
+    """``"2-7"`` -> (2, ..., 7); ``"3"`` -> (3,); ``"2,4,6"`` -> (2, 4, 6); every value in
+    ``[low, high]``, checked before any range is expanded."""
+    values: list[int] = []
+    parts = text.replace(" ", "").split(",")
+    require(all(parts), parameter, f"expected N, LOW-HIGH or a comma list (got {text!r})")
+    for part in parts:
+        first, sep, last = part.partition("-")
+        try:
+            lo = int(first)
+            hi = int(last) if sep else lo
+        except ValueError:
+            message = f"expected N, LOW-HIGH or a comma list (got {text!r})"
+            raise ConfigError(parameter, message) from None
+        require(lo <= hi, parameter, f"range {part} is reversed; write LOW-HIGH, e.g. {hi}-{lo}")
+        require(lo >= low, parameter, f"must be >= {low} (got {lo})")
+        require(hi <= high, parameter, f"must be <= {high} (got {hi})")
+        values.extend(range(lo, hi + 1))
+    return tuple(sorted(set(values)))
+
+
+def parse_names(text: str, parameter: str) -> tuple[str, ...]:
+    """``"cmarl-cd, la-oca"`` -> ("cmarl-cd", "la-oca")."""
+    names = tuple(dict.fromkeys(p.strip().lower() for p in text.split(",") if p.strip()))
+    require(len(names) > 0, parameter, f"needs at least one name (got {text!r})")
+    return names
+
+
+def parse_count(text: str, parameter: str) -> int:
+    """``"100000"``, ``"100_000"`` or ``"100k"`` -> 100000 (must be >= 1)."""
+    part = text.replace("_", "").strip().lower()
+    scale = 1000 if part.endswith("k") else 1
+    try:
+        value = int(part.removesuffix("k")) * scale
+    except ValueError:
+        raise ConfigError(
+            parameter, f"expected an integer such as 50000 or 50k (got {text!r})"
+        ) from None
+    require(value >= 1, parameter, f"must be >= 1 (got {value})")
+    return value
+
+
+def parse_counts(text: str, parameter: str) -> tuple[int, ...]:
+    """``"100000,300000"`` or ``"100k,300k"`` -> (100000, 300000)."""
+    parts = text.split(",")
+    require(
+        all(p.strip() for p in parts),
+        parameter,
+        f"expected comma-separated integers (got {text!r})",
+    )
+    return tuple(sorted({parse_count(part, parameter) for part in parts}))

@@ -1,0 +1,376 @@
+"""Learn, then evaluate greedily: the protocol of Section V-A, for any one-team game.
+
+Each run trains a learner on a game and evaluates its fixed greedy joint policy for
+``eval_episodes`` episodes after each budget ``L`` of learning episodes, plus a short
+evaluation at evenly spaced points for the learning curve. Learners whose schedule does
+not depend on ``L`` (the tabular ones) train once to the largest ``L`` and are evaluated
+at every checkpoint on the way; those that anneal over ``L`` (VDN, QMIX: eq. 18) make one
+run per ``L``. Evaluation draws from its own stream (keyed by ``L``), so a checkpoint's
+numbers do not depend on which others were asked for.
+
+A game enters the protocol as an :class:`EpisodicGame` (its spec, what counts as a
+successful episode, the paper's values if any); :mod:`cmarlcd.experiments.sensor_network`
+is the DSN's. The protocol uses only the public training loops of :mod:`cmarlcd.training`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from cmarlcd import registry
+from cmarlcd.errors import require
+from cmarlcd.games.spec import GameSpec
+from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.progress import report_progress
+from cmarlcd.registry import LearnerConfig
+from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.store import RunRecord
+from cmarlcd.training.tabular import TabularRun, evaluate
+
+#: [choice] Learning-curve resolution: greedy evaluations at this many evenly spaced
+#: points up to the largest L, each over CURVE_EVAL_EPISODES episodes.
+CURVE_POINTS = 20
+CURVE_EVAL_EPISODES = 2_000
+#: [choice] Tables report the population standard deviation over runs (ddof = 0).
+STD_DDOF = 0
+#: The per-(algorithm, L) quantities of a table row, in the order of the JSON output.
+TABLE_METRICS = (
+    "success_rate",
+    "mean_return",
+    "std_return",
+    "mean_steps",
+    "std_steps",
+    "min_return",
+    "max_steps",
+)
+
+
+def _no_paper_value(algorithm: str, episodes: int, metric: str) -> float | None:
+    return None
+
+
+@dataclass(frozen=True)
+class EpisodicGame:
+    """A one-team game under this protocol.
+
+    Attributes:
+        experiment: the store's experiment name of its runs.
+        spec: the game.
+        success: per-episode success from arrays of returns and lengths.
+        policy_states: the states whose greedy joint action a run stores (the first ones).
+        paper_value: the paper's published value of a metric, if any.
+    """
+
+    experiment: str
+    spec: GameSpec
+    success: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    policy_states: int
+    paper_value: Callable[[str, int, str], float | None] = _no_paper_value
+
+
+def anneals_over_budget(config: LearnerConfig) -> bool:
+    """Whether a learner's schedule depends on its learning budget L (eq. 18's ε)."""
+    return isinstance(config, DeepConfig)
+
+
+@dataclass(frozen=True)
+class EpisodicSweep:
+    """Learners × runs on one game, each evaluated after every budget in ``episodes``."""
+
+    game: EpisodicGame
+    learners: tuple[LearnerConfig, ...]
+    """The learners to run, each with its settings (see :mod:`cmarlcd.registry`)."""
+    episodes: tuple[int, ...]
+    runs: int
+    eval_episodes: int
+    seed: int = 0
+    curve_points: int = CURVE_POINTS
+    curve_eval_episodes: int = CURVE_EVAL_EPISODES
+
+    def __post_init__(self) -> None:
+        require(len(self.learners) > 0, "algorithms", "needs at least one algorithm")
+        names = [config.name for config in self.learners]
+        require(len(set(names)) == len(names), "algorithms", f"each at most once (got {names})")
+        require(len(self.episodes) > 0, "episodes", "needs at least one budget")
+        require(min(self.episodes) >= 1, "episodes", f"must be >= 1 (got {min(self.episodes)})")
+        require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
+        require(
+            self.eval_episodes >= 1, "eval_episodes", f"must be >= 1 (got {self.eval_episodes})"
+        )
+        require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
+        require(self.curve_points >= 0, "curve_points", f"must be >= 0 (got {self.curve_points})")
+        require(
+            self.curve_eval_episodes >= 1,
+            "curve_eval_episodes",
+            f"must be >= 1 (got {self.curve_eval_episodes})",
+        )
+
+    @property
+    def algorithms(self) -> tuple[str, ...]:
+        return tuple(config.name for config in self.learners)
+
+    def config(
+        self, learner: LearnerConfig, budgets: Sequence[int] | None = None
+    ) -> dict[str, Any]:
+        """The stored config of one learner's runs (evaluated after each budget)."""
+        return {
+            "algorithm": learner.name,
+            "checkpoints": sorted(set(budgets or self.episodes)),
+            "eval_episodes": self.eval_episodes,
+            "curve_points": self.curve_points,
+            "curve_eval_episodes": self.curve_eval_episodes,
+            "learner": asdict(learner),
+        }
+
+    def specs(self) -> list[RunSpec]:
+        """One spec per (learner, run), trained once to the largest L, with streams that
+        depend on the learner only; for learners that anneal over L, one spec per
+        (learner, L, run), streams depending on the learner and L."""
+        specs = []
+        for learner in self.learners:
+            budgets = sorted(set(self.episodes))
+            groups = [[b] for b in budgets] if anneals_over_budget(learner) else [None]
+            for group in groups:
+                config = self.config(learner, group)
+                stream = {"algorithm": learner.name, "learner": config["learner"]}
+                if group:
+                    stream["episodes"] = group[0]
+                specs += [
+                    RunSpec.make(self.game.experiment, learner.name, config, self.seed, r, stream)
+                    for r in range(self.runs)
+                ]
+        return specs
+
+
+# ------------------------------------------------------------------------- runs
+
+
+def learner_of(config: Mapping[str, Any]) -> LearnerConfig:
+    """The learner settings of a stored config."""
+    return registry.learner_config(config["algorithm"], config["learner"])
+
+
+def _keyed_rng(seed: np.random.SeedSequence, *key: int) -> np.random.Generator:
+    """A stream that depends only on ``seed`` and ``key`` (e.g. an evaluation at L)."""
+    child = np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, *key))
+    return np.random.default_rng(child)
+
+
+def schedule(config: Mapping[str, Any]) -> list[int]:
+    """Every budget at which a run stops to evaluate: checkpoints and curve points."""
+    largest = max(config["checkpoints"])
+    points = config["curve_points"]
+    curve = {round(largest * k / points) for k in range(1, points + 1)} if points else set()
+    return sorted(curve | set(config["checkpoints"]) - {0})
+
+
+def run_work(config: Mapping[str, Any]) -> float:
+    """The episodes one run plays (learning and evaluation): its progress units."""
+    evaluated = schedule(config)
+    if anneals_over_budget(learner_of(config)):
+        evaluated = [b for b in evaluated if b > 0]  # reached by playing, never at 0
+    curve = config["curve_eval_episodes"] * len(evaluated)
+    return max(config["checkpoints"]) + curve + config["eval_episodes"] * len(config["checkpoints"])
+
+
+class Recorder:
+    """Evaluates a run's greedy policy at each budget: the checkpoints with
+    ``eval_episodes`` episodes, every budget with ``curve_eval_episodes`` for the curve."""
+
+    def __init__(
+        self, game: EpisodicGame, config: Mapping[str, Any], eval_seed: np.random.SeedSequence
+    ) -> None:
+        self.game, self.config, self.eval_seed = game, config, eval_seed
+        self.checkpoints: dict[str, dict[str, float]] = {}
+        self.curve: list[list[float]] = []
+        self.policy = np.zeros((game.spec.n_states, game.spec.n_agents), dtype=np.int64)
+        self.start = time.perf_counter()
+
+    def __call__(self, budget: int, policy: np.ndarray) -> None:
+        cfg = self.config
+        if budget in cfg["checkpoints"]:
+            rng = _keyed_rng(self.eval_seed, 0, budget)
+            self.checkpoints[str(budget)] = self._evaluate(policy, cfg["eval_episodes"], rng)
+        rng = _keyed_rng(self.eval_seed, 1, budget)
+        point = self._evaluate(policy, cfg["curve_eval_episodes"], rng)
+        self.curve.append(
+            [budget, point["success_rate"], point["mean_return"], point["mean_steps"]]
+        )
+        self.policy = policy
+
+    def _evaluate(self, policy: np.ndarray, episodes: int, rng) -> dict[str, float]:
+        stats = evaluate(self.game.spec, policy, episodes, rng)
+        report_progress(episodes)
+        return {
+            "success_rate": int(self.game.success(stats.returns, stats.lengths).sum()) / episodes,
+            "mean_return": float(stats.returns.sum()) / episodes,
+            "mean_steps": int(stats.lengths.sum()) / episodes,
+        }
+
+    def metrics(self) -> dict[str, Any]:
+        return {
+            "checkpoints": self.checkpoints,
+            "curve": self.curve,
+            "policy": self.policy[: self.game.policy_states].tolist(),
+            "seconds": time.perf_counter() - self.start,
+        }
+
+
+def run(game: EpisodicGame, config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+    """One run: train to each budget in turn, evaluating the greedy policy at each."""
+    learner = learner_of(config)
+    if anneals_over_budget(learner):
+        return run_batch(game, config, [seed])[0]
+    env_seed, agent_seed, eval_seed = seed.spawn(3)
+    training = TabularRun(
+        game.spec, learner, np.random.default_rng(env_seed), np.random.default_rng(agent_seed)
+    )
+    record, trained = Recorder(game, config, eval_seed), 0
+    for budget in schedule(config):
+        training.train(budget - trained)
+        report_progress(budget - trained)
+        trained = budget
+        record(budget, training.greedy_policy())
+    return record.metrics()
+
+
+def run_batch(
+    game: EpisodicGame, config: dict[str, Any], seeds: list[np.random.SeedSequence]
+) -> list[dict[str, Any]]:
+    """Runs of one deep config, all seeds trained together in one stacked model."""
+    from cmarlcd.training.deep import DeepBatch  # needs the [deep] extra
+
+    train_seeds, eval_seeds = zip(*(s.spawn(2) for s in seeds), strict=True)
+    records = [Recorder(game, config, e) for e in eval_seeds]
+    batch = DeepBatch(game.spec, learner_of(config), train_seeds, max(config["checkpoints"]))
+    batch.train(schedule(config), lambda k, budget, table: records[k](budget, table))
+    return [r.metrics() for r in records]
+
+
+def warm_up(game: EpisodicGame) -> None:
+    """Compile the tabular loops for ``game`` (once, before workers fork)."""
+    for config in registry.LEARNERS.values():
+        if not anneals_over_budget(config):
+            rngs = np.random.default_rng(0), np.random.default_rng(1)
+            training = TabularRun(game.spec, config, *rngs)
+            training.train(2)
+            evaluate(game.spec, training.greedy_policy(), 2, np.random.default_rng(2))
+
+
+def _cost(config: Mapping[str, Any]) -> float:
+    scale = 100.0 if anneals_over_budget(learner_of(config)) else 1.0
+    return scale * max(config["checkpoints"]) + config["eval_episodes"]
+
+
+def experiment(game: EpisodicGame) -> Experiment:
+    """The runner's view of ``game`` under this protocol."""
+    return Experiment(
+        game.experiment,
+        run=lambda config, seed: run(game, config, seed),
+        warm_up=lambda: warm_up(game),
+        cost=_cost,
+        run_batch=lambda config, seeds: run_batch(game, config, seeds),
+        batchable=lambda config: anneals_over_budget(learner_of(config)),
+        work=run_work,
+        work_unit="episodes",
+    )
+
+
+# ------------------------------------------------------------------- aggregation
+
+
+@dataclass(frozen=True)
+class Row:
+    """One (algorithm, L) entry of the tables, aggregated over runs."""
+
+    algorithm: str
+    label: str
+    """Display name; marked * when the learner's settings differ from the paper's."""
+    episodes: int
+    runs: int
+    success_rate: float
+    mean_return: float
+    std_return: float
+    mean_steps: float
+    std_steps: float
+    min_return: float
+    max_steps: float
+    paper: dict[str, float | None]
+    """The paper's values, only where our settings are the paper's (else None)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def row_label(algorithm: str, learner: Mapping[str, Any]) -> str:
+    """The algorithm's name, marked with * when its settings are not the paper's."""
+    paper = algorithm in registry.LEARNERS and registry.is_paper_setting(
+        registry.learner_config(algorithm, learner)
+    )
+    return registry.display_name(algorithm) + ("" if paper else " *")
+
+
+def summarize(game: EpisodicGame, records: Iterable[RunRecord]) -> list[Row]:
+    """The tables from stored runs: one row per (algorithm, settings, L)."""
+    per_cell: dict[tuple[str, str, int], dict[int, dict[str, float]]] = defaultdict(dict)
+    for rec in records:
+        label = row_label(rec.key.algorithm, rec.config["learner"])
+        for budget, result in rec.metrics["checkpoints"].items():
+            # keyed by run: sweeps with other checkpoint lists hold the very same run at L
+            per_cell[(rec.key.algorithm, label, int(budget))][rec.key.run_index] = result
+    rows = []
+    for (name, label, budget), by_run in sorted(per_cell.items(), key=_row_order):
+        results = list(by_run.values())
+        success = np.array([r["success_rate"] for r in results])
+        returns = np.array([r["mean_return"] for r in results])
+        steps = np.array([r["mean_steps"] for r in results])
+        paper = not label.endswith("*")
+        rows.append(
+            Row(
+                algorithm=name,
+                label=label,
+                episodes=budget,
+                runs=len(results),
+                success_rate=float(success.mean()),
+                mean_return=float(returns.mean()),
+                std_return=float(returns.std(ddof=STD_DDOF)),
+                mean_steps=float(steps.mean()),
+                std_steps=float(steps.std(ddof=STD_DDOF)),
+                min_return=float(returns.min()),
+                max_steps=float(steps.max()),
+                paper={
+                    m: game.paper_value(name, budget, m) if paper else None for m in TABLE_METRICS
+                },
+            )
+        )
+    return rows
+
+
+def _row_order(item: tuple[tuple[str, str, int], Any]) -> tuple[int, str, int]:
+    (name, label, budget), _ = item
+    known = list(registry.LEARNERS)
+    return (known.index(name) if name in known else len(known), label, budget)
+
+
+def learning_curves(records: Iterable[RunRecord]) -> dict[str, np.ndarray]:
+    """Per row label, an array (runs, points, 4) of [episodes, success, return, steps]."""
+    curves: dict[str, list[list[list[float]]]] = defaultdict(list)
+    for rec in records:
+        label = row_label(rec.key.algorithm, rec.config["learner"])
+        if anneals_over_budget(learner_of(rec.config)):
+            label += f", L = {max(rec.config['checkpoints']):,}"
+        curves[label].append(rec.metrics["curve"])
+    return {label: np.array(runs) for label, runs in curves.items() if runs and runs[0]}
+
+
+def protocol_key(record: RunRecord) -> tuple:
+    """Runs that belong in one set of tables: same seed and evaluation settings."""
+    cfg = record.config
+    fields = ("eval_episodes", "curve_points", "curve_eval_episodes")
+    return (record.key.root_seed, *(str(cfg[f]) for f in fields))

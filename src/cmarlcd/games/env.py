@@ -1,0 +1,170 @@
+"""A PettingZoo ``ParallelEnv`` over any game's compiled kernels (:mod:`cmarlcd.games.spec`).
+
+Each agent observes its team's state index (``Discrete(n_states)``) and receives its
+team's reward; ``infos[agent]["action_mask"]`` holds the agent's legal actions (int8, as
+PettingZoo's masked environments do). ``reset(seed=s)`` reseeds ``self.np_random``;
+``reset()`` continues its stream, so an episode sequence is reproducible from one seed.
+An episode ends when ``done`` holds (termination) or after ``spec.max_steps`` steps
+(truncation). An action outside its agent's mask is still passed to the game, whose
+rules decide what it does (PettingZoo's API test samples actions without masks); the
+masks tell learners what is worth playing. Games subclass this to add their own
+``render`` and infos.
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import gymnasium
+import numpy as np
+import pettingzoo
+
+from cmarlcd.errors import ConfigError, require
+from cmarlcd.games.spec import GameSpec
+
+
+class KernelParallelEnv(pettingzoo.ParallelEnv):
+    """The ``ParallelEnv`` face of a :class:`GameSpec`: the same kernels the loops run."""
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "kernel_game_v0",
+        "render_modes": ["ansi", "human"],
+    }
+
+    def __init__(self, spec: GameSpec, render_mode: str | None = None) -> None:
+        require(
+            render_mode is None or render_mode in self.metadata["render_modes"],
+            "render_mode",
+            f"must be None or one of {self.metadata['render_modes']} (got {render_mode!r})",
+        )
+        self.spec = spec
+        self.render_mode = render_mode
+        self.possible_agents = list(spec.agents)
+        self.agents: list[str] = []
+        self.state_space = gymnasium.spaces.Discrete(spec.n_states)
+        self.np_random: np.random.Generator | None = None
+        self.env = spec.new_env()
+        self.steps = 0
+        self._index = {agent: i for i, agent in enumerate(spec.agents)}
+        self._team = [spec.team_of(i) for i in range(spec.n_agents)]
+        self._joint = np.zeros(spec.n_agents, dtype=np.int64)
+        self._rewards = np.zeros(spec.n_teams)
+        self._legal = np.zeros((spec.n_agents, spec.width), dtype=np.bool_)
+        # one space object per agent, as the PettingZoo API asks (seeding works on them)
+        self._observation_spaces = {
+            agent: gymnasium.spaces.Discrete(spec.n_states) for agent in spec.agents
+        }
+        self._action_spaces = {
+            agent: gymnasium.spaces.Discrete(int(count))
+            for agent, count in zip(spec.agents, spec.action_counts, strict=True)
+        }
+
+    def observation_space(self, agent: str) -> gymnasium.spaces.Discrete:
+        return self._observation_spaces[self._check_agent(agent)]
+
+    def action_space(self, agent: str) -> gymnasium.spaces.Discrete:
+        return self._action_spaces[self._check_agent(agent)]
+
+    def _check_agent(self, agent: str) -> str:
+        if agent not in self._index:
+            names = f"{self.possible_agents[0]}..{self.possible_agents[-1]}"
+            raise ConfigError("agent", f"unknown agent {agent!r}; expected {names}")
+        return agent
+
+    def state(self) -> int:
+        """The state index of team 0 (the whole game, for a cooperative game)."""
+        return int(self.spec.kernels.state(self.env, 0))
+
+    def reset(
+        self, seed: int | None = None, options: dict | None = None
+    ) -> tuple[dict[str, int], dict[str, dict[str, Any]]]:
+        if seed is not None or self.np_random is None:
+            self.np_random = np.random.default_rng(seed)
+        self.spec.kernels.reset(self.env, self.np_random)
+        self.agents = list(self.possible_agents)
+        self.steps = 0
+        return self._observations(), self._infos()
+
+    def step(self, actions: Mapping[str, object]) -> tuple[dict, dict, dict, dict, dict]:
+        if not self.agents or self.np_random is None:
+            raise RuntimeError("the episode is over (or never started); call reset() first")
+        joint = self._joint_action(actions)
+        self.spec.kernels.step(self.env, joint, self.np_random, self._rewards)
+        self.steps += 1
+        terminated = bool(self.spec.kernels.done(self.env))
+        truncated = not terminated and self.steps >= self.spec.max_steps
+        agents = self.agents
+        observations, infos = self._observations(), self._infos(stepped=True)
+        rewards = {a: float(self._rewards[self._team[self._index[a]]]) for a in agents}
+        terminations = dict.fromkeys(agents, terminated)
+        truncations = dict.fromkeys(agents, truncated)
+        if terminated or truncated:
+            self.agents = []
+        return observations, rewards, terminations, truncations, infos
+
+    def _observations(self) -> dict[str, int]:
+        states = [int(self.spec.kernels.state(self.env, k)) for k in range(self.spec.n_teams)]
+        return {a: states[self._team[self._index[a]]] for a in self.agents}
+
+    def _infos(self, stepped: bool = False) -> dict[str, dict[str, Any]]:
+        self.spec.kernels.legal(self.env, self._legal)
+        infos = {}
+        for agent in self.agents:
+            i = self._index[agent]
+            info = {"action_mask": self._legal[i, : self.spec.action_counts[i]].astype(np.int8)}
+            if stepped:
+                info.update(self.step_info(i))
+            infos[agent] = info
+        return infos
+
+    def step_info(self, agent: int) -> dict[str, Any]:
+        """Extra infos of ``agent`` after a step (a game adds its own here)."""
+        return {}
+
+    def _joint_action(self, actions: Mapping[str, object]) -> np.ndarray:
+        unknown = [agent for agent in actions if agent not in self.agents]
+        if unknown:
+            raise ConfigError("actions", f"unknown or finished agent {unknown[0]!r}")
+        missing = [agent for agent in self.agents if agent not in actions]
+        if missing:
+            raise ConfigError("actions", f"no action for {missing[0]!r}")
+        for agent in self.agents:
+            i = self._index[agent]
+            value = _integer_action(agent, actions[agent])
+            count = int(self.spec.action_counts[i])
+            require(
+                0 <= value < count,
+                "actions",
+                f"{agent}: action must be in 0..{count - 1} (got {value})",
+            )
+            self._joint[i] = value
+        return self._joint
+
+    def render(self) -> str | None:
+        """The game's text picture (:meth:`render_text`): returned for ``"ansi"`` and
+        ``None``, printed for ``"human"``."""
+        text = self.render_text()
+        if self.render_mode == "human":
+            print(text)
+            return None
+        return text
+
+    def render_text(self) -> str:
+        """A text picture of the current state (a game overrides this)."""
+        return f"{self.spec.name}: step {self.steps}, state {self.state()}"
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def _integer_action(agent: str, action: object) -> int:
+    try:
+        if isinstance(action, (bool, np.bool_)):
+            raise TypeError
+        return operator.index(action)  # type: ignore[arg-type]
+    except TypeError:
+        raise ConfigError(
+            "actions", f"{agent}: action must be an integer (got {action!r})"
+        ) from None

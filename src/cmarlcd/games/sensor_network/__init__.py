@@ -1,0 +1,10 @@
+"""The distributed sensor network (DSN) task of Section V-A, one module per job:
+:mod:`~.kernels` (the compiled transition and :data:`SPEC`), :mod:`~.env` (the
+PettingZoo ``ParallelEnv``) and :mod:`~.render` (a text picture)."""
+
+from cmarlcd.games.sensor_network import kernels
+from cmarlcd.games.sensor_network.env import SensorNetworkEnv
+from cmarlcd.games.sensor_network.kernels import *  # noqa: F403  (the names in kernels.__all__)
+from cmarlcd.games.sensor_network.render import render_text
+
+__all__ = [*kernels.__all__, "SensorNetworkEnv", "render_text"]

@@ -1,0 +1,106 @@
+"""The compiled game protocol: what every game exports and every loop reads.
+
+A game is a transition written once as numba-compiled functions (its *kernels*) over the
+game's own state arrays ``env``: a tuple of arrays that :attr:`GameSpec.new_env`
+allocates and that nothing but the game's kernels looks inside. The five kernels are
+
+==========================  ================================================================
+``reset(env, rng)``         start an episode (draws from ``rng``, a NumPy ``Generator``)
+``step(env, joint, rng,     every agent acts at once (``joint[i]`` is agent ``i``'s action);
+rewards)``                  ``rewards[k]`` is set to team ``k``'s reward for the step
+``state(env, team)``        the state index team ``team`` observes, in ``[0, n_states)``
+``done(env)``               True once the episode has terminated (not merely timed out)
+``legal(env, masks)``       ``masks[i, a]`` := action ``a`` of agent ``i`` is legal now
+==========================  ================================================================
+
+The game's PettingZoo ``ParallelEnv`` (:class:`cmarlcd.games.env.KernelParallelEnv`) and
+every compiled training loop (:mod:`cmarlcd.training`) call these same functions and read
+the sizes below from the same :class:`GameSpec`, so a rule such as the episode cap has a
+single source of truth. Adding a game means writing its kernels and one spec.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from cmarlcd.errors import require
+
+
+class GameKernels(NamedTuple):
+    """A game's compiled functions (see the module docstring for their signatures)."""
+
+    reset: Any
+    step: Any
+    state: Any
+    done: Any
+    legal: Any
+
+
+@dataclass(frozen=True, eq=False)
+class GameSpec:
+    """Everything the environment and the training loops need to know about a game.
+
+    Attributes:
+        name: a short identifier (also the PettingZoo ``metadata["name"]``).
+        kernels: the compiled transition.
+        new_env: allocates the state arrays one copy of the game plays on.
+        agents: the agents' names, in the order of ``joint``.
+        action_counts: actions of each agent (int64, one per agent).
+        n_states: state indices a team can observe, terminal states included.
+        max_steps: an episode is truncated after this many steps.
+        teams: the agents of each team; a cooperative game has one team of everyone.
+    """
+
+    name: str
+    kernels: GameKernels
+    new_env: Callable[[], tuple]
+    agents: tuple[str, ...]
+    action_counts: np.ndarray
+    n_states: int
+    max_steps: int
+    teams: tuple[tuple[int, ...], ...]
+
+    def __post_init__(self) -> None:
+        counts = np.array(self.action_counts, dtype=np.int64)
+        counts.setflags(write=False)
+        object.__setattr__(self, "action_counts", counts)
+        require(counts.ndim == 1 and counts.size >= 1, "action_counts", "needs one per agent")
+        require(int(counts.min()) >= 1, "action_counts", f"must be >= 1 (got {counts.tolist()})")
+        require(len(self.agents) == counts.size, "agents", "needs one name per action count")
+        require(self.n_states >= 1, "n_states", f"must be >= 1 (got {self.n_states})")
+        require(self.max_steps >= 1, "max_steps", f"must be >= 1 (got {self.max_steps})")
+        members = sorted(a for team in self.teams for a in team)
+        require(
+            members == list(range(counts.size)),
+            "teams",
+            "must split the agents 0..n-1, each into exactly one team",
+        )
+
+    @property
+    def n_agents(self) -> int:
+        return int(self.action_counts.size)
+
+    @property
+    def n_teams(self) -> int:
+        return len(self.teams)
+
+    @property
+    def width(self) -> int:
+        """The largest action count: the row width of per-agent tables and masks."""
+        return int(self.action_counts.max())
+
+    def team_of(self, agent: int) -> int:
+        """The team agent ``agent`` plays for."""
+        return next(k for k, team in enumerate(self.teams) if agent in team)
+
+    def require_one_team(self, what: str) -> None:
+        """Reject games of several teams where ``what`` drives one team of learners."""
+        require(
+            self.n_teams == 1,
+            "game",
+            f"{what} plays cooperative games of one team; {self.name} has {self.n_teams}",
+        )

@@ -1,0 +1,132 @@
+"""VDN / QMIX for any PettingZoo ``ParallelEnv``, one seed, step by step (``[deep]`` extra).
+
+:class:`DeepAgent` has the object API of the tabular learners, so the generic loop
+(:func:`cmarlcd.training.episodes.play_episodes`) drives it like them; the seed-batched
+compiled path for the games of :mod:`cmarlcd.games` is :mod:`cmarlcd.training.deep`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from cmarlcd.errors import require
+from cmarlcd.learners.deep_config import DeepConfig, epsilon
+from cmarlcd.learners.value_decomposition import ValueDecomposition
+
+
+class DeepAgent:
+    """VDN / QMIX for any PettingZoo ``ParallelEnv`` (one seed), for
+    :func:`cmarlcd.training.episodes.play_episodes`: ``act`` (ε-greedy, eq. 18), ``observe``,
+    ``end_episode``, ``greedy``.
+
+    States are integers in ``[0, n_states)`` (one-hot encoding) when ``n_states`` is
+    given, else feature vectors of length ``state_dim``. ``masks`` give the legal actions
+    of each agent (1 = legal); illegal actions are never chosen nor bootstrapped from.
+    """
+
+    def __init__(
+        self,
+        action_counts: Sequence[int],
+        config: DeepConfig,
+        total_episodes: int,
+        *,
+        n_states: int | None = None,
+        state_dim: int | None = None,
+        seed: int | np.random.SeedSequence | None = None,
+    ) -> None:
+        require((n_states is None) != (state_dim is None), "n_states", "give n_states or state_dim")
+        root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        init, act, replay = root.spawn(3)
+        self.config, self.total_episodes = config, int(total_episodes)
+        self.counts = np.array([int(k) for k in action_counts], dtype=np.int64)
+        self.width = int(self.counts.max())
+        self.integer_states = n_states is not None
+        self.model = ValueDecomposition(self.counts, n_states or state_dim, config, [init])
+        self.act_rng, self.replay_rng = np.random.default_rng(act), np.random.default_rng(replay)
+        self.episode, self.steps = 0, 0
+        self.transitions: list[tuple] = []  # the replay buffer (a ring of buffer_size)
+        self.position = 0
+        self._pending: tuple | None = None
+
+    def _encode(self, state) -> torch.Tensor:
+        return self._encode_many([state])
+
+    def _encode_many(self, states) -> torch.Tensor:
+        """States as the model's input: (1, N) integers or (1, N, state_dim) features."""
+        if self.integer_states:
+            return torch.tensor([[int(x) for x in states]])
+        rows = [np.asarray(x, dtype=np.float32).ravel() for x in states]
+        return torch.as_tensor(np.stack(rows)[None])
+
+    def _legal(self, masks) -> torch.Tensor:
+        legal = np.arange(self.width)[None, :] < self.counts[:, None]
+        if masks is not None:
+            for i, mask in enumerate(masks):
+                legal[i, : self.counts[i]] &= np.asarray(mask, dtype=bool)
+        return torch.as_tensor(legal)
+
+    def greedy(self, state, masks=None) -> tuple[int, ...]:
+        """The greedy legal joint action at ``state``."""
+        action = self.model.greedy(self._encode(state), self._legal(masks))[0, 0]
+        return tuple(int(a) for a in action)
+
+    def act(self, state, masks=None) -> tuple[int, ...]:
+        """ε-greedy per agent (eq. 18, ε of the current episode); completes the pending
+        transition with this state as its successor."""
+        self._complete(state, masks, terminal=False)
+        eps = epsilon(self.episode + 1, self.total_episodes, self.config)
+        greedy, legal = self.greedy(state, masks), self._legal(masks).numpy()
+        joint = []
+        for i, best in enumerate(greedy):
+            if self.act_rng.random() < eps:
+                joint.append(int(self.act_rng.choice(np.flatnonzero(legal[i]))))
+            else:
+                joint.append(best)
+        return tuple(joint)
+
+    def observe(self, state, joint_action, reward: float) -> None:
+        """Record a step; it becomes a transition when its successor is known."""
+        self._pending = (state, tuple(int(a) for a in joint_action), float(reward))
+
+    def end_episode(self, final_state=None, terminated: bool = True) -> None:
+        """Close the episode: bootstrap from ``final_state`` unless ``terminated``."""
+        self._complete(final_state, None, terminal=terminated)
+        self.episode += 1
+
+    def _complete(self, next_state, next_masks, terminal: bool) -> None:
+        if self._pending is None:
+            return
+        state, joint, reward = self._pending
+        self._pending = None
+        if terminal or next_state is None:
+            next_state, terminal = state, True
+        item = (state, joint, reward, next_state, self._legal(next_masks), terminal)
+        if len(self.transitions) < self.config.buffer_size:
+            self.transitions.append(item)
+        else:
+            self.transitions[self.position] = item
+        self.position = (self.position + 1) % self.config.buffer_size
+        self._step()
+
+    def _step(self) -> None:
+        cfg = self.config
+        self.steps += 1
+        if self.steps % cfg.train_every == 0 and len(self.transitions) >= cfg.batch_size:
+            picks = self.replay_rng.integers(0, len(self.transitions), cfg.batch_size)
+            self.model.td_step(self._batch([self.transitions[k] for k in picks]))
+        if self.steps % cfg.target_every == 0:
+            self.model.sync_target()
+
+    def _batch(self, items: list[tuple]) -> dict[str, torch.Tensor]:
+        states, joints, rewards, nexts, legal, terminal = zip(*items, strict=True)
+        return {
+            "state": self._encode_many(states),
+            "actions": torch.tensor([joints]),
+            "reward": torch.tensor([rewards], dtype=torch.float32),
+            "next_state": self._encode_many(nexts),
+            "next_legal": torch.stack(legal)[None],
+            "terminal": torch.tensor([terminal]),
+        }

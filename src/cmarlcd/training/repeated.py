@@ -1,0 +1,81 @@
+"""Algorithm 1's run on a repeated game: play until the learner has converged.
+
+:func:`play_until_converged` is a template (:mod:`cmarlcd.training.specialise`): ``game``
+is bound to a game's kernels (in practice a matrix game's, :mod:`cmarlcd.games.matrix`)
+and ``learner`` to a repeated-game learner's (:class:`cmarlcd.learners.tabular.RepeatedKernels`).
+:func:`fit` runs it for a learner object such as :class:`cmarlcd.learners.CMARLCD`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cmarlcd.errors import require
+from cmarlcd.games.matrix import MatrixGame
+from cmarlcd.training.specialise import Unbound, specialise
+
+game = Unbound("game")
+learner = Unbound("learner")
+
+
+def play_until_converged(env, tables, params, counts, max_games, rng) -> tuple[int, bool]:
+    """Template: play until ``learner.converged`` (asked only when a game changed the
+    learner) or ``max_games`` games; returns ``(games_played, converged)``. The tables are
+    updated in place, so a call continues from wherever the learner stands."""
+    joint = np.zeros(counts.shape[0], dtype=np.int64)
+    rewards = np.zeros(1)
+    for played in range(max_games):
+        learner.act(tables, params, counts, rng, joint)
+        game.step(env, joint, rng, rewards)
+        if learner.learn(tables, params, counts, joint, rewards[0]) and learner.converged(
+            tables, params, counts
+        ):
+            return played + 1, True
+    return max_games, False
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """Outcome of :func:`fit`."""
+
+    games: int
+    """Games played in this call."""
+    converged: bool
+    """The learner converged (for CMARL-CD: every strategy pure) before the cap."""
+    greedy_joint_action: tuple[int, ...]
+    """Each agent's greedy action afterwards."""
+    greedy_payoff: float
+    """Payoff of the greedy joint action."""
+    success: bool
+    """Converged and the greedy joint action is optimal (the paper's success)."""
+
+
+def fit(learner_object, game: MatrixGame, max_games: int | None = None) -> FitResult:
+    """Play ``game`` with ``learner_object`` (e.g. :class:`cmarlcd.learners.CMARLCD`) until
+    it converges or ``max_games`` games (default: its config's ``max_games``) are played,
+    through the compiled loop, on the learner's own tables and random stream."""
+    counts = learner_object.counts
+    require(
+        game.action_counts == tuple(int(k) for k in counts),
+        "game",
+        f"has action counts {game.action_counts}, the learners {tuple(counts)}",
+    )
+    config = learner_object.config
+    cap = config.max_games if max_games is None else int(max_games)
+    require(cap >= 1, "max_games", f"must be >= 1 (got {cap})")
+    spec = game.spec()
+    loop = specialise(play_until_converged, game=spec.kernels, learner=config.kernels)
+    games, converged = loop(
+        spec.new_env(),
+        learner_object.tables,
+        learner_object.params,
+        counts,
+        cap,
+        learner_object.rng,
+    )
+    greedy = learner_object.greedy_joint_action()
+    payoff = game.payoff(greedy)
+    success = bool(converged) and payoff == game.max_payoff
+    return FitResult(int(games), bool(converged), greedy, payoff, success)

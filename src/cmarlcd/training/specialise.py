@@ -1,0 +1,94 @@
+"""Compile a training loop for one game and one learner, cached on disk like any kernel.
+
+The training loops are written once, as plain Python functions (*templates*) that call
+the game's kernels through a module-level name ``game`` and the learner's through
+``learner`` (both NamedTuples of compiled functions). :func:`specialise` compiles a copy of
+a template with those names bound to one game's and one learner's functions: numba then
+compiles one specialisation per pair, calling (and inlining) the kernels directly.
+
+Why not pass the functions as arguments? Numba accepts that, but a function compiled for
+function-typed arguments is never found in its on-disk cache by a new process (the
+argument types name the functions by per-process identity; numba issues #2956 and
+#6264), so every command would spend about 2 s recompiling each loop. A template copy
+bound by name has ordinary argument types, and is cached under a name built from the
+bound functions and a stamp of their source files, so editing a game or learner
+recompiles its loops rather than reusing stale ones.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import inspect
+import sys
+import types
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from numba import njit
+
+
+class Unbound:
+    """The value of a template's ``game`` / ``learner`` name before specialisation."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def __getattr__(self, attribute: str) -> Any:
+        raise RuntimeError(
+            f"{self.name}.{attribute}: this loop is a template; compile it for a game and a "
+            "learner with cmarlcd.training.specialise.specialise"
+        )
+
+
+def specialise(template: Callable, **bound: tuple) -> Any:
+    """``template`` compiled with each module-level name in ``bound`` bound to the given
+    NamedTuple of compiled functions (e.g. ``game=spec.kernels, learner=config.kernels``).
+
+    The result is a numba dispatcher, cached on disk and memoised in this process.
+    """
+    return _specialise(template, tuple(sorted(bound.items())))
+
+
+@functools.cache
+def _specialise(template: Callable, key: tuple) -> Any:
+    scope = dict(template.__globals__, **dict(key))
+    function = types.FunctionType(
+        template.__code__, scope, template.__name__, template.__defaults__, template.__closure__
+    )
+    function.__qualname__ = f"{template.__qualname__}[{_tag(key)}]"
+    function.__module__ = template.__module__
+    function.__doc__ = template.__doc__
+    return njit(cache=True)(function)
+
+
+def _tag(key: tuple) -> str:
+    """A stable, file-name-safe name for one binding: the functions' names and a digest of
+    their qualified names and source files' stamps (size and modification time)."""
+    names, stamps = [], []
+    for _, functions in key:
+        for function in functions:
+            py_func = getattr(function, "py_func", function)
+            names.append(py_func.__name__)
+            stamps.append(f"{py_func.__module__}.{py_func.__qualname__}")
+            stamps.append(_source_stamp(py_func.__module__))
+    digest = hashlib.sha256("\n".join(stamps).encode()).hexdigest()[:12]
+    return f"{'-'.join(dict.fromkeys(names))[:60]}-{digest}"
+
+
+@functools.cache
+def _source_stamp(module_name: str) -> str:
+    """Size and mtime of a module's source file and of every file of its top-level
+    package (compiled callees may live in sibling modules)."""
+    module = sys.modules.get(module_name)
+    source = inspect.getsourcefile(module) if module is not None else None
+    if source is None:
+        return module_name
+    top = sys.modules.get(module_name.split(".")[0])
+    files = {Path(source)}
+    package_file = getattr(top, "__file__", None)
+    if package_file and Path(package_file).name == "__init__.py":
+        files |= set(Path(package_file).parent.rglob("*.py"))
+    stats = ((str(f), f.stat()) for f in sorted(files) if f.exists())
+    return ";".join(f"{name}:{st.st_size}:{st.st_mtime_ns}" for name, st in stats)

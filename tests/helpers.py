@@ -1,0 +1,50 @@
+"""Helpers shared by the tests (imported as `tests.helpers`)."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+from cmarlcd.store import ResultStore, RunKey
+
+
+def not_a_store(tmp_path, kind: str):
+    """A path that cannot be a results store, and the words the error must contain."""
+    if kind == "directory":
+        return tmp_path, "is a directory"
+    if kind == "under a file":
+        (tmp_path / "plain.txt").write_text("hello")
+        return tmp_path / "plain.txt" / "store.sqlite", "is a file, not a directory"
+    if kind == "not sqlite":
+        (tmp_path / "notes.sqlite").write_text("just some text, not a database\n" * 10)
+        return tmp_path / "notes.sqlite", "not an SQLite database"
+    if kind == "truncated":
+        path = tmp_path / "cut.sqlite"
+        with ResultStore(path) as store:
+            for i in range(300):
+                store.put(RunKey("e", "a", "{}", 0, i), {"values": list(range(50))}, 0.1, "x")
+        data = path.read_bytes()
+        path.write_bytes(data[: len(data) // 2])
+        for extra in ("-wal", "-shm"):
+            path.with_name(path.name + extra).unlink(missing_ok=True)
+        return path, "damaged"
+    if kind == "another program's":
+        path = tmp_path / "other.sqlite"
+        conn = sqlite3.connect(path)
+        conn.execute("CREATE TABLE people (name TEXT)")
+        conn.commit()
+        conn.close()
+        return path, "not a cmarl-cd results store"
+    if kind == "unwritable":
+        return Path("/proc/cmarl-cd-test/store.sqlite"), "cannot"
+    raise AssertionError(kind)
+
+
+STORE_PROBLEMS = [
+    "directory",
+    "under a file",
+    "not sqlite",
+    "truncated",
+    "another program's",
+    "unwritable",
+]
