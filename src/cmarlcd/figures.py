@@ -105,6 +105,7 @@ def dsn_policy_grid(policy: np.ndarray, title: str, path: Path) -> Path:
 def _fig4_legend() -> list:
     """What the colours and lines of Fig. 4 mean."""
     from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
     def dot(colour: str, label: str, size: float = 8) -> Line2D:
         return Line2D([], [], ls="", marker="o", color=colour, ms=size, label=label)
@@ -119,8 +120,8 @@ def _fig4_legend() -> list:
         line("tab:red", "sensor focusing target 0's cell"),
         line("tab:blue", "sensor focusing target 1's cell"),
         line("0.5", "sensor focusing an empty cell"),
-        line("tab:green", "title green: optimal (3 sensors per target, no other focus)"),
-        line("tab:red", "title red: not optimal"),
+        Patch(color="tab:green", label="panel title green: optimal (3 sensors per target)"),
+        Patch(color="tab:red", label="panel title red: not optimal"),
     ]
 
 
