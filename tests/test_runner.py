@@ -179,10 +179,24 @@ def alive(pid: int) -> bool:
 def test_workers_exit_when_the_sweep_s_parent_is_killed(tmp_path) -> None:
     """kill -9 of the parent (an OOM killer, a scheduler) must not leave workers behind."""
     command = [
-        sys.executable, "-m", "cmarlcd", "dsn", "--algorithms", "cmarl-cd",
-        "--episodes", "20000000", "--runs", "2", "--workers", "2", "--no-progress",
-        "--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "f"),
-    ]  # fmt: skip
+        sys.executable,
+        "-m",
+        "cmarlcd",
+        "dsn",
+        "--algorithms",
+        "cmarl-cd",
+        "--episodes",
+        "20000000",
+        "--runs",
+        "2",
+        "--workers",
+        "2",
+        "--no-progress",
+        "--store",
+        str(tmp_path / "s.sqlite"),
+        "--figures",
+        str(tmp_path / "f"),
+    ]
     parent = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     workers: list[int] = []
     try:

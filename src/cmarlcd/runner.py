@@ -44,9 +44,14 @@ class SweepObserver:
     """Receives a sweep's progress; the default ignores it."""
 
     def start(
-        self, description: str, runs: int, stored_runs: int, work: float, stored_work: float,
+        self,
+        description: str,
+        runs: int,
+        stored_runs: int,
+        work: float,
+        stored_work: float,
         unit: str = "runs",
-    ) -> None:  # fmt: skip
+    ) -> None:
         """The sweep has ``runs`` runs (``stored_runs`` already stored) and ``work``
         progress units (``unit``) in all, ``stored_work`` of them done by the stored runs."""
 

@@ -290,9 +290,14 @@ def dsn(
     """Tables 3-7 and Fig. 4: the distributed sensor network task (Section V-A)."""
     names = parse_names(algorithms, "algorithms")
     cmarlcd_settings = dict(
-        delta=delta, delta_reset=delta_reset, temperature=temperature, c_min=c_min,
-        c_max=c_max, c_init=c_init, gamma=gamma,
-    )  # fmt: skip
+        delta=delta,
+        delta_reset=delta_reset,
+        temperature=temperature,
+        c_min=c_min,
+        c_max=c_max,
+        c_init=c_init,
+        gamma=gamma,
+    )
     sweep = dsn_exp.DsnSweep(
         learners=_learners(
             names,

@@ -60,9 +60,14 @@ class RichSweepView(SweepObserver):
         self.runs = self.done = 0
 
     def start(
-        self, description: str, runs: int, stored_runs: int, work: float, stored_work: float,
+        self,
+        description: str,
+        runs: int,
+        stored_runs: int,
+        work: float,
+        stored_work: float,
         unit: str = "runs",
-    ) -> None:  # fmt: skip
+    ) -> None:
         self.runs, self.done = runs, stored_runs
         self.progress = Progress(
             TextColumn("[bold]{task.description}"),

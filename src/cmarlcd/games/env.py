@@ -49,6 +49,9 @@ class KernelParallelEnv(pettingzoo.ParallelEnv):
         self.steps = 0
         self._index = {agent: i for i, agent in enumerate(spec.agents)}
         self._team = [spec.team_of(i) for i in range(spec.n_agents)]
+        self._counts = [int(count) for count in spec.action_counts]
+        self._all_agents = frozenset(spec.agents)
+        self._mask_cache: dict[tuple[int, ...], list[np.ndarray]] = {}
         self._joint = np.zeros(spec.n_agents, dtype=np.int64)
         self._rewards = np.zeros(spec.n_teams)
         self._legal = np.zeros((spec.n_agents, spec.width), dtype=np.bool_)
@@ -85,7 +88,8 @@ class KernelParallelEnv(pettingzoo.ParallelEnv):
         self.spec.kernels.reset(self.env, self.np_random)
         self.agents = list(self.possible_agents)
         self.steps = 0
-        return self._observations(), self._infos()
+        states = self._team_states()
+        return self._observations(states), self._infos(states)
 
     def step(self, actions: Mapping[str, object]) -> tuple[dict, dict, dict, dict, dict]:
         if not self.agents or self.np_random is None:
@@ -96,49 +100,72 @@ class KernelParallelEnv(pettingzoo.ParallelEnv):
         terminated = bool(self.spec.kernels.done(self.env))
         truncated = not terminated and self.steps >= self.spec.max_steps
         agents = self.agents
-        observations, infos = self._observations(), self._infos(stepped=True)
-        rewards = {a: float(self._rewards[self._team[self._index[a]]]) for a in agents}
+        states = self._team_states()
+        observations, infos = self._observations(states), self._infos(states, stepped=True)
+        team_rewards = self._rewards.tolist()
+        rewards = {a: team_rewards[k] for a, k in zip(agents, self._team, strict=True)}
         terminations = dict.fromkeys(agents, terminated)
         truncations = dict.fromkeys(agents, truncated)
         if terminated or truncated:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
 
-    def _observations(self) -> dict[str, int]:
-        states = [int(self.spec.kernels.state(self.env, k)) for k in range(self.spec.n_teams)]
-        return {a: states[self._team[self._index[a]]] for a in self.agents}
+    def _team_states(self) -> tuple[int, ...]:
+        state = self.spec.kernels.state
+        return tuple([int(state(self.env, k)) for k in range(self.spec.n_teams)])
 
-    def _infos(self, stepped: bool = False) -> dict[str, dict[str, Any]]:
-        self.spec.kernels.legal(self.env, self._legal)
+    def _observations(self, states: tuple[int, ...]) -> dict[str, int]:
+        return {a: states[k] for a, k in zip(self.agents, self._team, strict=True)}
+
+    def _infos(self, states: tuple[int, ...], stepped: bool = False) -> dict[str, dict[str, Any]]:
+        masks = self._masks(states)
+        extra = self.step_infos() if stepped else None
         infos = {}
-        for agent in self.agents:
-            i = self._index[agent]
-            info = {"action_mask": self._legal[i, : self.spec.action_counts[i]].astype(np.int8)}
-            if stepped:
-                info.update(self.step_info(i))
-            infos[agent] = info
+        for i, agent in enumerate(self.agents):
+            infos[agent] = (
+                {"action_mask": masks[i]}
+                if extra is None
+                else {"action_mask": masks[i], **extra[i]}
+            )
         return infos
 
-    def step_info(self, agent: int) -> dict[str, Any]:
-        """Extra infos of ``agent`` after a step (a game adds its own here)."""
-        return {}
+    def _masks(self, states: tuple[int, ...]) -> list[np.ndarray]:
+        """Each agent's legal actions in ``states`` (int8, read-only); masks depend on the
+        state alone, so they are asked from the game once per state."""
+        masks = self._mask_cache.get(states)
+        if masks is None:
+            self.spec.kernels.legal(self.env, self._legal)
+            masks = []
+            for i, count in enumerate(self._counts):
+                mask = self._legal[i, :count].astype(np.int8)
+                mask.setflags(write=False)
+                masks.append(mask)
+            self._mask_cache[states] = masks
+        return masks
+
+    def step_infos(self) -> list[dict[str, Any]] | None:
+        """Extra infos of every agent after a step, in agent order (a game adds its own)."""
+        return None
 
     def _joint_action(self, actions: Mapping[str, object]) -> np.ndarray:
-        unknown = [agent for agent in actions if agent not in self.agents]
-        if unknown:
-            raise ConfigError("actions", f"unknown or finished agent {unknown[0]!r}")
-        missing = [agent for agent in self.agents if agent not in actions]
-        if missing:
+        if actions.keys() != self._all_agents:  # every agent acts until the episode ends
+            unknown = [agent for agent in actions if agent not in self._index]
+            if unknown:
+                raise ConfigError("actions", f"unknown or finished agent {unknown[0]!r}")
+            missing = [agent for agent in self.agents if agent not in actions]
             raise ConfigError("actions", f"no action for {missing[0]!r}")
-        for agent in self.agents:
-            i = self._index[agent]
-            value = _integer_action(agent, actions[agent])
-            count = int(self.spec.action_counts[i])
-            require(
-                0 <= value < count,
-                "actions",
-                f"{agent}: action must be in 0..{count - 1} (got {value})",
-            )
+        for i, (agent, count) in enumerate(zip(self.agents, self._counts, strict=True)):
+            action = actions[agent]
+            try:
+                if isinstance(action, (bool, np.bool_)):
+                    raise TypeError
+                value = operator.index(action)  # type: ignore[arg-type]
+            except TypeError:
+                message = f"{agent}: action must be an integer (got {action!r})"
+                raise ConfigError("actions", message) from None
+            if not 0 <= value < count:
+                message = f"{agent}: action must be in 0..{count - 1} (got {value})"
+                raise ConfigError("actions", message)
             self._joint[i] = value
         return self._joint
 
@@ -157,14 +184,3 @@ class KernelParallelEnv(pettingzoo.ParallelEnv):
 
     def close(self) -> None:
         """Nothing to release."""
-
-
-def _integer_action(agent: str, action: object) -> int:
-    try:
-        if isinstance(action, (bool, np.bool_)):
-            raise TypeError
-        return operator.index(action)  # type: ignore[arg-type]
-    except TypeError:
-        raise ConfigError(
-            "actions", f"{agent}: action must be an integer (got {action!r})"
-        ) from None

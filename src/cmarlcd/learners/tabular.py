@@ -28,6 +28,7 @@ one state, and the loop plays until the learner says it has converged.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Hashable, Sequence
 from typing import Any, ClassVar, NamedTuple
 
@@ -173,13 +174,13 @@ class TabularLearner:
         self._complete(row, terminal=False)
         joint = np.zeros(self.n_agents, dtype=np.int64)
         self.config.kernels.act(self.tables, self.params, row, self.counts, self.rng, joint)
-        return tuple(int(a) for a in joint)
+        return tuple(joint.tolist())
 
     def observe(self, state: Hashable, joint_action: Sequence[int], reward: float) -> None:
         """Record one step: ``joint_action`` at ``state`` was followed by ``reward``."""
         joint = np.asarray(joint_action, dtype=np.int64)
         require(joint.shape == (self.n_agents,), "joint_action", f"needs {self.n_agents} actions")
-        require(bool(np.isfinite(reward)), "reward", f"must be finite (got {reward})")
+        require(math.isfinite(reward), "reward", f"must be finite (got {reward})")
         step = (self._row(state, None), joint, float(reward))
         self._episode.append(step)
         self._pending = step
@@ -210,6 +211,8 @@ class TabularLearner:
             return
         row, joint, reward = self._pending
         self._pending = None
+        if self.config.kernels.observe is no_step_update:
+            return  # a learner of whole episodes: nothing to do per step
         successor = row if next_row is None else next_row
         self.config.kernels.observe(
             self.tables, self.params, row, joint, reward, successor, terminal
@@ -220,7 +223,7 @@ class TabularLearner:
         row = self._row(state, masks)
         joint = np.zeros(self.n_agents, dtype=np.int64)
         self.config.kernels.greedy(self.tables, row, self.counts, joint)
-        return tuple(int(a) for a in joint)
+        return tuple(joint.tolist())
 
     def _lookup(self, state: Hashable) -> int | None:
         if self._index is None:

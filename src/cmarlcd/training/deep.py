@@ -41,9 +41,21 @@ game = Unbound("game")
 
 
 def collect(
-    envs, greedy, legal, seen, counts, steps, total_episodes, max_steps, schedule, clock,
-    episodes, buffer, env_rngs, act_rngs,
-) -> tuple[int, bool]:  # fmt: skip
+    envs,
+    greedy,
+    legal,
+    seen,
+    counts,
+    steps,
+    total_episodes,
+    max_steps,
+    schedule,
+    clock,
+    episodes,
+    buffer,
+    env_rngs,
+    act_rngs,
+) -> tuple[int, bool]:
     """Template: step each of B game copies ``steps`` steps with ε-greedy actions (eq. 18).
 
     ``greedy[b, s]`` is seed b's greedy joint action in state s (the networks change only
@@ -133,10 +145,21 @@ class DeepBatch:
         while (self.episodes < self.total_episodes).any():
             before = self.episodes.copy()
             taken, first_visit = self._collect(
-                self.envs, table, self.legal, self.seen, self.counts, cfg.train_every,
-                self.total_episodes, self.spec.max_steps, schedule, self.clock,
-                self.episodes, self.buffer, self.env_rngs, self.act_rngs,
-            )  # fmt: skip
+                self.envs,
+                table,
+                self.legal,
+                self.seen,
+                self.counts,
+                cfg.train_every,
+                self.total_episodes,
+                self.spec.max_steps,
+                schedule,
+                self.clock,
+                self.episodes,
+                self.buffer,
+                self.env_rngs,
+                self.act_rngs,
+            )
             self.env_steps += taken
             if first_visit:
                 self.model.set_state_legal(torch.from_numpy(self.legal))

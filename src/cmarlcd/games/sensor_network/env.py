@@ -47,8 +47,8 @@ class SensorNetworkEnv(KernelParallelEnv):
         self._last_joint = self._joint.copy()
         return result
 
-    def step_info(self, agent: int) -> dict[str, Any]:
-        return {"individual_reward": float(self.env[2][agent])}
+    def step_infos(self) -> list[dict[str, Any]]:
+        return [{"individual_reward": reward} for reward in self.env[2].tolist()]
 
     def render_text(self) -> str:
         """The grid: targets where they stand now and, after a step, the cells the last
