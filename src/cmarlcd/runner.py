@@ -177,9 +177,9 @@ def run_sweep(
     result = SweepResult(total=len(specs), reused=len(specs) - len(todo))
     missing = set(todo)
     stored_work = sum(_work(s) for s in specs if s not in missing)
-    units = {get_experiment(s.experiment).work_unit for s in specs[:1]}
+    unit = get_experiment(specs[0].experiment).work_unit if specs else "runs"
     total = sum(map(_work, specs))
-    observer.start(description, len(specs), result.reused, total, stored_work, *units)
+    observer.start(description, len(specs), result.reused, total, stored_work, unit)
     start = time.perf_counter()
 
     def commit(spec: RunSpec, metrics: dict[str, Any], seconds: float) -> None:

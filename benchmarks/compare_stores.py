@@ -1,0 +1,49 @@
+"""Check that two results stores hold the same runs with the same metrics, bit for bit.
+
+Timings (a run's ``seconds``, its wall time) are left out. Used to show that a
+restructuring changed no number: run the same command with the old and the new code
+into two fresh stores, then compare them.
+
+Usage: python benchmarks/compare_stores.py OLD.sqlite NEW.sqlite
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sqlite3
+import sys
+from typing import Any
+
+
+def load(path: str) -> dict[tuple, dict[str, Any]]:
+    """Every run of a store: its key and its metrics without timings."""
+    query = "SELECT experiment, algorithm, config, root_seed, run_index, metrics FROM runs"
+    with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as conn:
+        rows = conn.execute(query).fetchall()
+    runs = {}
+    for *key, metrics in rows:
+        values = json.loads(metrics)
+        values.pop("seconds", None)
+        runs[tuple(key)] = values
+    return runs
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("old")
+    parser.add_argument("new")
+    args = parser.parse_args()
+    old, new = load(args.old), load(args.new)
+    only_old, only_new = set(old) - set(new), set(new) - set(old)
+    differ = sorted(k for k in set(old) & set(new) if old[k] != new[k])
+    print(f"{len(old)} runs in {args.old}, {len(new)} in {args.new}")
+    print(f"only in the first: {len(only_old)}, only in the second: {len(only_new)}")
+    print(f"runs with different metrics: {len(differ)}")
+    for key in differ[:5]:
+        print("  ", key[0], key[1], "seed", key[3], "run", key[4])
+    return 1 if only_old or only_new or differ else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
