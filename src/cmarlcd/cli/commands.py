@@ -215,8 +215,19 @@ def _learners(
     return tuple(configs)
 
 
-def _default(config: Any, name: str) -> str:
-    return f"[default: {getattr(config, name):g}]"
+def _setting(config: LearnerConfig, field: str, what: str) -> Any:
+    """An optional learner setting; its help shows the learner's own default."""
+    default = f"[default: {getattr(config, field):g}]"
+    return Annotated[float | None, typer.Option(help=f"{what} {default}.", show_default=False)]
+
+
+CmarlcdDelta = _setting(CMARLCD, "delta", "CMARL-CD δ (eqs. 14-15)")
+CmarlcdDeltaReset = _setting(CMARLCD, "delta_reset", "CMARL-CD step after a new record")
+CmarlcdTemperature = _setting(CMARLCD, "temperature", "CMARL-CD T (eq. 17)")
+CmarlcdCMin = _setting(CMARLCD, "c_min", "CMARL-CD lower clip")
+CmarlcdCMax = _setting(CMARLCD, "c_max", "CMARL-CD upper clip")
+CmarlcdCInit = _setting(CMARLCD, "c_init", "CMARL-CD initial / reset degree")
+LaocaRate = _setting(LAOCA, "rate", "LA-OCA λ")
 
 
 @app.command()
@@ -233,44 +244,13 @@ def dsn(
         str, typer.Option(help="Greedy evaluation episodes at each L (50k allowed).")
     ] = str(dsn_exp.PAPER_EVAL_EPISODES),
     seed: SeedOption = 0,
-    delta: Annotated[
-        float | None,
-        typer.Option(
-            help=f"CMARL-CD δ (eqs. 14-15) {_default(CMARLCD, 'delta')}.", show_default=False
-        ),
-    ] = None,
-    delta_reset: Annotated[
-        float | None,
-        typer.Option(
-            help=f"CMARL-CD step after a new record {_default(CMARLCD, 'delta_reset')}.",
-            show_default=False,
-        ),
-    ] = None,
-    temperature: Annotated[
-        float | None,
-        typer.Option(
-            help=f"CMARL-CD T (eq. 17) {_default(CMARLCD, 'temperature')}.", show_default=False
-        ),
-    ] = None,
-    c_min: Annotated[
-        float | None,
-        typer.Option(help=f"CMARL-CD lower clip {_default(CMARLCD, 'c_min')}.", show_default=False),
-    ] = None,
-    c_max: Annotated[
-        float | None,
-        typer.Option(help=f"CMARL-CD upper clip {_default(CMARLCD, 'c_max')}.", show_default=False),
-    ] = None,
-    c_init: Annotated[
-        float | None,
-        typer.Option(
-            help=f"CMARL-CD initial / reset degree {_default(CMARLCD, 'c_init')}.",
-            show_default=False,
-        ),
-    ] = None,
-    rate: Annotated[
-        float | None,
-        typer.Option(help=f"LA-OCA λ {_default(LAOCA, 'rate')}.", show_default=False),
-    ] = None,
+    delta: CmarlcdDelta = None,
+    delta_reset: CmarlcdDeltaReset = None,
+    temperature: CmarlcdTemperature = None,
+    c_min: CmarlcdCMin = None,
+    c_max: CmarlcdCMax = None,
+    c_init: CmarlcdCInit = None,
+    rate: LaocaRate = None,
     gamma: Annotated[
         float | None,
         typer.Option(

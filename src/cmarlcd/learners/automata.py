@@ -29,7 +29,7 @@ from cmarlcd.learners.max_return import (
     check_gamma_tolerance,
     record_outcomes,
 )
-from cmarlcd.learners.policy import greedy_action, sample_joint_action
+from cmarlcd.learners.policy import greedy_action, sample_from_strategies
 from cmarlcd.learners.tabular import TabularConfig, TabularKernels, no_step_update
 
 
@@ -84,12 +84,6 @@ def automaton_init(tables, params, s, legal, counts) -> None:
 
 
 @njit(cache=True)
-def automaton_act(tables, params, s, counts, rng, joint) -> None:
-    """Every agent samples ``a_i ~ p_i(s)``."""
-    sample_joint_action(tables.probs[s], counts, rng, joint)
-
-
-@njit(cache=True)
 def automaton_greedy(tables, s, counts, joint) -> None:
     """Execution: each agent's most probable legal action (lowest index on ties)."""
     for i in range(counts.shape[0]):
@@ -118,7 +112,11 @@ class AutomatonConfig(TabularConfig):
     name: ClassVar[str] = "la-oca"
     display_name: ClassVar[str] = "LA-OCA"
     kernels: ClassVar[TabularKernels] = TabularKernels(
-        automaton_init, automaton_act, automaton_greedy, no_step_update, automaton_end_episode
+        automaton_init,
+        sample_from_strategies,
+        automaton_greedy,
+        no_step_update,
+        automaton_end_episode,
     )
 
     rate: float = 0.1

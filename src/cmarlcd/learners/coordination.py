@@ -35,7 +35,7 @@ from cmarlcd.learners.max_return import (
     check_gamma_tolerance,
     record_outcomes,
 )
-from cmarlcd.learners.policy import greedy_action, sample_joint_action
+from cmarlcd.learners.policy import greedy_action, sample_from_strategies, sample_joint_action
 from cmarlcd.learners.tabular import (
     RepeatedKernels,
     TabularConfig,
@@ -384,12 +384,6 @@ def coordination_init(tables, params, s, legal, counts) -> None:
 
 
 @njit(cache=True)
-def coordination_act(tables, params, s, counts, rng, joint) -> None:
-    """Every agent samples ``a_i ~ p_i(s)`` (eq. 17)."""
-    sample_joint_action(tables.probs[s], counts, rng, joint)
-
-
-@njit(cache=True)
 def coordination_greedy(tables, s, counts, joint) -> None:
     """Execution: each agent's legal action with the largest degree (lowest index on ties)."""
     for i in range(counts.shape[0]):
@@ -420,7 +414,7 @@ class StochasticConfig(TabularConfig):
     display_name: ClassVar[str] = "CMARL-CD"
     kernels: ClassVar[TabularKernels] = TabularKernels(
         coordination_init,
-        coordination_act,
+        sample_from_strategies,
         coordination_greedy,
         no_step_update,
         coordination_end_episode,

@@ -38,6 +38,15 @@ def sample_joint_action(p: np.ndarray, counts: np.ndarray, rng, joint: np.ndarra
 
 
 @njit(cache=True)
+def sample_from_strategies(
+    tables, params, s: int, counts: np.ndarray, rng, joint: np.ndarray
+) -> None:
+    """The tabular protocol's ``act`` for learners that keep their strategies in
+    ``tables.probs``: every agent samples ``a_i ~ p_i(s)``."""
+    sample_joint_action(tables.probs[s], counts, rng, joint)
+
+
+@njit(cache=True)
 def greedy_action(values_row: np.ndarray, legal_row: np.ndarray, count: int) -> int:
     """``argmax`` of ``values_row`` over the legal actions, lowest index on ties."""
     best = -1
