@@ -38,7 +38,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from cmarlcd.errors import require
 
@@ -54,6 +53,8 @@ T_END_FACTOR = 1e4
 #: Largest ``m^n`` checked: from the uniform start every ``D_j`` is about ``m^-n``, and
 #: beyond this the integration of eq. (8) falls below the solver's resolution.
 MAX_JOINT_ACTIONS = 10**12
+#: Random interior starts integrated by default.
+DEFAULT_STARTS = 100
 #: [choice] RK45 tolerances for eq. (8); ``c`` grows only linearly, so absolute is fine.
 RTOL = 1e-8
 ATOL = 1e-10
@@ -169,6 +170,8 @@ def _solve(c0: np.ndarray, temperature: float, t_end: float | None) -> Any:
         return 1.0 - d.max() - CONVERGENCE_TOL
 
     converged.terminal = True  # type: ignore[attr-defined]
+    from scipy.integrate import solve_ivp  # imported when used: it slows every command's start
+
     sol = solve_ivp(rhs, (0.0, t_end), c0.ravel(), rtol=RTOL, atol=ATOL, events=converged)
     if sol.status < 0:
         raise RuntimeError(f"eq. (8) integration failed: {sol.message}")
@@ -312,7 +315,7 @@ def check_theorem1(
     n_agents: int,
     n_optima: int,
     temperature: float,
-    starts: int = 100,
+    starts: int = DEFAULT_STARTS,
     t_end: float | None = None,
     seed: int = 0,
 ) -> StabilityReport:

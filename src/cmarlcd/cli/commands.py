@@ -15,6 +15,7 @@ import typer
 from rich.console import Console
 
 from cmarlcd import __version__, registry, report
+from cmarlcd import theory as theory_module
 from cmarlcd.cli.options import (
     DEFAULT_FIGURES,
     FiguresOption,
@@ -235,10 +236,10 @@ LaocaRate = _setting(LAOCA, "rate", "LA-OCA λ")
 def dsn(
     algorithms: Annotated[
         str, typer.Option(help=f"Comma list of {registry.learner_names()}.")
-    ] = "cmarl-cd,la-oca",
+    ] = ",".join(config.name for config in dsn_exp.DEFAULT_LEARNERS),
     episodes: Annotated[
         str, typer.Option(help="Learning budgets L (comma list; 100k allowed).")
-    ] = "100000,300000,500000",
+    ] = ",".join(map(str, dsn_exp.DSN_EPISODES)),
     runs: Annotated[int, typer.Option(help="Runs per algorithm.")] = dsn_exp.PAPER_RUNS,
     eval_episodes: Annotated[
         str, typer.Option(help="Greedy evaluation episodes at each L (50k allowed).")
@@ -526,7 +527,9 @@ def theory(
     agents: Annotated[int, typer.Option(help="Agents n.")] = 2,
     optima: Annotated[int, typer.Option(help="Optimal joint actions m (unique components).")] = 2,
     temperature: Annotated[float, typer.Option(help="T of eq. (5).")] = 1.0,
-    starts: Annotated[int, typer.Option(help="Random interior starting points.")] = 100,
+    starts: Annotated[
+        int, typer.Option(help="Random interior starting points.")
+    ] = theory_module.DEFAULT_STARTS,
     seed: Annotated[int, typer.Option(help="Seed of the starting points.")] = 0,
     as_json: JsonOption = False,
     figures: FiguresOption = DEFAULT_FIGURES,

@@ -27,6 +27,8 @@ EXPERIMENT = "dsn"
 SEED_BATCH = 10
 PAPER_RUNS = 50
 PAPER_EVAL_EPISODES = 50_000
+#: The rows of Tables 3-7 a sweep runs unless told otherwise: the tabular learners.
+DEFAULT_LEARNERS: tuple[LearnerConfig, ...] = (StochasticConfig(), AutomatonConfig())
 
 
 def optimal_episodes(returns: np.ndarray, lengths: np.ndarray) -> np.ndarray:
@@ -51,7 +53,7 @@ class DsnSweep(EpisodicSweep):
     100k, 300k and 500k episodes, 50,000 evaluation episodes)."""
 
     game: EpisodicGame = DSN_GAME
-    learners: tuple[LearnerConfig, ...] = (StochasticConfig(), AutomatonConfig())
+    learners: tuple[LearnerConfig, ...] = DEFAULT_LEARNERS
     episodes: tuple[int, ...] = DSN_EPISODES
     runs: int = PAPER_RUNS
     eval_episodes: int = PAPER_EVAL_EPISODES
