@@ -112,11 +112,13 @@ def q_greedy(tables, s, counts, joint):
 
 
 @njit
-def q_observe(tables, params, s, joint, reward, next_s, terminal):
-    for i in range(joint.shape[0]):
+def q_observe(tables, params, states, joints, rewards, t, next_s, terminal):
+    s = states[t]
+    for i in range(joints.shape[1]):
         best = 0.0 if terminal else tables.q[next_s, i].max()
-        target = reward + params.gamma * best
-        tables.q[s, i, joint[i]] += params.alpha * (target - tables.q[s, i, joint[i]])
+        target = rewards[t] + params.gamma * best
+        a = joints[t, i]
+        tables.q[s, i, a] += params.alpha * (target - tables.q[s, i, a])
 
 
 @dataclass(frozen=True)

@@ -23,11 +23,12 @@ import numpy as np
 from numba import njit
 
 from cmarlcd.errors import require
+from cmarlcd.kernel import kernel
 from cmarlcd.learners.max_return import (
     BELOW,
     MaxReturnLearner,
     check_gamma_tolerance,
-    record_outcomes,
+    visit,
 )
 from cmarlcd.learners.policy import greedy_action, sample_from_strategies
 from cmarlcd.learners.tabular import TabularConfig, TabularKernels, no_step_update
@@ -74,16 +75,17 @@ def uniform_strategy(legal_row: np.ndarray, count: int, p_row: np.ndarray) -> No
         p_row[a] = 1.0 / n_legal if legal_row[a] else 0.0
 
 
-@njit(cache=True)
+@kernel
 def automaton_init(tables, params, s, legal, counts) -> None:
     """A state before any update: uniform strategies over the legal actions."""
     tables.r_max[s] = -np.inf
     for i in range(counts.shape[0]):
-        tables.legal[s, i] = legal[i]
+        for a in range(legal.shape[1]):
+            tables.legal[s, i, a] = legal[i, a]
         uniform_strategy(tables.legal[s, i], counts[i], tables.probs[s, i])
 
 
-@njit(cache=True)
+@kernel
 def automaton_greedy(tables, s, counts, joint) -> None:
     """Execution: each agent's most probable legal action (lowest index on ties)."""
     for i in range(counts.shape[0]):
@@ -91,18 +93,27 @@ def automaton_greedy(tables, s, counts, joint) -> None:
 
 
 @njit(cache=True)
-def automaton_end_episode(tables, params, states, joints, rewards, length, counts) -> None:
-    """The max-return pass, then :func:`automaton_rule` for every agent at every visit
-    that reached its state's record (records and ties alike), backwards."""
-    outcomes = np.empty(length, dtype=np.int8)
-    record_outcomes(tables.r_max, params, states, rewards, length, outcomes)
+def automaton_backward(
+    probs, legal, r_max, params, states, joints, rewards, length, counts
+) -> None:
+    """The max-return pass over the tables' arrays, then :func:`automaton_rule` for every
+    agent at every visit that reached its state's record (records and ties alike),
+    backwards."""
+    g = 0.0
     for t in range(length - 1, -1, -1):
-        if outcomes[t] != BELOW:
+        g, outcome = visit(r_max, params, states[t], rewards[t], g)
+        if outcome != BELOW:
             s = states[t]
             for i in range(counts.shape[0]):
-                automaton_rule(
-                    tables.probs[s, i], tables.legal[s, i], counts[i], joints[t, i], params.rate
-                )
+                automaton_rule(probs[s, i], legal[s, i], counts[i], joints[t, i], params.rate)
+
+
+@kernel
+def automaton_end_episode(tables, params, states, joints, rewards, length, counts) -> None:
+    """The stand-in's learning from one episode (:func:`automaton_backward`, on the
+    tables' arrays unpacked once)."""
+    probs, legal, r_max = tables
+    automaton_backward(probs, legal, r_max, params, states, joints, rewards, length, counts)
 
 
 @dataclass(frozen=True)

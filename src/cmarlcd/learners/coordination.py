@@ -28,12 +28,13 @@ import numpy as np
 from numba import njit
 
 from cmarlcd.errors import require
+from cmarlcd.kernel import kernel
 from cmarlcd.learners.max_return import (
     BELOW,
     RECORD,
     MaxReturnLearner,
     check_gamma_tolerance,
-    record_outcomes,
+    visit,
 )
 from cmarlcd.learners.policy import greedy_action, sample_from_strategies, sample_joint_action
 from cmarlcd.learners.tabular import (
@@ -144,15 +145,20 @@ def repeated_update(
     return True
 
 
-@njit(cache=True)
+@kernel
 def repeated_act(tables, params, counts: np.ndarray, rng, joint: np.ndarray) -> None:
     """Every agent samples ``a_i ~ p_i`` (Algorithm 1, line 4)."""
     sample_joint_action(tables.probs, counts, rng, joint)
 
 
-@njit(cache=True)
+@kernel
 def repeated_learn(tables, params, counts: np.ndarray, joint: np.ndarray, reward: float) -> bool:
-    """Eqs. (2)-(5) after one game; True when the indicator of eq. (4) fired."""
+    """Eqs. (2)-(5) after one game; True when the indicator of eq. (4) fired.
+
+    The indicator is read first: most games change nothing, and they then touch only
+    ``r_max``."""
+    if reward < tables.r_max[0]:  # eq. (4): I = 0
+        return False
     return repeated_update(
         tables.degrees,
         tables.probs,
@@ -166,13 +172,13 @@ def repeated_learn(tables, params, counts: np.ndarray, joint: np.ndarray, reward
     )
 
 
-@njit(cache=True)
+@kernel
 def repeated_converged(tables, params, counts: np.ndarray) -> bool:
     """Algorithm 1's stopping rule: every strategy is pure."""
     return is_pure(tables.probs, counts, params.purity_threshold)
 
 
-@njit(cache=True)
+@kernel
 def repeated_greedy(tables, counts: np.ndarray, joint: np.ndarray) -> None:
     """Each agent's action with the largest coordination degree (lowest index on ties)."""
     for i in range(counts.shape[0]):
@@ -367,12 +373,13 @@ def coordination_rule(
     softmax_strategy(c_row, legal_row, count, params.temperature, p_row)
 
 
-@njit(cache=True)
+@kernel
 def coordination_init(tables, params, s, legal, counts) -> None:
     """A state before any update: ``c = c_init``, ``p`` uniform over the legal actions."""
     tables.r_max[s] = -np.inf
     for i in range(counts.shape[0]):
-        tables.legal[s, i] = legal[i]
+        for a in range(legal.shape[1]):
+            tables.legal[s, i, a] = legal[i, a]
         tables.degrees[s, i, : counts[i]] = params.c_init
         softmax_strategy(
             tables.degrees[s, i],
@@ -383,7 +390,7 @@ def coordination_init(tables, params, s, legal, counts) -> None:
         )
 
 
-@njit(cache=True)
+@kernel
 def coordination_greedy(tables, s, counts, joint) -> None:
     """Execution: each agent's legal action with the largest degree (lowest index on ties)."""
     for i in range(counts.shape[0]):
@@ -391,19 +398,35 @@ def coordination_greedy(tables, s, counts, joint) -> None:
 
 
 @njit(cache=True)
-def coordination_end_episode(tables, params, states, joints, rewards, length, counts) -> None:
-    """Algorithm 2, lines 13-22: the max-return pass, then :func:`coordination_rule` for
-    every agent at every visit that reached its state's record, backwards."""
-    outcomes = np.empty(length, dtype=np.int8)
-    record_outcomes(tables.r_max, params, states, rewards, length, outcomes)
+def coordination_backward(
+    degrees, probs, legal, r_max, params, states, joints, rewards, length, counts
+) -> None:
+    """Algorithm 2, lines 13-22, over the tables' arrays: the max-return pass, then
+    :func:`coordination_rule` for every agent at every visit that reached its state's
+    record, backwards."""
+    g = 0.0
     for t in range(length - 1, -1, -1):
-        if outcomes[t] == BELOW:
+        g, outcome = visit(r_max, params, states[t], rewards[t], g)
+        if outcome == BELOW:
             continue
         s = states[t]
         for i in range(counts.shape[0]):
-            c_row, p_row, legal_row = tables.degrees[s, i], tables.probs[s, i], tables.legal[s, i]
-            action, record = joints[t, i], outcomes[t] == RECORD
-            coordination_rule(c_row, p_row, legal_row, counts[i], action, record, params)
+            record = outcome == RECORD
+            coordination_rule(
+                degrees[s, i], probs[s, i], legal[s, i], counts[i], joints[t, i], record, params
+            )
+
+
+@kernel
+def coordination_end_episode(tables, params, states, joints, rewards, length, counts) -> None:
+    """Algorithm 2's learning from one episode (:func:`coordination_backward`).
+
+    The tables are unpacked once here: numba counts references on every array it takes
+    out of a tuple, but not in a function whose arguments are arrays and numbers."""
+    degrees, probs, legal, r_max = tables
+    coordination_backward(
+        degrees, probs, legal, r_max, params, states, joints, rewards, length, counts
+    )
 
 
 @dataclass(frozen=True)

@@ -5,8 +5,8 @@ Both learners keep ``R_max(s)``, the largest discounted return ever observed fro
 After each episode the recorded steps are processed backwards (SPEC §2, [choice] every
 visit): ``G_t = r_{t+1} + γ G_{t+1}`` (eq. 1) is compared with ``R_max(s_t)`` (eq. 16,
 equality within a tolerance), and unless it falls below, the learner's per-state rule is
-applied to the action each agent took at ``s_t``. The indicator's part of that pass is
-:func:`record_outcomes`, written once; each learner walks the outcomes with its own rule.
+applied to the action each agent took at ``s_t``. The indicator's part of each step of
+that pass is :func:`visit`, written once; each learner walks its episode with its rule.
 
 A learner using it keeps ``r_max`` in its tables and ``gamma`` and ``tolerance`` in its
 parameters.
@@ -42,23 +42,23 @@ def compare_return(g: float, best: float, tolerance: float) -> int:
 
 
 @njit(cache=True)
-def record_outcomes(r_max, params, states, rewards, length, outcomes) -> None:
-    """Algorithm 2, lines 13-17: the backward every-visit pass over one episode.
+def visit(r_max, params, s: int, reward: float, later_return: float) -> tuple[float, int]:
+    """One step of the backward pass (Algorithm 2, lines 13-17), for the visit of state
+    ``s`` followed by ``reward``: its return ``G_t = r_{t+1} + γ G_{t+1}`` (eq. 1, with
+    ``later_return`` = ``G_{t+1}``) and how it compares with ``R_max(s)`` (eq. 16):
+    RECORD (``R_max(s)`` is raised to ``G_t``), TIE or BELOW.
 
-    ``states[t]`` and ``rewards[t]`` are the state and the reward ``r_{t+1}`` that
-    followed, for ``t < length``. Going backwards, ``G_t = r_{t+1} + γ G_{t+1}`` (eq. 1)
-    is compared with ``R_max(s_t)`` (eq. 16): ``outcomes[t]`` is RECORD (``R_max(s_t)``
-    is raised to ``G_t``), TIE or BELOW. The learner then applies its rule to every
-    visit that is not BELOW, in the same backward order (its rule never changes
-    ``R_max``, so the outcomes do not depend on it).
+    A learner walks its episode backwards, ``g = 0`` after the last step::
+
+        for t in range(length - 1, -1, -1):
+            g, outcome = visit(tables.r_max, params, states[t], rewards[t], g)
+            if outcome != BELOW: ...its rule for every agent at states[t]...
     """
-    g = 0.0
-    for t in range(length - 1, -1, -1):
-        g = rewards[t] + params.gamma * g  # eq. (1)
-        s = states[t]
-        outcomes[t] = compare_return(g, r_max[s], params.tolerance)
-        if outcomes[t] == RECORD:
-            r_max[s] = g
+    g = reward + params.gamma * later_return  # eq. (1)
+    outcome = compare_return(g, r_max[s], params.tolerance)
+    if outcome == RECORD:
+        r_max[s] = g
+    return g, outcome
 
 
 class MaxReturnLearner(TabularLearner):

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from cmarlcd.kernel import kernel
+
 
 @njit(cache=True)
 def sample_action(p_row: np.ndarray, count: int, u: float) -> int:
@@ -37,7 +39,7 @@ def sample_joint_action(p: np.ndarray, counts: np.ndarray, rng, joint: np.ndarra
         joint[i] = sample_action(p[i], counts[i], rng.random())
 
 
-@njit(cache=True)
+@kernel
 def sample_from_strategies(
     tables, params, s: int, counts: np.ndarray, rng, joint: np.ndarray
 ) -> None:

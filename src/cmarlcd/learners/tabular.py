@@ -12,11 +12,16 @@ called alike by the compiled training loops (:mod:`cmarlcd.training.tabular`) an
                                                    ``(n_agents, width)`` masks)
 ``act(tables, params, s, counts, rng, joint)``    sample the joint action played in ``s``
 ``greedy(tables, s, counts, joint)``              execution: each agent's greedy legal action
-``observe(tables, params, s, joint, reward,       after every step (learners that bootstrap);
-next_s, terminal)``                               ``next_s`` is initialised unless terminal
+``observe(tables, params, states, joints,         after every step (learners that bootstrap):
+rewards, t, next_s, terminal)``                   step ``t`` of the episode so far led to
+                                                   ``next_s`` (initialised unless terminal)
 ``end_episode(tables, params, states, joints,     after every episode (Monte-Carlo learners)
 rewards, length, counts)``
 ==============================================  ===============================================
+
+Both hooks read the episode from ``states[t]``, ``joints[t]`` and ``rewards[t]`` (the
+state, the joint action and the reward that followed), so the loops pass whole arrays
+and never build a view per step.
 
 ``params`` is the learner's NamedTuple of compiled parameters, made by its config. A
 learner's frozen config (:class:`TabularConfig`) names the learner and carries these
@@ -33,9 +38,9 @@ from collections.abc import Hashable, Sequence
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
-from numba import njit
 
 from cmarlcd.errors import require
+from cmarlcd.kernel import kernel
 
 
 class TabularKernels(NamedTuple):
@@ -83,12 +88,12 @@ class TabularConfig:
         raise NotImplementedError
 
 
-@njit(cache=True)
-def no_step_update(tables, params, s, joint, reward, next_s, terminal) -> None:
+@kernel
+def no_step_update(tables, params, states, joints, rewards, t, next_s, terminal) -> None:
     """``observe`` of a learner that learns from whole episodes only."""
 
 
-@njit(cache=True)
+@kernel
 def no_episode_update(tables, params, states, joints, rewards, length, counts) -> None:
     """``end_episode`` of a learner that learns from single steps only."""
 
@@ -214,8 +219,9 @@ class TabularLearner:
         if self.config.kernels.observe is no_step_update:
             return  # a learner of whole episodes: nothing to do per step
         successor = row if next_row is None else next_row
+        states, rewards = np.array([row], dtype=np.int64), np.array([reward])
         self.config.kernels.observe(
-            self.tables, self.params, row, joint, reward, successor, terminal
+            self.tables, self.params, states, joint[None], rewards, 0, successor, terminal
         )
 
     def greedy(self, state: Hashable, masks: Sequence[np.ndarray] | None = None) -> tuple[int, ...]:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cmarlcd.errors import require
-from cmarlcd.games.matrix import MatrixGame
+from cmarlcd.games.matrix import KERNELS, MatrixGame
 from cmarlcd.training.specialise import Unbound, specialise
 
 game = Unbound("game")
@@ -58,17 +58,16 @@ def fit(learner_object, game: MatrixGame, max_games: int | None = None) -> FitRe
     through the compiled loop, on the learner's own tables and random stream."""
     counts = learner_object.counts
     require(
-        game.action_counts == tuple(int(k) for k in counts),
+        game.action_counts == tuple(counts.tolist()),
         "game",
-        f"has action counts {game.action_counts}, the learners {tuple(counts)}",
+        f"has action counts {game.action_counts}, the learners {tuple(counts.tolist())}",
     )
     config = learner_object.config
     cap = config.max_games if max_games is None else int(max_games)
     require(cap >= 1, "max_games", f"must be >= 1 (got {cap})")
-    spec = game.spec()
-    loop = specialise(play_until_converged, game=spec.kernels, learner=config.kernels)
+    loop = specialise(play_until_converged, game=KERNELS, learner=config.kernels)
     games, converged = loop(
-        spec.new_env(),
+        game.new_env(),
         learner_object.tables,
         learner_object.params,
         counts,

@@ -53,8 +53,7 @@ def train_episodes(
                 learner.init_state(tables, params, s, legal, counts)
                 seen[s] = True
             if length > 0:
-                t = length - 1
-                learner.observe(tables, params, states[t], joints[t], rewards[t], s, terminal)
+                learner.observe(tables, params, states, joints, rewards, length - 1, s, terminal)
             if terminal or length == max_steps:
                 break
             learner.act(tables, params, s, counts, agent_rng, joints[length])
@@ -73,25 +72,28 @@ def evaluate_episodes(env, policy, counts, episodes, max_steps, env_rng, returns
     """Template: ``episodes`` episodes with the fixed joint policy ``policy[state]``,
     writing each episode's undiscounted return and length. ``learner`` is unused.
 
-    [choice] An action the game forbids in the current state (a state the learner never
-    visited, whose row was set up as if every action were legal) is replaced by the
-    agent's lowest legal action: the greedy choice among equal untouched values.
+    [choice] An action the game forbids in a state (one the learner never visited, whose
+    row was set up as if every action were legal) is replaced by the agent's lowest
+    legal action there: the greedy choice among equal untouched values. Masks depend on
+    the state alone, so each state's row is checked once, on its first visit.
     """
     n_agents = counts.shape[0]
-    joint = np.zeros(n_agents, dtype=np.int64)
+    playing = policy.copy()
+    checked = np.zeros(policy.shape[0], dtype=np.bool_)
     team_rewards = np.zeros(1)
     legal = np.zeros((n_agents, counts.max()), dtype=np.bool_)
     for e in range(episodes):
         game.reset(env, env_rng)
         total, steps = 0.0, 0
         while steps < max_steps:
-            game.legal(env, legal)
-            row = policy[game.state(env, 0)]
-            for i in range(n_agents):
-                joint[i] = row[i]
-                if not legal[i, joint[i]]:
-                    joint[i] = np.argmax(legal[i])
-            game.step(env, joint, env_rng, team_rewards)
+            s = game.state(env, 0)
+            if not checked[s]:
+                game.legal(env, legal)
+                for i in range(n_agents):
+                    if not legal[i, playing[s, i]]:
+                        playing[s, i] = np.argmax(legal[i])
+                checked[s] = True
+            game.step(env, playing[s], env_rng, team_rewards)
             total += team_rewards[0]
             steps += 1
             if game.done(env):

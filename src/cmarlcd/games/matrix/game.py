@@ -53,24 +53,25 @@ class MatrixGame:
 
     payoffs: np.ndarray
     name: str = "custom"
+    action_counts: tuple[int, ...] = field(init=False)
+    """Actions of each agent."""
     _flat: np.ndarray = field(init=False, repr=False)
     _strides: np.ndarray = field(init=False, repr=False)
+    _counts: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         payoffs = validate_payoffs(self.payoffs)
         payoffs.setflags(write=False)
         object.__setattr__(self, "payoffs", payoffs)
+        object.__setattr__(self, "action_counts", tuple(int(k) for k in payoffs.shape))
         object.__setattr__(self, "_flat", payoffs.reshape(-1))
         strides = np.array(payoffs.strides, dtype=np.int64) // payoffs.itemsize
         object.__setattr__(self, "_strides", strides)
+        object.__setattr__(self, "_counts", np.array(payoffs.shape, dtype=np.int64))
 
     @property
     def n_agents(self) -> int:
         return self.payoffs.ndim
-
-    @property
-    def action_counts(self) -> tuple[int, ...]:
-        return tuple(int(k) for k in self.payoffs.shape)
 
     @property
     def max_payoff(self) -> float:
@@ -100,15 +101,18 @@ class MatrixGame:
         """True when ``joint_action`` attains the game's maximal payoff."""
         return self.payoff(joint_action) == self.max_payoff
 
+    def new_env(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The state arrays :data:`KERNELS` play on: (flat payoffs, strides, counts)."""
+        return self._flat, self._strides, self._counts
+
     def spec(self) -> GameSpec:
         """This game as a one-state game of the compiled protocol."""
-        counts = np.array(self.action_counts, dtype=np.int64)
         return GameSpec(
             name="matrix_game_v0",
             kernels=KERNELS,
-            new_env=lambda: (self._flat, self._strides, counts),
+            new_env=self.new_env,
             agents=tuple(f"agent_{i}" for i in range(self.n_agents)),
-            action_counts=counts,
+            action_counts=self._counts,
             n_states=1,
             max_steps=1,
             teams=(tuple(range(self.n_agents)),),

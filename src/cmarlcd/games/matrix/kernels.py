@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from cmarlcd.kernel import kernel
+
 
 @njit(cache=True)
 def flat_index(joint: np.ndarray, strides: np.ndarray) -> int:
@@ -21,30 +23,30 @@ def flat_index(joint: np.ndarray, strides: np.ndarray) -> int:
     return index
 
 
-@njit(cache=True)
+@kernel
 def env_reset(env, rng) -> None:
     """Protocol ``reset``: a repeated game has nothing to reset."""
 
 
-@njit(cache=True)
+@kernel
 def env_step(env, joint: np.ndarray, rng, rewards: np.ndarray) -> None:
     """Protocol ``step``: the payoff of ``joint``, the global reward of the one team."""
     rewards[0] = env[0][flat_index(joint, env[1])]
 
 
-@njit(cache=True)
+@kernel
 def env_state(env, team: int) -> int:
     """Protocol ``state``: the one state."""
     return 0
 
 
-@njit(cache=True)
+@kernel
 def env_done(env) -> bool:
     """Protocol ``done``: every play is a whole episode."""
     return True
 
 
-@njit(cache=True)
+@kernel
 def env_legal(env, masks: np.ndarray) -> None:
     """Protocol ``legal``: every action is legal."""
     counts = env[2]

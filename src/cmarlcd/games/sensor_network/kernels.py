@@ -38,6 +38,7 @@ from numba import njit
 
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.games.spec import GameKernels, GameSpec
+from cmarlcd.kernel import kernel
 
 __all__ = [
     "ACTION_COUNTS",
@@ -84,6 +85,7 @@ __all__ = [
     "env_step",
     "focused_cell",
     "move_cell",
+    "move_target",
     "new_env",
     "optimal_joint_action",
     "validate_joint",
@@ -262,29 +264,32 @@ def move_cell(cell: int, move: int) -> int:
 
 
 @njit(cache=True)
+def move_target(targets: np.ndarray, k: int, move: int) -> None:
+    """Move live target ``k``; a move into the other live target's cell is not executed
+    (a captured target, ``-1``, blocks nothing)."""
+    destination = move_cell(targets[k], move)
+    if destination != targets[1 - k]:
+        targets[k] = destination
+
+
+@njit(cache=True)
 def dsn_move_targets(targets: np.ndarray, moves: np.ndarray) -> None:
-    """Move the live targets, target 0 first; a move into the other live target's cell
-    is not executed (a captured target, ``-1``, blocks nothing)."""
+    """Move the live targets by ``moves``, target 0 first."""
     for k in range(N_TARGETS):
-        if targets[k] < 0:
-            continue
-        destination = move_cell(targets[k], moves[k])
-        if destination != targets[1 - k]:
-            targets[k] = destination
+        if targets[k] >= 0:
+            move_target(targets, k, moves[k])
 
 
 @njit(cache=True)
 def dsn_step(
     targets: np.ndarray, energy: np.ndarray, joint: np.ndarray, rng, individual: np.ndarray
 ) -> float:
-    """One step: the sensor phase, then one uniform move per live target (target 0's
-    draw first, none for a captured target). Returns the global reward."""
+    """One step: the sensor phase, then one uniform move per live target, target 0 first
+    (no draw for a captured target). Returns the global reward."""
     reward = dsn_sensor_phase(targets, energy, joint, individual)
-    moves = np.zeros(N_TARGETS, dtype=np.int64)
     for k in range(N_TARGETS):
         if targets[k] >= 0:
-            moves[k] = int(N_MOVES * rng.random())
-    dsn_move_targets(targets, moves)
+            move_target(targets, k, int(N_MOVES * rng.random()))
     return reward
 
 
@@ -371,31 +376,31 @@ def validate_joint(joint: object) -> np.ndarray:
 # ------------------------------------------------------------------ game protocol
 
 
-@njit(cache=True)
+@kernel
 def env_reset(env, rng) -> None:
     """Protocol ``reset``: :func:`dsn_reset` on ``env = (targets, energy, individual)``."""
     dsn_reset(env[0], env[1], rng)
 
 
-@njit(cache=True)
+@kernel
 def env_step(env, joint: np.ndarray, rng, rewards: np.ndarray) -> None:
     """Protocol ``step``: :func:`dsn_step`; the global reward goes to the one team."""
     rewards[0] = dsn_step(env[0], env[1], joint, rng, env[2])
 
 
-@njit(cache=True)
+@kernel
 def env_state(env, team: int) -> int:
     """Protocol ``state``: every sensor observes :func:`dsn_state`."""
     return dsn_state(env[0])
 
 
-@njit(cache=True)
+@kernel
 def env_done(env) -> bool:
     """Protocol ``done``: both targets captured."""
     return done(env[0])
 
 
-@njit(cache=True)
+@kernel
 def env_legal(env, masks: np.ndarray) -> None:
     """Protocol ``legal``: every action of every sensor is always legal."""
     for s in range(N_SENSORS):
