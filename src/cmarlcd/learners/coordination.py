@@ -27,8 +27,8 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 from numba import njit
 
+from cmarlcd.compiled import kernel
 from cmarlcd.errors import require
-from cmarlcd.kernel import kernel
 from cmarlcd.learners.max_return import (
     BELOW,
     RECORD,

@@ -39,8 +39,8 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
+from cmarlcd.compiled import Unbound, kernel, specialise
 from cmarlcd.errors import require
-from cmarlcd.kernel import kernel
 
 
 class TabularKernels(NamedTuple):
@@ -103,22 +103,34 @@ def full_legal(counts: np.ndarray) -> np.ndarray:
     return np.arange(int(counts.max()))[None, :] < counts[:, None]
 
 
+learner = Unbound("learner")
+
+
+def init_every_state(tables, params, legal, counts) -> None:
+    """Template: every state of ``tables`` set up with the masks ``legal``."""
+    for s in range(tables[0].shape[0]):
+        learner.init_state(tables, params, s, legal, counts)
+
+
+def greedy_every_state(tables, counts, policy) -> None:
+    """Template: ``policy[s]`` := the greedy joint action of every state ``s``."""
+    for s in range(policy.shape[0]):
+        learner.greedy(tables, s, counts, policy[s])
+
+
 def init_tables(config: TabularConfig, n_states: int, counts: np.ndarray) -> tuple:
     """New tables with every state initialised as if every action were legal (a state's
     first visit initialises it again with its real masks)."""
     tables = config.new_tables(n_states, counts)
-    params, legal = config.params(), full_legal(counts)
-    for s in range(n_states):
-        config.kernels.init_state(tables, params, s, legal, counts)
+    loop = specialise(init_every_state, learner=config.kernels)
+    loop(tables, config.params(), full_legal(counts), counts)
     return tables
 
 
 def greedy_policy(config: TabularConfig, tables: tuple, counts: np.ndarray) -> np.ndarray:
     """The greedy joint action of every state: shape (n_states, n_agents)."""
-    n_states = tables[0].shape[0]
-    policy = np.zeros((n_states, counts.shape[0]), dtype=np.int64)
-    for s in range(n_states):
-        config.kernels.greedy(tables, s, counts, policy[s])
+    policy = np.zeros((tables[0].shape[0], counts.shape[0]), dtype=np.int64)
+    specialise(greedy_every_state, learner=config.kernels)(tables, counts, policy)
     return policy
 
 

@@ -4,8 +4,7 @@
 * :mod:`~.tabular` -- compiled learning and greedy evaluation of any tabular learner;
 * :mod:`~.repeated` -- Algorithm 1's run on a repeated game (:func:`fit`);
 * :mod:`~.deep` -- seed-batched VDN / QMIX collection and training (``[deep]`` extra);
-* :mod:`~.replay` -- replay buffers and their compiled sampling;
-* :mod:`~.specialise` -- compiling a loop template for one game and one learner.
+* :mod:`~.replay` -- replay buffers and their compiled sampling.
 """
 
 from cmarlcd.training.episodes import play_episodes

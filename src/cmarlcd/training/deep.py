@@ -2,7 +2,7 @@
 
 B independent seeds train together: B copies of the game each take ``train_every`` steps
 in one compiled call (:func:`collect`, a template bound to the game's kernels, see
-:mod:`cmarlcd.training.specialise`), replay batches are drawn in another
+:mod:`cmarlcd.compiled`), replay batches are drawn in another
 (:func:`cmarlcd.training.replay.replay_sample`), and one stacked model
 (:class:`cmarlcd.learners.value_decomposition.ValueDecomposition`) takes the gradient
 steps of all seeds at once. Each seed has its own streams, spawned from its run seed in a
@@ -25,6 +25,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import torch
 
+from cmarlcd.compiled import Unbound, specialise
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep_config import DeepConfig, epsilon_schedule
 from cmarlcd.learners.policy import annealed_epsilon, epsilon_greedy
@@ -32,7 +33,6 @@ from cmarlcd.learners.tabular import full_legal
 from cmarlcd.learners.value_decomposition import ValueDecomposition
 from cmarlcd.progress import report_progress
 from cmarlcd.training.replay import new_batch, new_buffers, replay_sample, store
-from cmarlcd.training.specialise import Unbound, specialise
 
 #: Called as evaluate(seed index, episodes learnt, greedy policy (n_states, n_agents)).
 Evaluator = Callable[[int, int, np.ndarray], None]

@@ -1,6 +1,6 @@
 """Algorithm 1's run on a repeated game: play until the learner has converged.
 
-:func:`play_until_converged` is a template (:mod:`cmarlcd.training.specialise`): ``game``
+:func:`play_until_converged` is a template (:mod:`cmarlcd.compiled`): ``game``
 is bound to a game's kernels (in practice a matrix game's, :mod:`cmarlcd.games.matrix`)
 and ``learner`` to a repeated-game learner's (:class:`cmarlcd.learners.tabular.RepeatedKernels`).
 :func:`fit` runs it for a learner object such as :class:`cmarlcd.learners.CMARLCD`.
@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cmarlcd.compiled import Unbound, specialise
 from cmarlcd.errors import require
 from cmarlcd.games.matrix import KERNELS, MatrixGame
-from cmarlcd.training.specialise import Unbound, specialise
 
 game = Unbound("game")
 learner = Unbound("learner")

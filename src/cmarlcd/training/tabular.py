@@ -1,7 +1,7 @@
 """Compiled episodes of any tabular learner on any game: learning, and greedy evaluation.
 
 :func:`train_episodes` and :func:`evaluate_episodes` are templates (see
-:mod:`cmarlcd.training.specialise`): ``game`` is bound to a game's kernels
+:mod:`cmarlcd.compiled`): ``game`` is bound to a game's kernels
 (:mod:`cmarlcd.games.spec`) and ``learner`` to a tabular learner's
 (:mod:`cmarlcd.learners.tabular`), and numba compiles one loop per pair. With the same
 seeds they consume the random streams exactly as the generic ``ParallelEnv`` loop of
@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cmarlcd.compiled import Unbound, specialise
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.tabular import TabularConfig, greedy_policy, init_tables
-from cmarlcd.training.specialise import Unbound, specialise
 
 game = Unbound("game")
 learner = Unbound("learner")

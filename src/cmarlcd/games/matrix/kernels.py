@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from cmarlcd.kernel import kernel
+from cmarlcd.compiled import kernel
 
 
 @njit(cache=True)

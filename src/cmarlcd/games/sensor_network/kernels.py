@@ -36,9 +36,9 @@ import operator
 import numpy as np
 from numba import njit
 
+from cmarlcd.compiled import kernel
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.games.spec import GameKernels, GameSpec
-from cmarlcd.kernel import kernel
 
 __all__ = [
     "ACTION_COUNTS",
