@@ -51,7 +51,7 @@ def visit(r_max, params, s: int, reward: float, later_return: float) -> tuple[fl
     A learner walks its episode backwards, ``g = 0`` after the last step::
 
         for t in range(length - 1, -1, -1):
-            g, outcome = visit(tables.r_max, params, states[t], rewards[t], g)
+            g, outcome = visit(r_max, params, states[t], rewards[t], g)
             if outcome != BELOW: ...its rule for every agent at states[t]...
     """
     g = reward + params.gamma * later_return  # eq. (1)
