@@ -136,3 +136,21 @@ def test_load_payoffs_rejects_bad_files(tmp_path) -> None:
     ]:
         with pytest.raises(ConfigError, match=fragment):
             load_payoffs(tmp_path / name)
+
+
+def test_a_matrix_game_is_a_one_step_parallel_env() -> None:
+    from cmarlcd.games.matrix import MatrixGameEnv
+
+    env = MatrixGameEnv(climbing_game(), render_mode="ansi")
+    observations, infos = env.reset(seed=0)
+    assert observations == {"agent_0": 0, "agent_1": 0}
+    assert infos["agent_1"]["action_mask"].tolist() == [1, 1, 1]
+    _, rewards, terminations, truncations, _ = env.step({"agent_0": 0, "agent_1": 1})
+    assert rewards == {"agent_0": -30.0, "agent_1": -30.0}  # the climbing game's (0, 1)
+    assert all(terminations.values()) and not any(truncations.values()) and env.agents == []
+    text = env.render()
+    assert "[-30]" in text and text.count("[") == 1  # the played cell, marked once
+    three = MatrixGameEnv(from_payoffs(np.arange(8.0).reshape(2, 2, 2)), render_mode="ansi")
+    three.reset(seed=0)
+    three.step({"agent_0": 1, "agent_1": 1, "agent_2": 0})
+    assert "played (1, 1, 0) -> 6" in three.render()

@@ -16,7 +16,6 @@ from rich.progress import (
     ProgressColumn,
     TaskProgressColumn,
     TextColumn,
-    TimeElapsedColumn,
     TimeRemainingColumn,
 )
 from rich.text import Text
@@ -41,12 +40,11 @@ class WorkColumn(ProgressColumn):
 
 
 class RateColumn(ProgressColumn):
-    """Work units per second."""
+    """Work units per second (the unit is named in the work column)."""
 
     def render(self, task: Any) -> Text:
         speed = task.finished_speed or task.speed
-        unit = task.fields.get("unit", "")
-        return Text("" if speed is None else f"{_amount(speed)} {unit}/s")
+        return Text("" if speed is None else f"{_amount(speed)}/s")
 
 
 class RichSweepView(SweepObserver):
@@ -69,14 +67,12 @@ class RichSweepView(SweepObserver):
         unit: str = "runs",
     ) -> None:
         self.runs, self.done = runs, stored_runs
-        self.progress = Progress(
+        self.progress = Progress(  # fits 80 columns
             TextColumn("[bold]{task.description}"),
-            BarColumn(),
+            BarColumn(bar_width=16),
             TaskProgressColumn(),
             WorkColumn(),
             TextColumn("{task.fields[runs]}"),
-            TextColumn("elapsed"),
-            TimeElapsedColumn(),
             TextColumn("eta"),
             TimeRemainingColumn(),
             RateColumn(),
