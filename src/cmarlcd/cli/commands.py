@@ -4,6 +4,7 @@ configs (:mod:`cmarlcd.registry`), never restated here."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 from collections.abc import Callable, Iterable, Sequence
@@ -205,14 +206,16 @@ def _needs_torch(algorithms: Iterable[str]) -> str:
 
 
 def _learners(
-    names: Sequence[str], overrides: dict[str, dict[str, Any]]
+    names: Sequence[str], own: dict[str, dict[str, Any]], shared: dict[str, Any]
 ) -> tuple[LearnerConfig, ...]:
-    """The configs of ``names``: each learner's defaults with the options given for it."""
+    """The configs of ``names``: each learner's defaults, with the options given for it
+    (``own``, by learner) and the options that apply to every learner that has them."""
     configs = []
     for name in names:
         default = registry.require_learner(name)
-        settings = {k: v for k, v in overrides.get(name, {}).items() if v is not None}
-        configs.append(replace(default, **settings))
+        fields = {f.name for f in dataclasses.fields(default)}
+        settings = {**own.get(name, {}), **{k: v for k, v in shared.items() if k in fields}}
+        configs.append(replace(default, **{k: v for k, v in settings.items() if v is not None}))
     return tuple(configs)
 
 
@@ -277,17 +280,10 @@ def dsn(
         c_min=c_min,
         c_max=c_max,
         c_init=c_init,
-        gamma=gamma,
     )
     sweep = dsn_exp.DsnSweep(
         learners=_learners(
-            names,
-            {
-                "cmarl-cd": cmarlcd_settings,
-                "la-oca": {"rate": rate, "gamma": gamma},
-                "vdn": {"gamma": gamma},
-                "qmix": {"gamma": gamma},
-            },
+            names, {"cmarl-cd": cmarlcd_settings, "la-oca": {"rate": rate}}, {"gamma": gamma}
         ),
         episodes=parse_counts(episodes, "episodes"),
         runs=runs,
