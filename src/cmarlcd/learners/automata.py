@@ -15,7 +15,6 @@ This file is the whole learner: config, tables, compiled functions, object API.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar, NamedTuple
 
@@ -155,11 +154,4 @@ class LAOCA(MaxReturnLearner):
     """The LA-OCA stand-in (SPEC §3), step by step (see
     :class:`cmarlcd.learners.tabular.TabularLearner`)."""
 
-    def __init__(
-        self,
-        action_counts: Sequence[int],
-        config: AutomatonConfig | None = None,
-        n_states: int | None = None,
-        seed: int | np.random.SeedSequence | np.random.Generator | None = None,
-    ) -> None:
-        super().__init__(action_counts, config or AutomatonConfig(), n_states, seed)
+    default_config = AutomatonConfig()

@@ -502,11 +502,4 @@ class CMARLCDStochastic(MaxReturnLearner):
     """CMARL-CD for stochastic games (Algorithm 2), step by step (see
     :class:`cmarlcd.learners.tabular.TabularLearner`)."""
 
-    def __init__(
-        self,
-        action_counts: Sequence[int],
-        config: StochasticConfig | None = None,
-        n_states: int | None = None,
-        seed: int | np.random.SeedSequence | np.random.Generator | None = None,
-    ) -> None:
-        super().__init__(action_counts, config or StochasticConfig(), n_states, seed)
+    default_config = StochasticConfig()

@@ -155,13 +155,20 @@ class TabularLearner:
     :mod:`cmarlcd.training.tabular` learns (the same functions, called in the same order).
     """
 
+    default_config: ClassVar[TabularConfig | None] = None
+    """The config used when none is given (a learner's subclass sets its own)."""
+
     def __init__(
         self,
         action_counts: Sequence[int],
-        config: TabularConfig,
+        config: TabularConfig | None = None,
         n_states: int | None = None,
         seed: int | np.random.SeedSequence | np.random.Generator | None = None,
     ) -> None:
+        config = config or self.default_config
+        require(
+            config is not None, "config", "names the learner; give one (e.g. StochasticConfig())"
+        )
         counts = [int(k) for k in action_counts]
         require(len(counts) >= 1, "agents", "needs at least one agent")
         require(min(counts) >= 1, "actions", f"every agent needs >= 1 action (got {counts})")
