@@ -234,7 +234,7 @@ CmarlcdCInit = _setting(CMARLCD, "c_init", "CMARL-CD initial / reset degree")
 LaocaRate = _setting(LAOCA, "rate", "LA-OCA λ")
 
 
-@app.command()
+@app.command(short_help="Tables 3-7 and Fig. 4: the distributed sensor network task.")
 @fails_cleanly
 def dsn(
     algorithms: Annotated[
@@ -358,7 +358,7 @@ def _reproduced_learners(
     return tabular
 
 
-@app.command()
+@app.command(short_help="Reproduce the paper: Tables 1-7, Fig. 4, Theorem 1 (resumable).")
 @fails_cleanly
 def reproduce(
     preset: Annotated[
