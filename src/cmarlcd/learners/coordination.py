@@ -419,10 +419,8 @@ def coordination_backward(
 
 @kernel
 def coordination_end_episode(tables, params, states, joints, rewards, length, counts) -> None:
-    """Algorithm 2's learning from one episode (:func:`coordination_backward`).
-
-    The tables are unpacked once here: numba counts references on every array it takes
-    out of a tuple, but not in a function whose arguments are arrays and numbers."""
+    """Algorithm 2's learning from one episode (:func:`coordination_backward`, on the
+    tables' arrays unpacked once)."""
     degrees, probs, legal, r_max = tables
     coordination_backward(
         degrees, probs, legal, r_max, params, states, joints, rewards, length, counts
