@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import subprocess
 import sys
@@ -288,7 +289,14 @@ def test_dsn_bad_input(paths, args, option) -> None:
 def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
     from cmarlcd.cli import commands as cli
 
-    tiny = cli.Preset(repeated_runs=1, dsn_runs=1, dsn_eval_episodes=50, dsn_episodes=(100,))
+    tiny = cli.Preset(
+        repeated_runs=1,
+        dsn_runs=1,
+        dsn_eval_episodes=50,
+        dsn_episodes=(100,),
+        tournament_rounds=1,
+        tournament_episodes=20,
+    )
     monkeypatch.setitem(cli.PRESETS, "quick", tiny)
     _, figures, where = paths
     result = invoke("reproduce", "--workers", "1", "--json", *where)
@@ -299,6 +307,9 @@ def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
     assert {r["algorithm"] for r in doc["dsn"]["rows"]} == {"cmarl-cd", "la-oca"}
     assert all(check["confirmed"] for check in doc["theorem1"])
     assert (figures / "theorem1-phase-T1.png").exists()
+    players = 4 if importlib.util.find_spec("torch") else 2  # VDN, QMIX need the extra
+    assert doc["tournament"]["rounds"] == 1 and len(doc["tournament"]["cells"]) == players**2
+    assert Path(doc["tournament"]["figures"]["fig6"]).exists()
     bad = invoke("reproduce", "--preset", "huge", *where)
     assert bad.exit_code == 2 and bad.stderr.startswith("error: --preset:")
 
@@ -343,7 +354,15 @@ def without_torch(monkeypatch) -> None:
 def tiny_paper_preset(monkeypatch) -> None:
     from cmarlcd.cli import commands as cli
 
-    tiny = cli.Preset(1, 1, dsn_eval_episodes=20, dsn_episodes=(30,), deep=True)
+    tiny = cli.Preset(
+        1,
+        1,
+        dsn_eval_episodes=20,
+        dsn_episodes=(30,),
+        deep=True,
+        tournament_rounds=1,
+        tournament_episodes=20,
+    )
     monkeypatch.setitem(cli.PRESETS, "paper", tiny)
 
 
@@ -499,3 +518,74 @@ def test_help_keeps_its_words_and_shows_flags_as_flags() -> None:
     assert "Commands:" in invoke("-h").stdout
     dsn_help = " ".join(invoke("dsn", "--help").stdout.split())
     assert "[default: 0.05]" in dsn_help and "[default: 0.1]" in dsn_help  # from the configs
+
+
+def test_tournament_json_figures_resume_and_report(paths) -> None:
+    _, _, where = paths
+    args = ["tournament", "--rounds", "2", "--learn-episodes", "30", "--eval-episodes", "40"]
+    args += ["--algorithms", "cmarl-cd,la-oca"]
+    result = invoke(*args, "--workers", "1", "--json", *where)
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert doc["runs_computed"] == 2 * 3 and doc["rounds"] == 2
+    cells = {(c["algorithm"], c["opponent"]): c for c in doc["cells"]}
+    assert set(cells) == {(a, b) for a in ("cmarl-cd", "la-oca") for b in ("cmarl-cd", "la-oca")}
+    for cell in cells.values():
+        total = cell["win_rate"] + cell["loss_rate"] + cell["tie_rate"]
+        assert total == pytest.approx(1.0) and cell["rounds"] == 2
+    assert cells[("cmarl-cd", "la-oca")]["win_rate"] == pytest.approx(
+        cells[("la-oca", "cmarl-cd")]["loss_rate"]
+    )
+    assert {c["verdict"] for c in doc["claims"]} <= {
+        "supported",
+        "not supported",
+        "not supported (within noise)",
+        "contradicted",
+        "not checked",
+    }
+    assert all(Path(path).exists() for path in doc["figures"].values())
+    again = json.loads(invoke(*args, "--json", *where).stdout)
+    assert again["runs_computed"] == 0 and again["runs_reused"] == 6
+    assert again["cells"] == doc["cells"]
+    text = invoke("report", *where)
+    assert text.exit_code == 0 and "Fig. 6" in text.stdout and "Fig. 7" in text.stdout
+    assert "CMARL-CD needs the fewest win steps" in text.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["--algorithms", "foo"], "--algorithms"),
+        (["--rounds", "0"], "--rounds"),
+        (["--learn-episodes", "0"], "--learn-episodes"),
+        (["--eval-episodes", "-3"], "--eval-episodes"),
+        (["--learn-episodes", "many"], "--learn-episodes"),
+    ],
+)
+def test_tournament_bad_input(paths, args, option) -> None:
+    store, figures, where = paths
+    result = invoke("tournament", "--rounds", "1", *where, *args)
+    assert_rejected_cleanly(result, option, store, figures)
+
+
+def test_tournament_with_every_algorithm(paths) -> None:
+    pytest.importorskip("torch")
+    _, _, where = paths
+    args = ["tournament", "--rounds", "1", "--learn-episodes", "20", "--eval-episodes", "20"]
+    result = invoke(*args, "--workers", "1", "--json", *where)
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert doc["runs_computed"] == 10
+    names = ("cmarl-cd", "la-oca", "vdn", "qmix")
+    assert {(c["algorithm"], c["opponent"]) for c in doc["cells"]} == {
+        (a, b) for a in names for b in names
+    }
+    assert all(c["verdict"] != "not checked" for c in doc["claims"])
+
+
+def test_tournament_deep_without_torch_names_the_extra(paths, monkeypatch) -> None:
+    without_torch(monkeypatch)
+    store, figures, where = paths
+    result = invoke("tournament", "--rounds", "1", *where)
+    assert_rejected_cleanly(result, "--algorithms", store, figures)
+    assert "pip install 'cmarl-cd[deep]'" in result.stderr

@@ -164,3 +164,36 @@ def _save(fig, path: Path) -> Path:
     fig.savefig(path, dpi=120)
     _pyplot().close(fig)
     return path
+
+
+def tournament_bars(
+    cells: Sequence, metric: str, ylabel: str, title: str, path: Path, names: dict[str, str]
+) -> Path:
+    """Figs. 6-7: per algorithm, one bar per opponent (``metric`` of each
+    :class:`cmarlcd.experiments.tournament.Cell`), error bars one spread over rounds.
+    ``names`` maps the algorithms, in plotting order, to their display names."""
+    plt = _pyplot()
+    table = {(c.algorithm, c.opponent): c for c in cells}
+    algorithms = [n for n in names if any(c.algorithm == n for c in cells)]
+    width = 0.8 / max(len(algorithms), 1)
+    fig, ax = plt.subplots(figsize=(1.8 + 1.6 * len(algorithms), 3.6))
+    for k, opponent in enumerate(algorithms):
+        heights, errors = [], []
+        for algorithm in algorithms:
+            cell = table.get((algorithm, opponent))
+            heights.append(np.nan if cell is None else getattr(cell, metric))
+            errors.append(np.nan if cell is None else getattr(cell, f"{metric}_std"))
+        x = np.arange(len(algorithms)) + (k - (len(algorithms) - 1) / 2) * width
+        ax.bar(x, heights, width, yerr=errors, capsize=3, label=f"vs {names[opponent]}")
+    ax.set_xticks(np.arange(len(algorithms)), [names[a] for a in algorithms])
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=9)
+    ax.legend(
+        fontsize=8,
+        ncols=min(len(algorithms), 4),
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.12),
+        frameon=False,
+    )
+    fig.tight_layout()
+    return _save(fig, path)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Callable, Sequence
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -279,3 +280,119 @@ def theory_report(doc: dict[str, Any], console: Console) -> None:
     console.print(f"max |eigenvalue + 2/T| = {doc['max_eigen_error']:.2e}: {verdict}")
     if "figure" in doc:
         say(console, f"phase portrait: {doc['figure']}")
+
+
+# ------------------------------------------------------------- the tournament
+
+
+def _label(name: str, learner: dict[str, Any]) -> str:
+    """The algorithm's name, marked * when its settings are not the paper's battlefield
+    settings."""
+    from cmarlcd import registry
+    from cmarlcd.experiments.tournament import battlefield_learners
+
+    paper = battlefield_learners().get(name)
+    same = paper is not None and asdict(paper) == learner
+    return registry.display_name(name) + ("" if same else " *")
+
+
+def _pm(mean: float, spread: float, fmt: str) -> str:
+    return "—" if np.isnan(mean) else f"{mean:{fmt}} ± {spread:{fmt}}"
+
+
+def tournament_tables(cells: Sequence[Any], names: dict[str, str], caption: str) -> list[Table]:
+    """Fig. 6 and Fig. 7 as tables: rows the algorithm, columns its opponent."""
+    table = {(c.algorithm, c.opponent): c for c in cells}
+    order = [n for n in names if any(c.algorithm == n for c in cells)]
+    rates = Table(
+        title="Fig. 6 — win rate (%) of each algorithm (row) against each opponent "
+        "(column): win | loss | tie, mean ± spread over rounds",
+        caption=caption,
+    )
+    steps = Table(
+        title="Fig. 7 — win steps: mean turns of the won episodes, mean ± spread over rounds",
+        caption=caption,
+    )
+    for t in (rates, steps):
+        t.add_column("algorithm")
+        for opponent in order:
+            t.add_column(f"vs {names[opponent]}", justify="right")
+    for algorithm in order:
+        rate_row, step_row = [names[algorithm]], [names[algorithm]]
+        for opponent in order:
+            c = table.get((algorithm, opponent))
+            if c is None:
+                rate_row.append("—")
+                step_row.append("—")
+                continue
+            rate_row.append(
+                f"{_pm(100 * c.win_rate, 100 * c.win_rate_std, '.1f')} | "
+                f"{100 * c.loss_rate:.1f} | {100 * c.tie_rate:.1f}"
+            )
+            step_row.append(_pm(c.win_steps, c.win_steps_std, ".2f"))
+        rates.add_row(*rate_row)
+        steps.add_row(*step_row)
+    return [rates, steps]
+
+
+def tournament_report(
+    records: Sequence[RunRecord], figures: Path, console: Console | None
+) -> dict[str, Any]:
+    """Figs. 6-7 (tables and PNGs) and the check of the paper's claims, from one
+    tournament's stored matches."""
+    from cmarlcd import figures as figs
+    from cmarlcd.experiments import tournament as tour
+
+    present = {
+        name: learner
+        for rec in records
+        for name, learner in zip(rec.config["algorithms"], rec.config["learners"], strict=True)
+    }
+    known = list(tour.battlefield_learners())
+    order = sorted(present, key=lambda n: (known.index(n) if n in known else len(known), n))
+    names = {name: _label(name, present[name]) for name in order}
+    cells = tour.summarize(records, list(names))
+    claims = tour.check_claims(records, cells)
+    first = records[0]
+    rounds = sorted({r.key.run_index for r in records})
+    settings = (
+        f"{len(rounds)} rounds, {first.config['learn_episodes']:,} learning and "
+        f"{first.config['eval_episodes']:,} evaluation episodes per match, seed "
+        f"{first.key.root_seed}"
+    )
+    group = sorted({(r.key.algorithm, r.key.config) for r in records})
+    seed = first.key.root_seed
+    fig6 = figs.tournament_bars(
+        cells,
+        "win_rate",
+        "win rate",
+        f"Fig. 6 — win rate ({settings})",
+        figures / figure_name(f"battlefield-fig6-win-rate-seed{seed}", group),
+        names,
+    )
+    fig7 = figs.tournament_bars(
+        cells,
+        "win_steps",
+        "win steps (turns)",
+        f"Fig. 7 — win steps ({settings})",
+        figures / figure_name(f"battlefield-fig7-win-steps-seed{seed}", group),
+        names,
+    )
+    if console is not None:
+        for table in tournament_tables(cells, names, settings):
+            show(console, table)
+        say(console, "The paper's claims (SPEC §6) against these matches:")
+        for claim in claims:
+            say(console, f"  {claim.claim}: {claim.verdict.upper()} — {claim.evidence}")
+        say(console, f"figure: {fig6} (Fig. 6, {settings})")
+        say(console, f"figure: {fig7} (Fig. 7, {settings})")
+    return {
+        "experiment": tour.EXPERIMENT,
+        "seed": seed,
+        "rounds": len(rounds),
+        "learn_episodes": first.config["learn_episodes"],
+        "eval_episodes": first.config["eval_episodes"],
+        "cells": [c.to_dict() for c in cells],
+        "claims": [asdict(c) for c in claims],
+        "figures": {"fig6": str(fig6), "fig7": str(fig7)},
+    }

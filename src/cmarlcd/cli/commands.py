@@ -38,6 +38,7 @@ from cmarlcd.errors import require
 from cmarlcd.experiments import episodic
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
+from cmarlcd.experiments import tournament as tour
 from cmarlcd.games.matrix import MAX_JOINT_ACTIONS
 from cmarlcd.learners.coordination import RepeatedConfig
 from cmarlcd.registry import LearnerConfig
@@ -316,6 +317,73 @@ def _run_dsn(
     return {**doc, **_run_counts(done, store, console)}
 
 
+# -------------------------------------------------------------------- tournament
+
+
+def _tournament_learners(names: Sequence[str]) -> tuple[LearnerConfig, ...]:
+    """The paper's battlefield settings of each named learner (the deep ones need
+    PyTorch)."""
+    known = tour.battlefield_learners()
+    for name in names:
+        registry.require_learner(name)
+    deep = [name for name in names if registry.needs_torch(name)]
+    require(not deep or _has_torch(), "algorithms", _needs_torch(deep))
+    return tuple(known[name] for name in names)
+
+
+@app.command(short_help="Figs. 6-7: the blood battlefield tournament (resumable).")
+@fails_cleanly
+def tournament(
+    algorithms: Annotated[
+        str, typer.Option(help="Comma list of the algorithms that play.")
+    ] = ",".join(tour.battlefield_learners()),
+    rounds: Annotated[int, typer.Option(help="Rounds; each plays every pairing once.")] = (
+        tour.PAPER_ROUNDS
+    ),
+    learn_episodes: Annotated[
+        str, typer.Option(help="Learning episodes of each match (500k allowed).")
+    ] = str(tour.PAPER_LEARN_EPISODES),
+    eval_episodes: Annotated[
+        str, typer.Option(help="Greedy evaluation episodes of each match (500k allowed).")
+    ] = str(tour.PAPER_EVAL_EPISODES),
+    seed: SeedOption = 0,
+    workers: WorkersOption = None,
+    as_json: JsonOption = False,
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    progress: ProgressOption = True,
+) -> None:
+    """Figs. 6-7: the blood battlefield tournament (Section V-B); every match is stored
+    as it finishes."""
+    contest = tour.Tournament(
+        learners=_tournament_learners(parse_names(algorithms, "algorithms")),
+        rounds=rounds,
+        learn_episodes=parse_count(learn_episodes, "learn_episodes"),
+        eval_episodes=parse_count(eval_episodes, "eval_episodes"),
+        seed=seed,
+    )
+    check_workers(workers)
+    check_outputs(store, figures)
+    console = _console(as_json)
+    doc = _run_tournament(contest, store, figures, workers, progress, console)
+    _where(store, figures, console)
+    if as_json:
+        print(json.dumps(doc, indent=2))
+
+
+def _run_tournament(
+    contest: tour.Tournament,
+    store: Path,
+    figures: Path,
+    workers: int | None,
+    progress: bool,
+    console: Console | None,
+) -> dict[str, Any]:
+    records, done = _sweep(contest.specs(), store, workers, progress, "battlefield")
+    doc = report.tournament_report(records, figures, console)
+    return {**doc, **_run_counts(done, store, console)}
+
+
 # --------------------------------------------------------------------- reproduce
 
 
@@ -334,10 +402,20 @@ class Preset:
     deep: bool = False
     """Also the VDN and QMIX rows (needs the ``[deep]`` extra; about 30 min on 2 cores
     at the paper's protocol)."""
+    tournament_rounds: int = tour.PAPER_ROUNDS
+    """Rounds of the battlefield tournament (the paper: 30)."""
+    tournament_episodes: int = tour.PAPER_LEARN_EPISODES
+    """Learning and evaluation episodes of each match (the paper: 500,000 each)."""
 
 
 PRESETS = {
-    "quick": Preset(repeated_runs=20, dsn_runs=10, dsn_eval_episodes=10_000),
+    "quick": Preset(
+        repeated_runs=20,
+        dsn_runs=10,
+        dsn_eval_episodes=10_000,
+        tournament_rounds=10,
+        tournament_episodes=100_000,
+    ),
     "paper": Preset(rep.PAPER_RUNS, dsn_exp.PAPER_RUNS, dsn_exp.PAPER_EVAL_EPISODES, deep=True),
 }
 
@@ -358,15 +436,33 @@ def _reproduced_learners(
     return tabular
 
 
-@app.command(short_help="Reproduce the paper: Tables 1-7, Fig. 4, Theorem 1 (resumable).")
+def _reproduced_tournament(
+    preset: Preset, doc: dict[str, Any], as_json: bool
+) -> tuple[LearnerConfig, ...]:
+    """The tournament's algorithms: all four, or the tabular ones (with a note) without
+    PyTorch."""
+    names = tuple(tour.battlefield_learners())
+    if not _has_torch():
+        deep = [registry.display_name(n) for n in names if registry.needs_torch(n)]
+        note = _needs_torch(deep) + " (left out of the tournament)"
+        doc.setdefault("skipped_tournament", note)
+        if not as_json:
+            typer.echo(f"note: {note}", err=True)
+        names = tour.TABULAR
+    return _tournament_learners(names)
+
+
+@app.command(short_help="Reproduce the paper: Tables 1-7, Figs. 4, 6, 7, Theorem 1 (resumable).")
 @fails_cleanly
 def reproduce(
     preset: Annotated[
         str,
         typer.Option(
             help="quick: 20 runs per cell of Tables 1-2, 10 DSN runs of CMARL-CD and "
-            "LA-OCA with 10k-episode evaluations; paper: the full protocol (50 runs, 50k "
-            "evaluations), VDN and QMIX included when the [deep] extra is installed."
+            "LA-OCA with 10k-episode evaluations, a 10-round battlefield tournament of "
+            "100k-episode matches; paper: the full protocol (50 runs, 50k evaluations, 30 "
+            "rounds of 500k + 500k episodes), VDN and QMIX in the DSN tables when the "
+            "[deep] extra is installed."
         ),
     ] = "quick",
     seed: SeedOption = 0,
@@ -376,7 +472,8 @@ def reproduce(
     figures: FiguresOption = DEFAULT_FIGURES,
     progress: ProgressOption = True,
 ) -> None:
-    """Reproduce the paper: Tables 1-7, Fig. 4 and the Theorem 1 check (resumable)."""
+    """Reproduce the paper: Tables 1-7, Figs. 4, 6 and 7, and the Theorem 1 check
+    (resumable)."""
     from cmarlcd.theory import check_theorem1, plot_phase_portrait
 
     require(preset in PRESETS, "preset", f"must be one of {', '.join(PRESETS)} (got {preset!r})")
@@ -384,7 +481,7 @@ def reproduce(
     check_workers(workers)
     check_outputs(store, figures)
     chosen, console = PRESETS[preset], _console(as_json)
-    doc: dict[str, Any] = {"preset": preset, "repeated": [], "dsn": None}
+    doc: dict[str, Any] = {"preset": preset, "repeated": [], "dsn": None, "tournament": None}
     sweep = dsn_exp.DsnSweep(
         learners=_reproduced_learners(chosen, doc, as_json),
         episodes=chosen.dsn_episodes,
@@ -396,6 +493,14 @@ def reproduce(
         cases = rep.paper_sweep(case, chosen.repeated_runs, seed)
         doc["repeated"].append(_run_repeated(cases, store, figures, workers, progress, console))
     doc["dsn"] = _run_dsn(sweep, store, figures, workers, progress, console)
+    contest = tour.Tournament(
+        learners=_reproduced_tournament(chosen, doc, as_json),
+        rounds=chosen.tournament_rounds,
+        learn_episodes=chosen.tournament_episodes,
+        eval_episodes=chosen.tournament_episodes,
+        seed=seed,
+    )
+    doc["tournament"] = _run_tournament(contest, store, figures, workers, progress, console)
     doc["theorem1"] = [check_theorem1(n, m, 1.0, seed=seed).to_dict() for n, m in ((2, 2), (7, 5))]
     portrait = plot_phase_portrait(figures / "theorem1-phase-T1.png", temperature=1.0, seed=seed)
     doc["phase_portrait"] = str(portrait)
@@ -430,14 +535,18 @@ def report_command(
         check_outputs(figures=figures)
         repeated_groups = rep.stored_tables(db.records(rep.EXPERIMENT))
         dsn_groups = _groups(db.records(dsn_exp.EXPERIMENT), episodic.protocol_key)
+        tournament_groups = _groups(db.records(tour.EXPERIMENT), tour.protocol_key)
     console = _console(as_json)
-    docs: dict[str, list] = {"repeated": [], "dsn": []}
+    docs: dict[str, list] = {"repeated": [], "dsn": [], "tournament": []}
     for records in repeated_groups.values():
         if case in (None, records[0].config["case"]) and seed in (None, records[0].key.root_seed):
             docs["repeated"].append(report.repeated_report(records, figures, console))
     for records in dsn_groups.values():
         if case is None and seed in (None, records[0].key.root_seed):
             docs["dsn"].append(report.dsn_report(dsn_exp.DSN_GAME, records, figures, console))
+    for records in tournament_groups.values():
+        if case is None and seed in (None, records[0].key.root_seed):
+            docs["tournament"].append(report.tournament_report(records, figures, console))
     if as_json:
         print(json.dumps({"store": str(store), **docs}, indent=2))
     elif not any(docs.values()):

@@ -2,12 +2,13 @@
 
 * :mod:`~.repeated` -- Section IV-C, Tables 1-2;
 * :mod:`~.episodic` -- learn then evaluate greedily, for any one-team game;
-* :mod:`~.sensor_network` -- Section V-A on the DSN, Tables 3-7 and Fig. 4.
+* :mod:`~.sensor_network` -- Section V-A on the DSN, Tables 3-7 and Fig. 4;
+* :mod:`~.tournament` -- Section V-B, the blood battlefield tournament, Figs. 6-7.
 """
 
 from __future__ import annotations
 
-from cmarlcd.experiments import repeated, sensor_network
+from cmarlcd.experiments import repeated, sensor_network, tournament
 from cmarlcd.runs import Experiment
 
 _REGISTRY: dict[str, Experiment] = {}
@@ -24,7 +25,7 @@ def get_experiment(name: str) -> Experiment:
     return _REGISTRY[name]
 
 
-for _experiment in (repeated.REPEATED, sensor_network.DSN):
+for _experiment in (repeated.REPEATED, sensor_network.DSN, tournament.TOURNAMENT):
     register(_experiment)
 
-__all__ = ["get_experiment", "register", "repeated", "sensor_network"]
+__all__ = ["get_experiment", "register", "repeated", "sensor_network", "tournament"]

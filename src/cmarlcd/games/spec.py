@@ -11,6 +11,9 @@ rewards)``                  ``rewards[k]`` is set to team ``k``'s reward for the
 ``state(env, team)``        the state index team ``team`` observes, in ``[0, n_states)``
 ``done(env)``               True once the episode has terminated (not merely timed out)
 ``legal(env, masks)``       ``masks[i, a]`` := action ``a`` of agent ``i`` is legal now
+``features(env, team,       optional: ``out[:]`` := the feature vector of team ``team``'s
+out)``                      state (``GameSpec.n_features`` numbers), for learners that
+                            generalise across states (VDN, QMIX on large games)
 ==========================  ================================================================
 
 The game's PettingZoo ``ParallelEnv`` (:class:`cmarlcd.games.env.KernelParallelEnv`) and
@@ -27,7 +30,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from cmarlcd.compiled import kernel
 from cmarlcd.errors import require
+
+
+@kernel
+def no_features(env, team: int, out) -> None:
+    """``features`` of a game that has none (its states are indices only)."""
 
 
 class GameKernels(NamedTuple):
@@ -38,6 +47,7 @@ class GameKernels(NamedTuple):
     state: Any
     done: Any
     legal: Any
+    features: Any = no_features
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,6 +63,7 @@ class GameSpec:
         n_states: state indices a team can observe, terminal states included.
         max_steps: an episode is truncated after this many steps.
         teams: the agents of each team; a cooperative game has one team of everyone.
+        n_features: length of the ``features`` vector (0: the game has none).
     """
 
     name: str
@@ -63,6 +74,7 @@ class GameSpec:
     n_states: int
     max_steps: int
     teams: tuple[tuple[int, ...], ...]
+    n_features: int = 0
 
     def __post_init__(self) -> None:
         counts = np.array(self.action_counts, dtype=np.int64)

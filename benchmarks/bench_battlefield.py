@@ -1,0 +1,171 @@
+"""Benchmark: matches of the blood battlefield (Section V-B, Figs. 6-7).
+
+Prints
+  * learning turns/s of a CMARL-CD vs LA-OCA match through the compiled match loop and
+    through the generic PettingZoo ParallelEnv loop (object-API learners), on the same
+    episodes (same seeds, so the very same turns), and their ratio;
+  * learning and evaluation turns/s of one match of each kind of pairing (tabular-tabular,
+    tabular-deep, deep-deep), and from them the projected wall time of the paper's
+    protocol (30 rounds x 10 matches x (500k + 500k) episodes) on this machine's workers;
+  * the peak memory (max RSS of a fresh process) of one tabular match at the paper's
+    500,000 learning episodes, CMARL-CD against itself (the largest tables), unless
+    --no-memory.
+
+Usage: python benchmarks/bench_battlefield.py [--episodes E] [--deep-episodes D]
+       [--workers N] [--no-memory]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from cmarlcd.experiments import tournament as tour
+from cmarlcd.games import battlefield
+from cmarlcd.learners.automata import LAOCA
+from cmarlcd.learners.coordination import CMARLCDStochastic
+from cmarlcd.runner import default_workers
+from cmarlcd.training.match import Match
+
+LEARNERS = tour.battlefield_learners()
+SIDE = 6
+
+
+def rngs() -> tuple[np.random.Generator, tuple[np.random.Generator, np.random.Generator]]:
+    return np.random.default_rng(0), (np.random.default_rng(1), np.random.default_rng(2))
+
+
+def new_match(a: str, b: str, episodes: int) -> Match:
+    env, sides = rngs()
+    return Match(battlefield.SPEC, (LEARNERS[a], LEARNERS[b]), env, sides, episodes)
+
+
+def compiled_turns(a: str, b: str, episodes: int, evaluate: bool) -> tuple[float, float, int]:
+    """(learning turns/s, evaluation turns/s, learning turns) of one match."""
+    warm = new_match(a, b, 2)  # compile (or load the cache)
+    warm.learn()
+    warm.evaluate(2, np.random.default_rng(3))
+    played = new_match(a, b, episodes)
+    start = time.perf_counter()
+    played.learn()
+    learn = played.turns / (time.perf_counter() - start)
+    if not evaluate:
+        return learn, float("nan"), played.turns
+    start = time.perf_counter()
+    result = played.evaluate(episodes, np.random.default_rng(3))
+    return learn, result.turns / (time.perf_counter() - start), played.turns
+
+
+def parallel_env_turns(episodes: int) -> tuple[float, int]:
+    """The generic loop: object-API learners on the ParallelEnv, one side each."""
+    counts = [SIDE] * SIDE
+    _, (a, b) = rngs()
+    learners = [
+        CMARLCDStochastic(counts, LEARNERS["cmarl-cd"], seed=a),
+        LAOCA(counts, LEARNERS["la-oca"], seed=b),
+    ]
+    env = battlefield.BattlefieldEnv()
+    env.np_random = np.random.default_rng(0)
+    names = [env.possible_agents[:SIDE], env.possible_agents[SIDE:]]
+    turns, start = 0, time.perf_counter()
+    for _ in range(episodes):
+        _, infos = env.reset()
+        while env.agents:
+            states = [env.state(0), env.state(1)]
+            joints = [
+                learner.act(state, [infos[agent]["action_mask"] for agent in side])
+                for learner, state, side in zip(learners, states, names, strict=True)
+            ]
+            actions = dict(zip(env.possible_agents, joints[0] + joints[1], strict=True))
+            _, rewards, terminations, _, infos = env.step(actions)
+            turns += 1
+            for k, learner in enumerate(learners):
+                learner.observe(states[k], joints[k], rewards[names[k][0]])
+        for k, learner in enumerate(learners):
+            learner.end_episode(env.state(k), any(terminations.values()))
+    return turns / (time.perf_counter() - start), turns
+
+
+def peak_memory_mb(episodes: int) -> float:
+    """Max RSS of a fresh process that plays one CMARL-CD self-play match."""
+    code = (
+        "import numpy as np, resource\n"
+        "from benchmarks.bench_battlefield import new_match\n"
+        f"m = new_match('cmarl-cd', 'cmarl-cd', {episodes}); m.learn()\n"
+        "m.evaluate(1000, np.random.default_rng(3))\n"
+        "print(m.visited(0), m.visited(1), m.memory_bytes())\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd="."
+    )
+    visited_0, visited_1, table_bytes = map(int, out.stdout.split())
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    print(
+        f"memory: one CMARL-CD self-play match of {episodes:,} learning episodes visits "
+        f"{visited_0:,} and {visited_1:,} of the 802,816 states per side; tables "
+        f"{table_bytes / 2**20:,.0f} MiB; peak RSS of the process {peak:,.0f} MiB"
+    )
+    return peak
+
+
+PAIRINGS = {  # matches of each kind in a round of the paper's four algorithms
+    ("cmarl-cd", "la-oca"): 3,  # the three tabular matches (timed as this one)
+    ("cmarl-cd", "vdn"): 2,  # CMARL-CD and LA-OCA against VDN
+    ("cmarl-cd", "qmix"): 2,
+    ("vdn", "vdn"): 1,
+    ("qmix", "qmix"): 1,
+    ("qmix", "vdn"): 1,
+}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--episodes", type=int, default=20_000, help="tabular match episodes")
+    parser.add_argument("--deep-episodes", type=int, default=5_000, help="deep match episodes")
+    parser.add_argument("--python-episodes", type=int, default=500)
+    parser.add_argument("--workers", type=int, default=default_workers())
+    parser.add_argument("--no-memory", action="store_true")
+    args = parser.parse_args()
+    print(
+        f"machine: {platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}; workers: {args.workers}"
+    )
+    fast, _, fast_turns = compiled_turns("cmarl-cd", "la-oca", args.python_episodes, False)
+    slow, slow_turns = parallel_env_turns(args.python_episodes)
+    assert fast_turns == slow_turns, "both paths must play the same turns"
+    print(
+        f"CMARL-CD vs LA-OCA learning, {args.python_episodes:,} episodes = {fast_turns:,} "
+        f"turns: compiled {fast:,.0f} turns/s, ParallelEnv loop {slow:,.0f} turns/s, "
+        f"ratio {fast / slow:,.0f}x"
+    )
+    round_seconds = 0.0
+    for (a, b), count in PAIRINGS.items():
+        deep = "vdn" in (a, b) or "qmix" in (a, b)
+        episodes = args.deep_episodes if deep else args.episodes
+        learn, evaluate, turns = compiled_turns(a, b, episodes, True)
+        per_episode = turns / episodes
+        match_seconds = tour.PAPER_LEARN_EPISODES * per_episode * (1 / learn + 1 / evaluate)
+        round_seconds += count * match_seconds
+        print(
+            f"{a} vs {b}: {episodes:,} episodes, {per_episode:.2f} turns each; learning "
+            f"{learn:,.0f} turns/s, evaluation {evaluate:,.0f} turns/s; a paper match "
+            f"(500k + 500k episodes) ~ {match_seconds / 60:.1f} min"
+        )
+    total = tour.PAPER_ROUNDS * round_seconds / args.workers
+    print(
+        f"projected paper protocol (30 rounds x 10 matches), {args.workers} workers: "
+        f"{total / 3600:.1f} h ({round_seconds / 60:.0f} min of matches per round)"
+    )
+    if not args.no_memory:
+        peak_memory_mb(tour.PAPER_LEARN_EPISODES)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,415 @@
+"""The blood battlefield tournament of Section V-B (Figs. 6-7, SPEC §6).
+
+A *round* has one match per pair of algorithms and one of each algorithm against itself
+(10 matches for four). A match: both sides learn for ``learn_episodes`` episodes, then
+play ``eval_episodes`` episodes with their fixed greedy strategies
+(:class:`cmarlcd.training.match.Match`). Each match is one stored run (its round is the
+run index), so a killed tournament resumes without recomputing a finished match.
+
+[choice] Sides are balanced: in round ``r`` the first algorithm of a pair (in the order
+they were given) plays side ``r % 2``; the sides are recorded with each match. In
+self-play both sides are the same algorithm, and its rates are the mean of its two sides.
+
+Per (algorithm, opponent) and round: the win, loss and tie rates of the algorithm's
+side over the evaluation episodes, and its *win steps* (the mean turns of its won
+episodes, undefined in a round it won none). Reported as mean and spread (population
+standard deviation) over rounds.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import defaultdict
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from cmarlcd import registry
+from cmarlcd.errors import require
+from cmarlcd.games import battlefield
+from cmarlcd.learners.automata import AutomatonConfig
+from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD
+from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig
+from cmarlcd.registry import LearnerConfig
+from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.store import RunRecord
+from cmarlcd.training.match import Match
+
+EXPERIMENT = "tournament"
+PAPER_ROUNDS = 30
+PAPER_LEARN_EPISODES = 500_000
+PAPER_EVAL_EPISODES = 500_000
+#: [choice] Tables report the population standard deviation over rounds (ddof = 0).
+STD_DDOF = 0
+
+
+def battlefield_learners() -> dict[str, LearnerConfig]:
+    """The paper's settings of each learner on the battlefield (Section V-B)."""
+    return {
+        "cmarl-cd": BATTLEFIELD_CMARLCD,
+        "la-oca": AutomatonConfig(),
+        "vdn": DeepConfig(mixer="vdn", **BATTLEFIELD_DEEP),
+        "qmix": DeepConfig(mixer="qmix", **BATTLEFIELD_DEEP),
+    }
+
+
+#: The tabular learners (their loops are compiled once before workers fork).
+TABULAR = ("cmarl-cd", "la-oca")
+
+
+def pairings(names: Sequence[str]) -> list[tuple[str, str]]:
+    """Every pair of ``names`` and each against itself, in the order given."""
+    return [(names[i], names[j]) for i in range(len(names)) for j in range(i, len(names))]
+
+
+@dataclass(frozen=True)
+class Tournament:
+    """Rounds of every pairing of ``learners`` on the battlefield; defaults are the
+    paper's protocol."""
+
+    learners: tuple[LearnerConfig, ...]
+    rounds: int = PAPER_ROUNDS
+    learn_episodes: int = PAPER_LEARN_EPISODES
+    eval_episodes: int = PAPER_EVAL_EPISODES
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        names = [config.name for config in self.learners]
+        require(len(names) > 0, "algorithms", "needs at least one algorithm")
+        require(len(set(names)) == len(names), "algorithms", f"each at most once (got {names})")
+        require(self.rounds >= 1, "rounds", f"must be >= 1 (got {self.rounds})")
+        require(
+            self.learn_episodes >= 1,
+            "learn_episodes",
+            f"must be >= 1 (got {self.learn_episodes})",
+        )
+        require(
+            self.eval_episodes >= 1, "eval_episodes", f"must be >= 1 (got {self.eval_episodes})"
+        )
+        require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
+
+    @property
+    def algorithms(self) -> tuple[str, ...]:
+        return tuple(config.name for config in self.learners)
+
+    def config(self, pair: tuple[LearnerConfig, LearnerConfig]) -> dict[str, Any]:
+        """The stored config of one pairing's matches."""
+        return {
+            "algorithms": [config.name for config in pair],
+            "learners": [asdict(config) for config in pair],
+            "learn_episodes": self.learn_episodes,
+            "eval_episodes": self.eval_episodes,
+        }
+
+    def specs(self) -> list[RunSpec]:
+        """One spec per (pairing, round); a match's streams depend on its pairing, the
+        learning budget and its round, not on the evaluation budget."""
+        by_name = {config.name: config for config in self.learners}
+        specs = []
+        for names in pairings(self.algorithms):
+            config = self.config((by_name[names[0]], by_name[names[1]]))
+            stream = {k: config[k] for k in ("algorithms", "learners", "learn_episodes")}
+            label = match_label(names)
+            specs += [
+                RunSpec.make(EXPERIMENT, label, config, self.seed, r, stream)
+                for r in range(self.rounds)
+            ]
+        return specs
+
+
+def match_label(names: Sequence[str]) -> str:
+    """A pairing's name in the store: ``cmarl-cd vs la-oca``."""
+    return " vs ".join(names)
+
+
+# ------------------------------------------------------------------------- runs
+
+
+def _learner(config: Mapping[str, Any], k: int) -> LearnerConfig:
+    return registry.learner_config(config["algorithms"][k], config["learners"][k])
+
+
+def play(config: dict[str, Any], seed: np.random.SeedSequence, round_index: int) -> dict[str, Any]:
+    """One match: learn, evaluate, and the outcome from each side's view."""
+    start = time.perf_counter()
+    first_side = round_index % 2
+    pair = (_learner(config, 0), _learner(config, 1))
+    by_side = pair if first_side == 0 else pair[::-1]
+    env_seed, side0_seed, side1_seed, eval_seed = seed.spawn(4)
+    match = Match(
+        battlefield.SPEC,
+        by_side,
+        np.random.default_rng(env_seed),
+        (np.random.default_rng(side0_seed), np.random.default_rng(side1_seed)),
+        config["learn_episodes"],
+    )
+    match.learn()
+    learned = time.perf_counter()
+    result = match.evaluate(config["eval_episodes"], np.random.default_rng(eval_seed))
+    return {
+        "sides": [c.name for c in by_side],
+        "first_side": first_side,
+        "episodes": result.episodes,
+        "wins": list(result.wins),
+        "ties": result.ties,
+        "win_turns": list(result.win_turns),
+        "turns": result.turns,
+        "visited_states": [match.visited(0), match.visited(1)],
+        "memory_megabytes": match.memory_bytes() / 1e6,
+        "learn_seconds": learned - start,
+        "seconds": time.perf_counter() - start,
+    }
+
+
+def warm_up() -> None:
+    """Compile the match loops of every playable pairing (once, before workers fork)."""
+    configs = battlefield_learners()
+    for a, b in pairings(TABULAR):
+        rngs = [np.random.default_rng(k) for k in range(4)]
+        pair = (configs[a], configs[b])
+        match = Match(battlefield.SPEC, pair, rngs[0], (rngs[1], rngs[2]), 2)
+        match.learn()
+        match.evaluate(2, rngs[3])
+
+
+def _work(config: Mapping[str, Any]) -> float:
+    return float(config["learn_episodes"] + config["eval_episodes"])
+
+
+def _cost(config: Mapping[str, Any]) -> float:
+    """[choice] A deep side costs about 20 tabular ones per episode (measured, see
+    benchmarks/bench_battlefield.py): matches with deep sides start first."""
+    deep = sum(name not in TABULAR for name in config["algorithms"])
+    return _work(config) * (1 + 20 * deep)
+
+
+def run(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+    """The runner's entry: the round is the run index, which
+    :meth:`cmarlcd.runs.RunSpec.seed_sequence` puts last in the seed's spawn key."""
+    return play(config, seed, int(seed.spawn_key[-1]))
+
+
+TOURNAMENT = Experiment(
+    EXPERIMENT,
+    run=run,
+    warm_up=warm_up,
+    cost=_cost,
+    work=_work,
+    work_unit="episodes",
+)
+
+
+# ------------------------------------------------------------------- aggregation
+
+
+def protocol_key(record: RunRecord) -> tuple:
+    """Matches that belong in one set of figures: same seed and budgets."""
+    cfg = record.config
+    return (record.key.root_seed, cfg["learn_episodes"], cfg["eval_episodes"])
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One algorithm against one opponent, over rounds."""
+
+    algorithm: str
+    opponent: str
+    rounds: int
+    win_rate: float
+    win_rate_std: float
+    loss_rate: float
+    loss_rate_std: float
+    tie_rate: float
+    tie_rate_std: float
+    win_steps: float
+    """Mean over rounds of the mean turns of the won episodes (NaN if it never won)."""
+    win_steps_std: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            k: (None if isinstance(v, float) and math.isnan(v) else v)
+            for k, v in asdict(self).items()
+        }
+
+
+def side_outcomes(metrics: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Each side's view of one match: who played it, against whom, and its rates."""
+    n = metrics["episodes"]
+    views = []
+    for k in (0, 1):
+        wins, losses = metrics["wins"][k], metrics["wins"][1 - k]
+        turns = metrics["win_turns"][k]
+        views.append(
+            {
+                "algorithm": metrics["sides"][k],
+                "opponent": metrics["sides"][1 - k],
+                "win_rate": wins / n,
+                "loss_rate": losses / n,
+                "tie_rate": metrics["ties"] / n,
+                "win_steps": turns / wins if wins else math.nan,
+            }
+        )
+    return views
+
+
+def summarize(records: Iterable[RunRecord], order: Sequence[str] = ()) -> list[Cell]:
+    """Cells (algorithm, opponent) from stored matches: rates per round, then mean and
+    spread over rounds (a self-play round's rates are the mean of its two sides)."""
+    per_round: dict[tuple[str, str], dict[int, list[dict[str, Any]]]] = defaultdict(
+        lambda: defaultdict(list)
+    )
+    for rec in records:
+        for view in side_outcomes(rec.metrics):
+            key = (view["algorithm"], view["opponent"])
+            per_round[key][rec.key.run_index].append(view)
+    known = list(order) or list(registry.LEARNERS)
+    rank = {name: i for i, name in enumerate(known)}
+    cells = []
+    for (algorithm, opponent), rounds in sorted(
+        per_round.items(), key=lambda kv: (rank.get(kv[0][0], 99), rank.get(kv[0][1], 99))
+    ):
+        values = {m: [] for m in ("win_rate", "loss_rate", "tie_rate", "win_steps")}
+        for views in rounds.values():
+            for m in values:
+                values[m].append(_mean([v[m] for v in views]))
+        cells.append(
+            Cell(
+                algorithm,
+                opponent,
+                len(rounds),
+                *_mean_std(values["win_rate"]),
+                *_mean_std(values["loss_rate"]),
+                *_mean_std(values["tie_rate"]),
+                *_mean_std(values["win_steps"]),
+            )
+        )
+    return cells
+
+
+def _mean(values: Sequence[float]) -> float:
+    finite = [v for v in values if not math.isnan(v)]
+    return float(np.mean(finite)) if finite else math.nan
+
+
+def _mean_std(values: Sequence[float]) -> tuple[float, float]:
+    finite = np.array([v for v in values if not math.isnan(v)])
+    if finite.size == 0:
+        return math.nan, math.nan
+    return float(finite.mean()), float(finite.std(ddof=STD_DDOF))
+
+
+def round_rates(
+    records: Iterable[RunRecord], algorithm: str, opponent: str, metric: str = "win_rate"
+) -> dict[int, float]:
+    """``metric`` of ``algorithm`` against ``opponent`` in each round."""
+    rates: dict[int, list[float]] = defaultdict(list)
+    for rec in records:
+        for view in side_outcomes(rec.metrics):
+            if (view["algorithm"], view["opponent"]) == (algorithm, opponent):
+                rates[rec.key.run_index].append(view[metric])
+    return {r: _mean(v) for r, v in rates.items()}
+
+
+# ------------------------------------------------------------------- the claims
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One claim of the paper (SPEC §6) against our matches."""
+
+    claim: str
+    verdict: str
+    """'supported', 'not supported', 'contradicted' or 'not checked'."""
+    evidence: str
+
+
+def _paired(records: Sequence[RunRecord], a: str, b: str) -> tuple[float, float, int]:
+    """Mean over rounds of (win rate of a against b) - (win rate of b against a), its
+    standard error, and the rounds it rests on."""
+    mine, theirs = round_rates(records, a, b), round_rates(records, b, a)
+    rounds = sorted(set(mine) & set(theirs))
+    diffs = np.array([mine[r] - theirs[r] for r in rounds])
+    if diffs.size == 0:
+        return math.nan, math.nan, 0
+    se = float(diffs.std(ddof=1) / math.sqrt(diffs.size)) if diffs.size > 1 else math.inf
+    return float(diffs.mean()), se, int(diffs.size)
+
+
+def _verdict(diff: float, se: float) -> str:
+    """[choice] A difference counts when it is more than two standard errors from 0."""
+    if diff > 2 * se:
+        return "supported"
+    if diff < -2 * se:
+        return "contradicted"
+    return "not supported (within noise)"
+
+
+def _beats(records: Sequence[RunRecord], cells: dict, a: str, b: str) -> str:
+    diff, se, n = _paired(records, a, b)
+    wa, wb = cells[(a, b)].win_rate, cells[(b, a)].win_rate
+    return (
+        _verdict(diff, se),
+        f"{registry.display_name(a)} wins {wa:.1%} against {registry.display_name(b)}, "
+        f"which wins {wb:.1%} (difference {diff:+.1%} ± {2 * se:.1%}, {n} rounds)",
+    )
+
+
+def check_claims(records: Sequence[RunRecord], cells: Sequence[Cell]) -> list[Claim]:
+    """SPEC §6's four claims, each with our numbers."""
+    table = {(c.algorithm, c.opponent): c for c in cells}
+    names = {c.algorithm for c in cells}
+    claims = []
+
+    def need(*required: str) -> str | None:
+        missing = [registry.display_name(n) for n in required if n not in names]
+        return f"needs {', '.join(missing)} in the tournament" if missing else None
+
+    others = sorted(names - {"cmarl-cd"}, key=list(registry.LEARNERS).index)
+    text = "CMARL-CD has the higher win rate against every other algorithm"
+    if (why := need("cmarl-cd")) or not others:
+        claims.append(Claim(text, "not checked", why or "needs a second algorithm"))
+    else:
+        verdicts = [_beats(records, table, "cmarl-cd", o) for o in others]
+        verdict = _all(v for v, _ in verdicts)
+        claims.append(Claim(text, verdict, "; ".join(e for _, e in verdicts)))
+    for deep in ("qmix", "vdn"):
+        text = f"{registry.display_name(deep)} beats LA-OCA"
+        if why := need(deep, "la-oca"):
+            claims.append(Claim(text, "not checked", why))
+        else:
+            claims.append(Claim(text, *_beats(records, table, deep, "la-oca")))
+    for deep in ("qmix", "vdn"):
+        text = f"{registry.display_name(deep)} wins under 40 % against CMARL-CD"
+        if why := need(deep, "cmarl-cd"):
+            claims.append(Claim(text, "not checked", why))
+        else:
+            cell = table[(deep, "cmarl-cd")]
+            verdict = "supported" if cell.win_rate < 0.4 else "not supported"
+            claims.append(Claim(text, verdict, f"{cell.win_rate:.1%} ± {cell.win_rate_std:.1%}"))
+    claims.append(_fewest_win_steps(cells, names))
+    return claims
+
+
+def _all(verdicts: Iterable[str]) -> str:
+    verdicts = list(verdicts)
+    if all(v == "supported" for v in verdicts):
+        return "supported"
+    if any(v == "contradicted" for v in verdicts):
+        return "contradicted"
+    return "not supported"
+
+
+def _fewest_win_steps(cells: Sequence[Cell], names: set[str]) -> Claim:
+    text = "CMARL-CD needs the fewest win steps"
+    if "cmarl-cd" not in names or len(names) < 2:
+        return Claim(text, "not checked", "needs CMARL-CD and another algorithm")
+    steps = {n: _mean([c.win_steps for c in cells if c.algorithm == n]) for n in names}
+    best = min(steps, key=lambda n: (math.isnan(steps[n]), steps[n]))
+    evidence = ", ".join(
+        f"{registry.display_name(n)} {steps[n]:.2f}" for n in sorted(names, key=steps.get)
+    )
+    verdict = "supported" if best == "cmarl-cd" else "not supported"
+    return Claim(text, verdict, f"mean win steps over opponents: {evidence}")
