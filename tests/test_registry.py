@@ -9,8 +9,11 @@ from pettingzoo.test import parallel_api_test
 from cmarlcd import registry
 from cmarlcd.games.env import KernelParallelEnv
 from cmarlcd.training import TabularRun, evaluate
+from cmarlcd.training.match import Match
 
 TABULAR = [name for name in registry.LEARNERS if not registry.needs_torch(name)]
+ONE_TEAM = [name for name, spec in registry.GAMES.items() if spec().n_teams == 1]
+TWO_TEAMS = [name for name, spec in registry.GAMES.items() if spec().n_teams == 2]
 
 
 @pytest.mark.parametrize("game", list(registry.GAMES))
@@ -18,7 +21,7 @@ def test_every_game_is_a_parallel_env(game: str) -> None:
     parallel_api_test(KernelParallelEnv(registry.GAMES[game]()), num_cycles=30)
 
 
-@pytest.mark.parametrize("game", list(registry.GAMES))
+@pytest.mark.parametrize("game", ONE_TEAM)
 @pytest.mark.parametrize("learner", TABULAR)
 def test_every_tabular_learner_trains_and_plays_every_game(game: str, learner: str) -> None:
     spec = registry.GAMES[game]()
@@ -27,6 +30,20 @@ def test_every_tabular_learner_trains_and_plays_every_game(game: str, learner: s
     assert 50 <= steps <= 50 * spec.max_steps
     stats = evaluate(spec, run.greedy_policy(), 20, np.random.default_rng(3))
     assert stats.lengths.min() >= 1 and stats.lengths.max() <= spec.max_steps
+
+
+@pytest.mark.parametrize("game", TWO_TEAMS)
+@pytest.mark.parametrize("learner", TABULAR)
+def test_every_tabular_learner_plays_both_sides_of_every_two_team_game(
+    game: str, learner: str
+) -> None:
+    spec, config = registry.GAMES[game](), registry.LEARNERS[learner]
+    rngs = np.random.default_rng([1, 2]).spawn(3)
+    match = Match(spec, (config, config), rngs[0], rngs[1:], 50)
+    match.learn()
+    assert 50 <= match.turns <= 50 * spec.max_steps
+    result = match.evaluate(20, np.random.default_rng(3))
+    assert sum(result.wins) + result.ties == 20 and result.turns >= 20
 
 
 def test_learners_are_found_by_their_own_names() -> None:

@@ -14,7 +14,7 @@ from dataclasses import asdict, replace
 from typing import Any
 
 from cmarlcd.errors import require
-from cmarlcd.games import sensor_network
+from cmarlcd.games import battlefield, sensor_network
 from cmarlcd.games.matrix import climbing_game, penalty_game
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.automata import AutomatonConfig
@@ -43,6 +43,7 @@ GAMES: dict[str, Callable[[], GameSpec]] = {
     "dsn": lambda: sensor_network.SPEC,
     "climbing": lambda: climbing_game().spec(),
     "penalty": lambda: penalty_game().spec(),
+    "battlefield": lambda: battlefield.SPEC,
 }
 
 

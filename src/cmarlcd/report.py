@@ -362,30 +362,22 @@ def tournament_report(
     )
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
     seed = first.key.root_seed
-    fig6 = figs.tournament_bars(
-        cells,
-        "win_rate",
-        "win rate",
-        f"Fig. 6 — win rate ({settings})",
-        figures / figure_name(f"battlefield-fig6-win-rate-seed{seed}", group),
-        names,
-    )
-    fig7 = figs.tournament_bars(
-        cells,
-        "win_steps",
-        "win steps (turns)",
-        f"Fig. 7 — win steps ({settings})",
-        figures / figure_name(f"battlefield-fig7-win-steps-seed{seed}", group),
-        names,
-    )
+    paths = {}
+    for fig, metric, label in ((6, "win_rate", "win rate"), (7, "win_steps", "win steps")):
+        stem = f"battlefield-fig{fig}-{metric.replace('_', '-')}-seed{seed}"
+        title = f"Fig. {fig} — {label} ({settings})"
+        unit = " (turns)" if metric == "win_steps" else ""
+        paths[f"fig{fig}"] = figs.tournament_bars(
+            cells, metric, label + unit, title, figures / figure_name(stem, group), names
+        )
     if console is not None:
         for table in tournament_tables(cells, names, settings):
             show(console, table)
         say(console, "The paper's claims (SPEC §6) against these matches:")
         for claim in claims:
             say(console, f"  {claim.claim}: {claim.verdict.upper()} — {claim.evidence}")
-        say(console, f"figure: {fig6} (Fig. 6, {settings})")
-        say(console, f"figure: {fig7} (Fig. 7, {settings})")
+        for key, path in paths.items():
+            say(console, f"figure: {path} (Fig. {key[3:]}, {settings})")
     return {
         "experiment": tour.EXPERIMENT,
         "seed": seed,
@@ -394,5 +386,5 @@ def tournament_report(
         "eval_episodes": first.config["eval_episodes"],
         "cells": [c.to_dict() for c in cells],
         "claims": [asdict(c) for c in claims],
-        "figures": {"fig6": str(fig6), "fig7": str(fig7)},
+        "figures": {key: str(path) for key, path in paths.items()},
     }

@@ -143,3 +143,19 @@ def test_claims_say_supported_contradicted_or_not_checked() -> None:
         "contradicted"
     )
     assert claims["CMARL-CD needs the fewest win steps"].verdict == "not supported"
+
+
+def test_rounds_learning_together_store_what_they_store_alone() -> None:
+    pytest.importorskip("torch")
+    learners = (tour.battlefield_learners()["vdn"], tour.battlefield_learners()["cmarl-cd"])
+    contest = tour.Tournament(learners, rounds=2, learn_episodes=30, eval_episodes=30)
+    specs = [s for s in contest.specs() if s.algorithm == "vdn vs cmarl-cd"]
+    together = tour.run_batch(specs[0].config, [s.seed_sequence() for s in specs])
+    alone = [tour.run(s.config, s.seed_sequence()) for s in specs]  # fresh seeds: spawn counts
+    timing = {"seconds", "learn_seconds"}
+    for a, b in zip(together, alone, strict=True):
+        assert {k: v for k, v in a.items() if k not in timing} == {
+            k: v for k, v in b.items() if k not in timing
+        }
+    assert [m["sides"] for m in together] == [["vdn", "cmarl-cd"], ["cmarl-cd", "vdn"]]
+    assert tour.has_deep_learner(specs[0].config)

@@ -115,3 +115,27 @@ def test_a_deep_side_needs_state_features() -> None:
     rng = np.random.default_rng(0)
     with pytest.raises(ConfigError, match="state features"):
         Match(featureless, (DeepConfig(), AutomatonConfig()), rng, (rng, rng), 5)
+
+
+@pytest.mark.parametrize("pairing", ["qmix-vdn", "cmarl-cd-vdn"])
+def test_matches_learning_in_a_batch_play_what_they_play_alone(pairing) -> None:
+    deep = {"qmix": DeepConfig(mixer="qmix", **SMALL), "vdn": DeepConfig(mixer="vdn", **SMALL)}
+    configs = (
+        (deep["qmix"], deep["vdn"]) if pairing == "qmix-vdn" else (BATTLEFIELD_CMARLCD, deep["vdn"])
+    )
+    positions = [(0, 1), (1, 0), (0, 1)]  # rounds swap sides
+
+    def streams(m: int):
+        rng = np.random.default_rng
+        return rng(100 + m), (rng(200 + m), rng(300 + m))
+
+    envs, agents = zip(*(streams(m) for m in range(3)), strict=True)
+    batch = match.MatchBatch(battlefield.SPEC, configs, positions, envs, agents, 50)
+    batch.learn()
+    for m, order in enumerate(positions):
+        env, rngs = streams(m)
+        alone = Match(battlefield.SPEC, [configs[p] for p in order], env, rngs, 50)
+        alone.learn()
+        assert alone.turns == batch.matches[m].turns
+        rng = np.random.default_rng(7)
+        assert alone.evaluate(100, rng) == batch.matches[m].evaluate(100, np.random.default_rng(7))

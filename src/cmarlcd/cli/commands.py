@@ -296,11 +296,39 @@ def dsn(
     deep = [name for name in names if registry.needs_torch(name)]
     require(not deep or _has_torch(), "algorithms", _needs_torch(deep))
     check_outputs(store, figures)
+    _print_results(
+        as_json,
+        store,
+        figures,
+        lambda console: _run_dsn(sweep, store, figures, workers, progress, console, seed_batch),
+    )
+
+
+def _print_results(
+    as_json: bool, store: Path, figures: Path, compute: Callable[[Console | None], dict]
+) -> None:
+    """Compute and print a command's results: tables and a last line saying where they
+    went, or its JSON document alone."""
     console = _console(as_json)
-    doc = _run_dsn(sweep, store, figures, workers, progress, console, seed_batch)
+    doc = compute(console)
     _where(store, figures, console)
     if as_json:
         print(json.dumps(doc, indent=2))
+
+
+def _run_and_report(
+    specs: Sequence[RunSpec],
+    label: str,
+    render: Callable[[list[RunRecord], Console | None], dict[str, Any]],
+    where: tuple[Path, Path, int | None, bool],
+    console: Console | None,
+    seed_batch: int,
+) -> dict[str, Any]:
+    """Run (or resume) ``specs`` and render their records: the command's JSON document.
+    ``where`` is (store, figures, workers, progress)."""
+    store, _, workers, progress = where
+    records, done = _sweep(specs, store, workers, progress, label, seed_batch)
+    return {**render(records, console), **_run_counts(done, store, console)}
 
 
 def _run_dsn(
@@ -312,9 +340,11 @@ def _run_dsn(
     console: Console | None,
     seed_batch: int = dsn_exp.SEED_BATCH,
 ) -> dict[str, Any]:
-    records, done = _sweep(sweep.specs(), store, workers, progress, "DSN", seed_batch)
-    doc = report.dsn_report(dsn_exp.DSN_GAME, records, figures, console)
-    return {**doc, **_run_counts(done, store, console)}
+    def render(records: list[RunRecord], shown: Console | None) -> dict[str, Any]:
+        return report.dsn_report(dsn_exp.DSN_GAME, records, figures, shown)
+
+    where = (store, figures, workers, progress)
+    return _run_and_report(sweep.specs(), "DSN", render, where, console, seed_batch)
 
 
 # -------------------------------------------------------------------- tournament
@@ -347,6 +377,10 @@ def tournament(
         str, typer.Option(help="Greedy evaluation episodes of each match (500k allowed).")
     ] = str(tour.PAPER_EVAL_EPISODES),
     seed: SeedOption = 0,
+    seed_batch: Annotated[
+        int,
+        typer.Option(help="Rounds of a pairing with VDN/QMIX that learn together (one model)."),
+    ] = tour.SEED_BATCH,
     workers: WorkersOption = None,
     as_json: JsonOption = False,
     store: StoreOption = DEFAULT_STORE,
@@ -363,25 +397,27 @@ def tournament(
         seed=seed,
     )
     check_workers(workers)
+    require(seed_batch >= 1, "seed_batch", f"must be >= 1 (got {seed_batch})")
     check_outputs(store, figures)
-    console = _console(as_json)
-    doc = _run_tournament(contest, store, figures, workers, progress, console)
-    _where(store, figures, console)
-    if as_json:
-        print(json.dumps(doc, indent=2))
+    where = (store, figures, workers, progress)
+    _print_results(
+        as_json,
+        store,
+        figures,
+        lambda console: _run_tournament(contest, where, console, seed_batch),
+    )
 
 
 def _run_tournament(
     contest: tour.Tournament,
-    store: Path,
-    figures: Path,
-    workers: int | None,
-    progress: bool,
+    where: tuple[Path, Path, int | None, bool],
     console: Console | None,
+    seed_batch: int = tour.SEED_BATCH,
 ) -> dict[str, Any]:
-    records, done = _sweep(contest.specs(), store, workers, progress, "battlefield")
-    doc = report.tournament_report(records, figures, console)
-    return {**doc, **_run_counts(done, store, console)}
+    def render(records: list[RunRecord], shown: Console | None) -> dict[str, Any]:
+        return report.tournament_report(records, where[1], shown)
+
+    return _run_and_report(contest.specs(), "battlefield", render, where, console, seed_batch)
 
 
 # --------------------------------------------------------------------- reproduce
@@ -413,8 +449,8 @@ PRESETS = {
         repeated_runs=20,
         dsn_runs=10,
         dsn_eval_episodes=10_000,
-        tournament_rounds=10,
-        tournament_episodes=100_000,
+        tournament_rounds=4,
+        tournament_episodes=20_000,
     ),
     "paper": Preset(rep.PAPER_RUNS, dsn_exp.PAPER_RUNS, dsn_exp.PAPER_EVAL_EPISODES, deep=True),
 }
@@ -459,8 +495,8 @@ def reproduce(
         str,
         typer.Option(
             help="quick: 20 runs per cell of Tables 1-2, 10 DSN runs of CMARL-CD and "
-            "LA-OCA with 10k-episode evaluations, a 10-round battlefield tournament of "
-            "100k-episode matches; paper: the full protocol (50 runs, 50k evaluations, 30 "
+            "LA-OCA with 10k-episode evaluations, a 4-round battlefield tournament of "
+            "20k-episode matches; paper: the full protocol (50 runs, 50k evaluations, 30 "
             "rounds of 500k + 500k episodes), VDN and QMIX in the DSN tables when the "
             "[deep] extra is installed."
         ),
@@ -500,7 +536,8 @@ def reproduce(
         eval_episodes=chosen.tournament_episodes,
         seed=seed,
     )
-    doc["tournament"] = _run_tournament(contest, store, figures, workers, progress, console)
+    where = (store, figures, workers, progress)
+    doc["tournament"] = _run_tournament(contest, where, console)
     doc["theorem1"] = [check_theorem1(n, m, 1.0, seed=seed).to_dict() for n, m in ((2, 2), (7, 5))]
     portrait = plot_phase_portrait(figures / "theorem1-phase-T1.png", temperature=1.0, seed=seed)
     doc["phase_portrait"] = str(portrait)

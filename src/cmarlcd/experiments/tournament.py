@@ -7,7 +7,10 @@ play ``eval_episodes`` episodes with their fixed greedy strategies
 run index), so a killed tournament resumes without recomputing a finished match.
 
 [choice] Sides are balanced: in round ``r`` the first algorithm of a pair (in the order
-they were given) plays side ``r % 2``; the sides are recorded with each match. In
+they were given) plays side ``r % 2``; the sides are recorded with each match. Rounds of
+a pairing with a deep learner may learn together (``seed_batch`` of the runner): their
+deep sides then train as one stacked model, each match playing exactly what it plays
+alone. In
 self-play both sides are the same algorithm, and its rates are the mean of its two sides.
 
 Per (algorithm, opponent) and round: the win, loss and tie rates of the algorithm's
@@ -36,12 +39,15 @@ from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.store import RunRecord
-from cmarlcd.training.match import Match
+from cmarlcd.training.match import Match, MatchBatch
 
 EXPERIMENT = "tournament"
 PAPER_ROUNDS = 30
 PAPER_LEARN_EPISODES = 500_000
 PAPER_EVAL_EPISODES = 500_000
+#: Rounds of a pairing with a deep learner that learn together (the runner's batch):
+#: [choice] 10, see benchmarks/bench_battlefield.py for the measured gain.
+SEED_BATCH = 10
 #: [choice] Tables report the population standard deviation over rounds (ddof = 0).
 STD_DDOF = 0
 
@@ -134,34 +140,50 @@ def _learner(config: Mapping[str, Any], k: int) -> LearnerConfig:
 
 def play(config: dict[str, Any], seed: np.random.SeedSequence, round_index: int) -> dict[str, Any]:
     """One match: learn, evaluate, and the outcome from each side's view."""
+    return play_rounds(config, [seed], [round_index])[0]
+
+
+def play_rounds(
+    config: dict[str, Any], seeds: Sequence[np.random.SeedSequence], rounds: Sequence[int]
+) -> list[dict[str, Any]]:
+    """The matches of one pairing in several rounds, learning together
+    (:class:`cmarlcd.training.match.MatchBatch`: a deep learner's sides train as one
+    stacked model); each plays and stores exactly what it would alone."""
     start = time.perf_counter()
-    first_side = round_index % 2
     pair = (_learner(config, 0), _learner(config, 1))
-    by_side = pair if first_side == 0 else pair[::-1]
-    env_seed, side0_seed, side1_seed, eval_seed = seed.spawn(4)
-    match = Match(
+    positions = [(0, 1) if r % 2 == 0 else (1, 0) for r in rounds]  # balanced sides
+    streams = [[np.random.default_rng(s) for s in seed.spawn(4)] for seed in seeds]
+    batch = MatchBatch(
         battlefield.SPEC,
-        by_side,
-        np.random.default_rng(env_seed),
-        (np.random.default_rng(side0_seed), np.random.default_rng(side1_seed)),
+        pair,
+        positions,
+        [env for env, _, _, _ in streams],
+        [(side0, side1) for _, side0, side1, _ in streams],
         config["learn_episodes"],
     )
-    match.learn()
-    learned = time.perf_counter()
-    result = match.evaluate(config["eval_episodes"], np.random.default_rng(eval_seed))
-    return {
-        "sides": [c.name for c in by_side],
-        "first_side": first_side,
-        "episodes": result.episodes,
-        "wins": list(result.wins),
-        "ties": result.ties,
-        "win_turns": list(result.win_turns),
-        "turns": result.turns,
-        "visited_states": [match.visited(0), match.visited(1)],
-        "memory_megabytes": match.memory_bytes() / 1e6,
-        "learn_seconds": learned - start,
-        "seconds": time.perf_counter() - start,
-    }
+    batch.learn()
+    learn_seconds = (time.perf_counter() - start) / len(seeds)
+    results = []
+    for match, order, (_, _, _, eval_rng) in zip(batch.matches, positions, streams, strict=True):
+        evaluated = time.perf_counter()
+        result = match.evaluate(config["eval_episodes"], eval_rng)
+        results.append(
+            {
+                "sides": [pair[p].name for p in order],
+                "first_side": order.index(0),
+                "episodes": result.episodes,
+                "wins": list(result.wins),
+                "ties": result.ties,
+                "win_turns": list(result.win_turns),
+                "turns": result.turns,
+                "learn_turns": match.turns,
+                "visited_states": [match.visited(0), match.visited(1)],
+                "memory_megabytes": match.memory_bytes() / 1e6,
+                "learn_seconds": learn_seconds,
+                "seconds": learn_seconds + time.perf_counter() - evaluated,
+            }
+        )
+    return results
 
 
 def warm_up() -> None:
@@ -186,10 +208,25 @@ def _cost(config: Mapping[str, Any]) -> float:
     return _work(config) * (1 + 20 * deep)
 
 
+def round_of(seed: np.random.SeedSequence) -> int:
+    """A match's round: its run index, which :meth:`cmarlcd.runs.RunSpec.seed_sequence`
+    puts last in the seed's spawn key."""
+    return int(seed.spawn_key[-1])
+
+
 def run(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
-    """The runner's entry: the round is the run index, which
-    :meth:`cmarlcd.runs.RunSpec.seed_sequence` puts last in the seed's spawn key."""
-    return play(config, seed, int(seed.spawn_key[-1]))
+    """The runner's entry for one match."""
+    return play(config, seed, round_of(seed))
+
+
+def run_batch(config: dict[str, Any], seeds: list[np.random.SeedSequence]) -> list[dict[str, Any]]:
+    """The runner's entry for the rounds of one pairing with a deep learner."""
+    return play_rounds(config, seeds, [round_of(seed) for seed in seeds])
+
+
+def has_deep_learner(config: Mapping[str, Any]) -> bool:
+    """Whether a pairing has a deep learner (its rounds are worth batching)."""
+    return any(name not in TABULAR for name in config["algorithms"])
 
 
 TOURNAMENT = Experiment(
@@ -197,6 +234,8 @@ TOURNAMENT = Experiment(
     run=run,
     warm_up=warm_up,
     cost=_cost,
+    run_batch=run_batch,
+    batchable=has_deep_learner,
     work=_work,
     work_unit="episodes",
 )

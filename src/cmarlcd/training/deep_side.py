@@ -15,6 +15,7 @@ acting with the networks.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -192,19 +193,28 @@ def deep_kernels(spec: GameSpec) -> SideKernels:
     )
 
 
-class DeepSide(MatchSide):
-    """VDN or QMIX on one side of a match: one seed, networks over the game's features.
+class DeepGroup:
+    """The VDN or QMIX sides of B matches, trained as one stacked model: one seed per
+    match, each with its own parameters, replay buffer and streams (the gradient steps
+    of the B seeds are taken together, as in :mod:`cmarlcd.training.deep`).
 
-    Its streams come from ``rng``'s seed sequence: actions from ``rng`` itself, network
-    initialisation and replay sampling from two children spawned from it.
+    Each match's side is a :class:`DeepSide` view whose weights are views into the
+    stacked copy. Side b's streams come from ``rngs[b]``'s seed sequence: actions from
+    ``rngs[b]`` itself, network initialisation and replay sampling from two children
+    spawned from it, so a match plays the same whether it is batched or alone.
+
+    Matches of one pairing pause at the same turn counts (every ``train_every`` turns of
+    each), so while they all learn, one step of the stacked model is each one's step. A
+    side whose match has finished learning keeps (:meth:`DeepSide.freeze`) the weights
+    it finished with.
     """
 
     def __init__(
         self,
         spec: GameSpec,
-        team: int,
+        teams: Sequence[int],
         config: DeepConfig,
-        rng: np.random.Generator,
+        rngs: Sequence[np.random.Generator],
         learn_episodes: int,
     ) -> None:
         require(
@@ -213,22 +223,92 @@ class DeepSide(MatchSide):
             f"{config.display_name} on one side of a match needs a game with state features; "
             f"{spec.name} has none",
         )
-        counts = spec.action_counts[list(spec.teams[team])].copy()
+        counts = spec.action_counts[list(spec.teams[teams[0]])].copy()
         n, width, features = counts.shape[0], int(counts.max()), spec.n_features
-        init_seed, replay_seed = rng.bit_generator.seed_seq.spawn(2)
+        seeds = [rng.bit_generator.seed_seq.spawn(2) for rng in rngs]
         self.config, self.spec = config, spec
-        self.model = ValueDecomposition(counts, features, config, [init_seed])
-        self.replay_rng = np.random.default_rng(replay_seed)
-        self.kernels = deep_kernels(spec)
+        self.model = ValueDecomposition(counts, features, config, [s[0] for s in seeds])
+        self.replay_rngs = [np.random.default_rng(s[1]) for s in seeds]
+        groups = len(rngs) * n
+        self.weights = Weights(
+            np.zeros((groups, features, config.hidden), np.float32),
+            np.zeros((groups, config.hidden), np.float32),
+            np.zeros((groups, config.hidden, width), np.float32),
+            np.zeros((groups, width), np.float32),
+        )
+        kernels = deep_kernels(spec)
+        self.views = [DeepSide(self, b, counts, kernels, learn_episodes) for b in range(len(rngs))]
+        self._copy_weights()
+
+    def train(self) -> None:
+        """The gradient step and target copy due once the learning sides have played
+        ``train_every`` more turns (all of them: they pause at the same turn counts)."""
+        cfg = self.config
+        due = [view for view in self.views if view.due()]
+        if not due:
+            return
+        learning = [view for view in self.views if not view.frozen]
+        require(
+            all(view.due() for view in learning),
+            "matches",
+            "the matches of one batch must pause together",
+        )
+        previous, turns = int(due[0].counters[PAUSED_AT]), int(due[0].counters[TURNS])
+        for view in due:
+            view.counters[PAUSED_AT] = view.counters[TURNS]
+        if min(int(view.counters[SIZE]) for view in due) >= cfg.batch_size:
+            self.model.td_step(self.sample())
+            self._copy_weights()
+        if turns // cfg.target_every > previous // cfg.target_every:
+            self.model.sync_target()
+
+    def sample(self) -> dict[str, torch.Tensor]:
+        """A replay batch per seed, uniformly with replacement, with its own generator (a
+        side with nothing stored yet gets zeros: it is frozen, its step is discarded)."""
+        size = self.config.batch_size
+        parts = []
+        for view, rng in zip(self.views, self.replay_rngs, strict=True):
+            stored = int(view.counters[SIZE])
+            picks = rng.integers(0, stored, size) if stored else np.zeros(size, np.int64)
+            parts.append([array[picks] for array in view.data.replay])
+        stacked = [torch.from_numpy(np.stack(column)) for column in zip(*parts, strict=True)]
+        names = ("state", "actions", "reward", "next_state", "next_legal", "terminal")
+        return dict(zip(names, stacked, strict=True))
+
+    def _copy_weights(self) -> None:
+        """The loops' copy of the agent networks := the networks."""
+        agents = self.model.agents
+        with torch.no_grad():
+            np.copyto(self.weights.w1, agents.first.weight.numpy())
+            np.copyto(self.weights.b1, agents.first.bias.numpy())
+            np.copyto(self.weights.w2, agents.second.weight.numpy())
+            np.copyto(self.weights.b2, agents.second.bias.numpy())
+
+    def memory_bytes(self) -> int:
+        """Parameters (online and target networks, Adam's two moments)."""
+        return 4 * sum(p.numel() * p.element_size() for p in self.model.parameters())
+
+
+class DeepSide(MatchSide):
+    """VDN or QMIX on one side of one match: a view of seed ``index`` of a
+    :class:`DeepGroup` (alone, a group of one trains itself between loop calls)."""
+
+    def __init__(
+        self,
+        group: DeepGroup,
+        index: int,
+        counts: np.ndarray,
+        kernels: SideKernels,
+        learn_episodes: int,
+    ) -> None:
+        config, spec = group.config, group.spec
+        n, width, features = counts.shape[0], int(counts.max()), spec.n_features
         steps, size = spec.max_steps, config.buffer_size
+        agents = slice(index * n, (index + 1) * n)
+        self.group, self.kernels, self.frozen = group, kernels, False
         self.data = DeepData(
             counts,
-            Weights(
-                np.zeros((n, features, config.hidden), np.float32),
-                np.zeros((n, config.hidden), np.float32),
-                np.zeros((n, config.hidden, width), np.float32),
-                np.zeros((n, width), np.float32),
-            ),
+            Weights(*(array[agents] for array in group.weights)),
             np.zeros(config.hidden),
             np.zeros((steps + 1, features), np.float32),
             np.zeros((steps + 1, n, width), np.bool_),
@@ -245,43 +325,48 @@ class DeepSide(MatchSide):
             np.zeros(5, np.int64),
             np.array([*epsilon_schedule(config), learn_episodes, config.train_every], float),
         )
-        self._copy_weights()
+
+    @classmethod
+    def alone(
+        cls,
+        spec: GameSpec,
+        team: int,
+        config: DeepConfig,
+        rng: np.random.Generator,
+        learn_episodes: int,
+    ) -> DeepSide:
+        """The deep side of a match played on its own."""
+        return DeepGroup(spec, [team], config, [rng], learn_episodes).views[0]
+
+    @property
+    def counters(self) -> np.ndarray:
+        return self.data.counters
+
+    @property
+    def model(self) -> ValueDecomposition:
+        return self.group.model
+
+    @property
+    def config(self) -> DeepConfig:
+        return self.group.config
+
+    def due(self) -> bool:
+        """Whether the side has played ``train_every`` turns since its last step."""
+        return bool(self.counters[TURNS] - self.counters[PAUSED_AT] >= self.config.train_every)
 
     def between_calls(self) -> None:
-        """The gradient step and target copy due after ``train_every`` more turns."""
-        c, cfg = self.data.counters, self.config
-        if c[TURNS] - c[PAUSED_AT] < cfg.train_every:
+        """Alone: the gradient step and target copy due after ``train_every`` more turns
+        (in a batch the group takes them, for every match at once)."""
+        if len(self.group.views) == 1:
+            self.group.train()
+
+    def freeze(self) -> None:
+        """Keep the current weights from now on (the match has finished learning)."""
+        if self.frozen:
             return
-        previous = int(c[PAUSED_AT])
-        c[PAUSED_AT] = c[TURNS]
-        if c[SIZE] >= cfg.batch_size:
-            self.model.td_step(self.sample())
-            self._copy_weights()
-        if int(c[TURNS]) // cfg.target_every > previous // cfg.target_every:
-            self.model.sync_target()
-
-    def sample(self) -> dict[str, torch.Tensor]:
-        """A replay batch, uniformly with replacement (one seed: a leading axis of 1)."""
-        replay = self.data.replay
-        picks = self.replay_rng.integers(0, self.data.counters[SIZE], self.config.batch_size)
-        return {
-            "state": torch.from_numpy(replay.obs[picks])[None],
-            "actions": torch.from_numpy(replay.actions[picks])[None],
-            "reward": torch.from_numpy(replay.reward[picks])[None],
-            "next_state": torch.from_numpy(replay.next_obs[picks])[None],
-            "next_legal": torch.from_numpy(replay.next_legal[picks])[None],
-            "terminal": torch.from_numpy(replay.terminal[picks])[None],
-        }
-
-    def _copy_weights(self) -> None:
-        """The loop's copy of the agent networks := the networks."""
-        agents, weights = self.model.agents, self.data.weights
-        with torch.no_grad():
-            np.copyto(weights.w1, agents.first.weight.numpy())
-            np.copyto(weights.b1, agents.first.bias.numpy())
-            np.copyto(weights.w2, agents.second.weight.numpy())
-            np.copyto(weights.b2, agents.second.bias.numpy())
+        self.data = self.data._replace(weights=Weights(*(w.copy() for w in self.data.weights)))
+        self.frozen = True
 
     def memory_bytes(self) -> int:
-        params = sum(p.numel() * p.element_size() for p in self.model.parameters())
-        return 2 * params + sum(a.nbytes for a in self.data.replay)
+        share = self.group.memory_bytes() // len(self.group.views)
+        return share + sum(a.nbytes for a in self.data.replay)

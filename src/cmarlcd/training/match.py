@@ -206,6 +206,13 @@ class MatchSide:
         """Bytes of the side's tables, or networks and replay buffer."""
         return 0
 
+    def due(self) -> bool:
+        """Whether the side stopped the loop for work only its batch can do."""
+        return False
+
+    def freeze(self) -> None:
+        """The match has finished learning (a side trained in a batch keeps its values)."""
+
 
 class Match:
     """Two learners, one per side of a two-team game, with their own streams.
@@ -218,6 +225,8 @@ class Match:
             parameter and replay streams from it).
         learn_episodes: the learning stage's length, known in advance because a deep
             side's ε is annealed over it (eq. 18).
+        sides: the sides, when made elsewhere (:class:`MatchBatch`); by default each
+            config's side on its own.
     """
 
     def __init__(
@@ -227,6 +236,7 @@ class Match:
         env_rng: np.random.Generator,
         agent_rngs: Sequence[np.random.Generator],
         learn_episodes: int,
+        sides: Sequence[MatchSide] | None = None,
     ) -> None:
         from cmarlcd.training.sides import new_side
 
@@ -238,10 +248,14 @@ class Match:
         self.env = spec.new_env()
         self.env_rng, self.agent_rngs = env_rng, tuple(agent_rngs)
         self.learn_episodes = int(learn_episodes)
-        self.sides = [
-            new_side(spec, team, config, rng, self.learn_episodes)
-            for team, (config, rng) in enumerate(zip(configs, agent_rngs, strict=True))
-        ]
+        self.sides = (
+            list(sides)
+            if sides is not None
+            else [
+                new_side(spec, team, config, rng, self.learn_episodes)
+                for team, (config, rng) in enumerate(zip(configs, agent_rngs, strict=True))
+            ]
+        )
         bound = {"game": spec.kernels, "first": self.sides[0].kernels}
         bound["second"] = self.sides[1].kernels
         self._learn = specialise(learn_match, **bound)
@@ -269,21 +283,22 @@ class Match:
         )
         while self.episodes < target:
             before = self.episodes
-            goal = min(target, before + CHUNK_EPISODES)
-            a, b = (side.data for side in self.sides)
-            self._learn(
-                self.env,
-                a,
-                b,
-                goal,
-                self.spec.max_steps,
-                self.env_rng,
-                *self.agent_rngs,
-                self.clock,
-            )
-            for side in self.sides:
-                side.between_calls()
+            self.advance(min(target, before + CHUNK_EPISODES))
             report_progress(float(self.episodes - before))
+
+    def advance(self, goal: int) -> None:
+        """One call of the compiled loop towards ``goal`` learning episodes, then the
+        sides' work between calls."""
+        a, b = (side.data for side in self.sides)
+        self._learn(
+            self.env, a, b, goal, self.spec.max_steps, self.env_rng, *self.agent_rngs, self.clock
+        )
+        for side in self.sides:
+            side.between_calls()
+
+    def due(self) -> bool:
+        """Whether a side waits for its batch's gradient step."""
+        return any(side.due() for side in self.sides)
 
     def evaluate(self, episodes: int, rng: np.random.Generator) -> MatchResult:
         """Both sides' greedy strategies for ``episodes`` episodes, the game's randomness
@@ -307,3 +322,64 @@ class Match:
     def memory_bytes(self) -> int:
         """Bytes held by both sides' tables, or networks and replay buffers."""
         return sum(side.memory_bytes() for side in self.sides)
+
+
+class MatchBatch:
+    """Matches of one pairing (e.g. the rounds of a tournament) learning together, so
+    that each deep learner's sides train as one stacked model
+    (:class:`cmarlcd.training.deep_side.DeepGroup`): each match runs until its deep
+    sides have played ``train_every`` more turns, then every group takes one gradient
+    step for all its matches. Each match plays exactly what it would alone (up to float
+    rounding in the batched products), and is evaluated with the strategies it finished
+    learning with.
+
+    Args:
+        spec: a game of two teams.
+        pairings: each match's configs, side 0 first (one learner per position of the
+            pairing; the positions may sit on either side, as rounds swap sides).
+        env_rngs, agent_rngs: each match's streams, as for :class:`Match`.
+        positions: for each match, which position of the pairing plays side 0 and side 1
+            (``(0, 1)`` or ``(1, 0)``).
+    """
+
+    def __init__(
+        self,
+        spec: GameSpec,
+        configs: Sequence[Any],
+        positions: Sequence[tuple[int, int]],
+        env_rngs: Sequence[np.random.Generator],
+        agent_rngs: Sequence[Sequence[np.random.Generator]],
+        learn_episodes: int,
+    ) -> None:
+        from cmarlcd.training.sides import new_sides
+
+        self.learn_episodes = int(learn_episodes)
+        sides, self.groups = new_sides(spec, configs, positions, agent_rngs, learn_episodes)
+        self.matches = [
+            Match(
+                spec,
+                [configs[p] for p in order],
+                env_rng,
+                rngs,
+                learn_episodes,
+                sides=match_sides,
+            )
+            for order, env_rng, rngs, match_sides in zip(
+                positions, env_rngs, agent_rngs, sides, strict=True
+            )
+        ]
+
+    def learn(self) -> None:
+        """Every match learns for its whole learning stage."""
+        total = self.learn_episodes
+        while any(m.episodes < total for m in self.matches):
+            for match in self.matches:
+                before = match.episodes
+                while match.episodes < total and not match.due():
+                    match.advance(min(total, match.episodes + CHUNK_EPISODES))
+                if match.episodes >= total:
+                    for side in match.sides:
+                        side.freeze()
+                report_progress(float(match.episodes - before))
+            for group in self.groups:
+                group.train()

@@ -14,6 +14,7 @@ The side kernels are templates bound to the game's kernels (``game``) and the le
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -167,4 +168,31 @@ def new_side(
         return TabularSide(spec, team, config)
     from cmarlcd.training.deep_side import DeepSide  # needs the [deep] extra
 
-    return DeepSide(spec, team, config, rng, learn_episodes)
+    return DeepSide.alone(spec, team, config, rng, learn_episodes)
+
+
+def new_sides(
+    spec: GameSpec,
+    configs: Sequence[Any],
+    positions: Sequence[tuple[int, int]],
+    agent_rngs: Sequence[Sequence[np.random.Generator]],
+    learn_episodes: int,
+) -> tuple[list[list[MatchSide]], list[Any]]:
+    """The sides of a batch of matches (see :class:`cmarlcd.training.match.MatchBatch`):
+    per match its two sides, and the groups that train the deep positions together."""
+    matches: list[list[MatchSide | None]] = [[None, None] for _ in positions]
+    groups = []
+    for p, config in enumerate(configs):
+        seats = [(m, order.index(p)) for m, order in enumerate(positions)]
+        if isinstance(config, TabularConfig):
+            for m, team in seats:
+                matches[m][team] = TabularSide(spec, team, config)
+            continue
+        from cmarlcd.training.deep_side import DeepGroup  # needs the [deep] extra
+
+        rngs = [agent_rngs[m][team] for m, team in seats]
+        group = DeepGroup(spec, [team for _, team in seats], config, rngs, learn_episodes)
+        groups.append(group)
+        for (m, team), view in zip(seats, group.views, strict=True):
+            matches[m][team] = view
+    return matches, groups  # type: ignore[return-value]
