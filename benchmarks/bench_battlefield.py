@@ -5,14 +5,16 @@ Prints
     through the generic PettingZoo ParallelEnv loop (object-API learners), on the same
     episodes (same seeds, so the very same turns), and their ratio;
   * learning and evaluation turns/s of one match of each kind of pairing (tabular-tabular,
-    tabular-deep, deep-deep), and from them the projected wall time of the paper's
-    protocol (30 rounds x 10 matches x (500k + 500k) episodes) on this machine's workers;
+    tabular-deep, deep-deep), a deep pairing's learning alone (B = 1) and with B rounds
+    learning together (the tournament's --seed-batch), and from them the projected wall
+    time of the paper's protocol (30 rounds x 10 matches x (500k + 500k) episodes) on
+    this machine's workers;
   * the peak memory (max RSS of a fresh process) of one tabular match at the paper's
     500,000 learning episodes, CMARL-CD against itself (the largest tables), unless
     --no-memory.
 
 Usage: python benchmarks/bench_battlefield.py [--episodes E] [--deep-episodes D]
-       [--workers N] [--no-memory]
+       [--batch B] [--workers N] [--no-memory]
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from cmarlcd.games import battlefield
 from cmarlcd.learners.automata import LAOCA
 from cmarlcd.learners.coordination import CMARLCDStochastic
 from cmarlcd.runner import default_workers
-from cmarlcd.training.match import Match
+from cmarlcd.training.match import Match, MatchBatch
 
 LEARNERS = tour.battlefield_learners()
 SIDE = 6
@@ -61,6 +63,20 @@ def compiled_turns(a: str, b: str, episodes: int, evaluate: bool) -> tuple[float
     start = time.perf_counter()
     result = played.evaluate(episodes, np.random.default_rng(3))
     return learn, result.turns / (time.perf_counter() - start), played.turns
+
+
+def batched_learning_turns(a: str, b: str, episodes: int, batch: int) -> float:
+    """Learning turns/s of ``batch`` matches of one pairing learning together."""
+    positions = [(0, 1) if r % 2 == 0 else (1, 0) for r in range(batch)]
+    streams = [np.random.default_rng(r).spawn(3) for r in range(batch)]
+    envs = [env for env, _, _ in streams]
+    sides = [(s0, s1) for _, s0, s1 in streams]
+    pair = (LEARNERS[a], LEARNERS[b])
+    MatchBatch(battlefield.SPEC, pair, positions, envs, sides, 2).learn()  # compile
+    played = MatchBatch(battlefield.SPEC, pair, positions, envs, sides, episodes)
+    start = time.perf_counter()
+    played.learn()
+    return sum(m.turns for m in played.matches) / (time.perf_counter() - start)
 
 
 def parallel_env_turns(episodes: int) -> tuple[float, int]:
@@ -96,15 +112,17 @@ def parallel_env_turns(episodes: int) -> tuple[float, int]:
 def peak_memory_mb(episodes: int) -> float:
     """Max RSS of a fresh process that plays one CMARL-CD self-play match."""
     code = (
-        "import numpy as np, resource\n"
-        "from benchmarks.bench_battlefield import new_match\n"
-        f"m = new_match('cmarl-cd', 'cmarl-cd', {episodes}); m.learn()\n"
-        "m.evaluate(1000, np.random.default_rng(3))\n"
+        "import numpy as np\n"
+        "from cmarlcd.experiments.tournament import battlefield_learners\n"
+        "from cmarlcd.games import battlefield\n"
+        "from cmarlcd.training.match import Match\n"
+        "c = battlefield_learners()['cmarl-cd']\n"
+        "r = [np.random.default_rng(k) for k in range(4)]\n"
+        f"m = Match(battlefield.SPEC, (c, c), r[0], r[1:3], {episodes})\n"
+        "m.learn(); m.evaluate(1000, r[3])\n"
         "print(m.visited(0), m.visited(1), m.memory_bytes())\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd="."
-    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     visited_0, visited_1, table_bytes = map(int, out.stdout.split())
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
     print(
@@ -130,6 +148,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=20_000, help="tabular match episodes")
     parser.add_argument("--deep-episodes", type=int, default=5_000, help="deep match episodes")
     parser.add_argument("--python-episodes", type=int, default=500)
+    parser.add_argument("--batch", type=int, default=tour.SEED_BATCH, help="rounds together")
     parser.add_argument("--workers", type=int, default=default_workers())
     parser.add_argument("--no-memory", action="store_true")
     args = parser.parse_args()
@@ -145,24 +164,31 @@ def main() -> None:
         f"turns: compiled {fast:,.0f} turns/s, ParallelEnv loop {slow:,.0f} turns/s, "
         f"ratio {fast / slow:,.0f}x"
     )
-    round_seconds = 0.0
+    alone_seconds = batched_seconds = 0.0
     for (a, b), count in PAIRINGS.items():
         deep = "vdn" in (a, b) or "qmix" in (a, b)
         episodes = args.deep_episodes if deep else args.episodes
         learn, evaluate, turns = compiled_turns(a, b, episodes, True)
         per_episode = turns / episodes
-        match_seconds = tour.PAPER_LEARN_EPISODES * per_episode * (1 / learn + 1 / evaluate)
-        round_seconds += count * match_seconds
+        batched = batched_learning_turns(a, b, episodes, args.batch) if deep else learn
+        turns_per_stage = tour.PAPER_LEARN_EPISODES * per_episode
+        alone = turns_per_stage * (1 / learn + 1 / evaluate)
+        together = turns_per_stage * (1 / batched + 1 / evaluate)
+        alone_seconds += count * alone
+        batched_seconds += count * together
         print(
             f"{a} vs {b}: {episodes:,} episodes, {per_episode:.2f} turns each; learning "
-            f"{learn:,.0f} turns/s, evaluation {evaluate:,.0f} turns/s; a paper match "
-            f"(500k + 500k episodes) ~ {match_seconds / 60:.1f} min"
+            f"{learn:,.0f} turns/s alone, {batched:,.0f} turns/s with {args.batch} rounds "
+            f"together ({batched / learn:.1f}x); evaluation {evaluate:,.0f} turns/s; a paper "
+            f"match (500k + 500k episodes) ~ {alone / 60:.1f} min alone, "
+            f"{together / 60:.1f} min batched"
         )
-    total = tour.PAPER_ROUNDS * round_seconds / args.workers
-    print(
-        f"projected paper protocol (30 rounds x 10 matches), {args.workers} workers: "
-        f"{total / 3600:.1f} h ({round_seconds / 60:.0f} min of matches per round)"
-    )
+    for label, seconds in (("alone", alone_seconds), ("batched", batched_seconds)):
+        total = tour.PAPER_ROUNDS * seconds / args.workers
+        print(
+            f"projected paper protocol (30 rounds x 10 matches), {args.workers} workers, "
+            f"matches {label}: {total / 3600:.1f} h ({seconds / 60:.0f} min of matches per round)"
+        )
     if not args.no_memory:
         peak_memory_mb(tour.PAPER_LEARN_EPISODES)
 

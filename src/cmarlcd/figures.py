@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -176,7 +177,7 @@ def tournament_bars(
     table = {(c.algorithm, c.opponent): c for c in cells}
     algorithms = [n for n in names if any(c.algorithm == n for c in cells)]
     width = 0.8 / max(len(algorithms), 1)
-    fig, ax = plt.subplots(figsize=(1.8 + 1.6 * len(algorithms), 3.6))
+    fig, ax = plt.subplots(figsize=(max(7.0, 3.0 + 1.6 * len(algorithms)), 4.0))
     for k, opponent in enumerate(algorithms):
         heights, errors = [], []
         for algorithm in algorithms:
@@ -186,13 +187,17 @@ def tournament_bars(
         x = np.arange(len(algorithms)) + (k - (len(algorithms) - 1) / 2) * width
         ax.bar(x, heights, width, yerr=errors, capsize=3, label=f"vs {names[opponent]}")
     ax.set_xticks(np.arange(len(algorithms)), [names[a] for a in algorithms])
+    ax.set_xlabel("algorithm")
     ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=9)
+    if metric == "win_rate":
+        ax.set_ylim(0, 1)
+    ax.set_title(textwrap.fill(title, 70), fontsize=9)
     ax.legend(
+        title="opponent",
         fontsize=8,
-        ncols=min(len(algorithms), 4),
-        loc="upper center",
-        bbox_to_anchor=(0.5, -0.12),
+        title_fontsize=8,
+        loc="center left",
+        bbox_to_anchor=(1.0, 0.5),
         frameon=False,
     )
     fig.tight_layout()
