@@ -142,7 +142,7 @@ def test_claims_say_supported_contradicted_or_not_checked() -> None:
     assert claims["CMARL-CD has the higher win rate against every other algorithm"].verdict == (
         "contradicted"
     )
-    assert claims["CMARL-CD needs the fewest win steps"].verdict == "not supported"
+    assert claims["CMARL-CD needs the fewest win steps"].verdict == "contradicted"
 
 
 def test_rounds_learning_together_store_what_they_store_alone() -> None:

@@ -406,7 +406,7 @@ def check_claims(records: Sequence[RunRecord], cells: Sequence[Cell]) -> list[Cl
         missing = [registry.display_name(n) for n in required if n not in names]
         return f"needs {', '.join(missing)} in the tournament" if missing else None
 
-    others = sorted(names - {"cmarl-cd"}, key=list(registry.LEARNERS).index)
+    others = sorted(names - {"cmarl-cd"}, key=_rank)
     text = "CMARL-CD has the higher win rate against every other algorithm"
     if (why := need("cmarl-cd")) or not others:
         claims.append(Claim(text, "not checked", why or "needs a second algorithm"))
@@ -428,7 +428,7 @@ def check_claims(records: Sequence[RunRecord], cells: Sequence[Cell]) -> list[Cl
             cell = table[(deep, "cmarl-cd")]
             verdict = "supported" if cell.win_rate < 0.4 else "not supported"
             claims.append(Claim(text, verdict, f"{cell.win_rate:.1%} ± {cell.win_rate_std:.1%}"))
-    claims.append(_fewest_win_steps(cells, names))
+    claims.append(_fewest_win_steps(records, names))
     return claims
 
 
@@ -441,14 +441,48 @@ def _all(verdicts: Iterable[str]) -> str:
     return "not supported"
 
 
-def _fewest_win_steps(cells: Sequence[Cell], names: set[str]) -> Claim:
+def _fewest_win_steps(records: Sequence[RunRecord], names: set[str]) -> Claim:
+    """CMARL-CD against each other algorithm X: per round, X's mean win steps over its
+    opponents minus CMARL-CD's; the claim holds against X when that difference is more
+    than two standard errors above 0."""
     text = "CMARL-CD needs the fewest win steps"
     if "cmarl-cd" not in names or len(names) < 2:
         return Claim(text, "not checked", "needs CMARL-CD and another algorithm")
-    steps = {n: _mean([c.win_steps for c in cells if c.algorithm == n]) for n in names}
-    best = min(steps, key=lambda n: (math.isnan(steps[n]), steps[n]))
-    evidence = ", ".join(
-        f"{registry.display_name(n)} {steps[n]:.2f}" for n in sorted(names, key=steps.get)
-    )
-    verdict = "supported" if best == "cmarl-cd" else "not supported"
-    return Claim(text, verdict, f"mean win steps over opponents: {evidence}")
+    verdicts, evidence = [], []
+    for other in sorted(names - {"cmarl-cd"}, key=_rank):
+        diffs = _win_step_differences(records, other, "cmarl-cd", sorted(names))
+        if diffs.size == 0:
+            verdicts.append("not supported")
+            evidence.append(f"{registry.display_name(other)}: no rounds won by both")
+            continue
+        se = float(diffs.std(ddof=1) / math.sqrt(diffs.size)) if diffs.size > 1 else math.inf
+        verdicts.append(_verdict(float(diffs.mean()), se))
+        evidence.append(
+            f"{registry.display_name(other)} needs {diffs.mean():+.2f} ± {2 * se:.2f} turns "
+            f"more ({diffs.size} rounds)"
+        )
+    return Claim(text, _all(verdicts), "; ".join(evidence))
+
+
+def _win_step_differences(
+    records: Sequence[RunRecord], other: str, ours: str, opponents: Sequence[str]
+) -> np.ndarray:
+    """Per round: the mean win steps of ``other`` over its opponents minus those of
+    ``ours`` (rounds where either won nothing are left out)."""
+
+    def per_round(name: str) -> dict[int, float]:
+        by_round: dict[int, list[float]] = defaultdict(list)
+        for opponent in opponents:
+            for r, steps in round_rates(records, name, opponent, "win_steps").items():
+                by_round[r].append(steps)
+        return {r: _mean(values) for r, values in by_round.items()}
+
+    theirs, mine = per_round(other), per_round(ours)
+    rounds = sorted(set(theirs) & set(mine))
+    diffs = [theirs[r] - mine[r] for r in rounds]
+    return np.array([d for d in diffs if not math.isnan(d)])
+
+
+def _rank(name: str) -> int:
+    known = list(registry.LEARNERS)
+    return known.index(name) if name in known else len(known)
