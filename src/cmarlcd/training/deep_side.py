@@ -224,6 +224,8 @@ class DeepGroup:
             f"{spec.name} has none",
         )
         counts = spec.action_counts[list(spec.teams[teams[0]])].copy()
+        same = all(np.array_equal(spec.action_counts[list(spec.teams[t])], counts) for t in teams)
+        require(same, "teams", "one stacked model needs sides with the same action counts")
         n, width, features = counts.shape[0], int(counts.max()), spec.n_features
         seeds = [rng.bit_generator.seed_seq.spawn(2) for rng in rngs]
         self.config, self.spec = config, spec

@@ -335,11 +335,11 @@ class MatchBatch:
 
     Args:
         spec: a game of two teams.
-        pairings: each match's configs, side 0 first (one learner per position of the
-            pairing; the positions may sit on either side, as rounds swap sides).
-        env_rngs, agent_rngs: each match's streams, as for :class:`Match`.
-        positions: for each match, which position of the pairing plays side 0 and side 1
-            (``(0, 1)`` or ``(1, 0)``).
+        configs: the pairing: the learner config of each of its two positions.
+        positions: for each match, the positions that play side 0 and side 1
+            (``(0, 1)`` or ``(1, 0)``: rounds may swap sides).
+        env_rngs, agent_rngs: each match's streams (per side), as for :class:`Match`.
+        learn_episodes: each match's learning stage.
     """
 
     def __init__(
