@@ -356,7 +356,8 @@ def tournament_report(
     first = records[0]
     rounds = sorted({r.key.run_index for r in records})
     settings = (
-        f"{len(rounds)} rounds, {first.config['learn_episodes']:,} learning and "
+        f"{len(rounds)} round{'s' if len(rounds) > 1 else ''}, "
+        f"{first.config['learn_episodes']:,} learning and "
         f"{first.config['eval_episodes']:,} evaluation episodes per match, seed "
         f"{first.key.root_seed}"
     )
