@@ -497,8 +497,8 @@ def reproduce(
             help="quick: 20 runs per cell of Tables 1-2, 10 DSN runs of CMARL-CD and "
             "LA-OCA with 10k-episode evaluations, a 4-round battlefield tournament of "
             "20k-episode matches; paper: the full protocol (50 runs, 50k evaluations, 30 "
-            "rounds of 500k + 500k episodes), VDN and QMIX in the DSN tables when the "
-            "[deep] extra is installed."
+            "rounds of 500k + 500k episodes), VDN and QMIX in the DSN tables. VDN and "
+            "QMIX play the tournament (both presets) when the [deep] extra is installed."
         ),
     ] = "quick",
     seed: SeedOption = 0,
