@@ -294,37 +294,39 @@ def side_outcomes(metrics: Mapping[str, Any]) -> list[dict[str, Any]]:
     return views
 
 
-def summarize(records: Iterable[RunRecord], order: Sequence[str] = ()) -> list[Cell]:
-    """Cells (algorithm, opponent) from stored matches: rates per round, then mean and
-    spread over rounds (a self-play round's rates are the mean of its two sides)."""
-    per_round: dict[tuple[str, str], dict[int, list[dict[str, Any]]]] = defaultdict(
+#: The per-round quantities of a cell.
+METRICS = ("win_rate", "loss_rate", "tie_rate", "win_steps")
+
+
+def round_values(
+    records: Iterable[RunRecord],
+) -> dict[tuple[str, str], dict[int, dict[str, float]]]:
+    """Per (algorithm, opponent) and round, each of :data:`METRICS` (a self-play round's
+    value is the mean of its two sides)."""
+    views: dict[tuple[str, str], dict[int, list[dict[str, Any]]]] = defaultdict(
         lambda: defaultdict(list)
     )
     for rec in records:
         for view in side_outcomes(rec.metrics):
-            key = (view["algorithm"], view["opponent"])
-            per_round[key][rec.key.run_index].append(view)
+            views[(view["algorithm"], view["opponent"])][rec.key.run_index].append(view)
+    return {
+        pair: {r: {m: _mean([v[m] for v in vs]) for m in METRICS} for r, vs in rounds.items()}
+        for pair, rounds in views.items()
+    }
+
+
+def summarize(records: Iterable[RunRecord], order: Sequence[str] = ()) -> list[Cell]:
+    """Cells (algorithm, opponent) from stored matches: rates per round, then mean and
+    spread over rounds."""
     known = list(order) or list(registry.LEARNERS)
     rank = {name: i for i, name in enumerate(known)}
     cells = []
     for (algorithm, opponent), rounds in sorted(
-        per_round.items(), key=lambda kv: (rank.get(kv[0][0], 99), rank.get(kv[0][1], 99))
+        round_values(records).items(),
+        key=lambda kv: (rank.get(kv[0][0], 99), rank.get(kv[0][1], 99)),
     ):
-        values = {m: [] for m in ("win_rate", "loss_rate", "tie_rate", "win_steps")}
-        for views in rounds.values():
-            for m in values:
-                values[m].append(_mean([v[m] for v in views]))
-        cells.append(
-            Cell(
-                algorithm,
-                opponent,
-                len(rounds),
-                *_mean_std(values["win_rate"]),
-                *_mean_std(values["loss_rate"]),
-                *_mean_std(values["tie_rate"]),
-                *_mean_std(values["win_steps"]),
-            )
-        )
+        spreads = [_mean_std([values[m] for values in rounds.values()]) for m in METRICS]
+        cells.append(Cell(algorithm, opponent, len(rounds), *(x for pair in spreads for x in pair)))
     return cells
 
 
@@ -344,12 +346,8 @@ def round_rates(
     records: Iterable[RunRecord], algorithm: str, opponent: str, metric: str = "win_rate"
 ) -> dict[int, float]:
     """``metric`` of ``algorithm`` against ``opponent`` in each round."""
-    rates: dict[int, list[float]] = defaultdict(list)
-    for rec in records:
-        for view in side_outcomes(rec.metrics):
-            if (view["algorithm"], view["opponent"]) == (algorithm, opponent):
-                rates[rec.key.run_index].append(view[metric])
-    return {r: _mean(v) for r, v in rates.items()}
+    rounds = round_values(records).get((algorithm, opponent), {})
+    return {r: values[metric] for r, values in rounds.items()}
 
 
 # ------------------------------------------------------------------- the claims

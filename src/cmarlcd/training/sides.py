@@ -69,8 +69,7 @@ def tabular_enter(side, env, team, offset, legal, length) -> int:
         game.legal(env, legal)
         n = side.counts.shape[0]
         learner.init_state(side.tables, side.params, row, legal[offset : offset + n], side.counts)
-    if length < side.states.shape[0]:
-        side.states[length] = row
+    side.states[length] = row
     return row
 
 
