@@ -126,15 +126,19 @@ def test_worker_progress_is_batched_but_never_lost() -> None:
 class Recording(SweepObserver):
     def __init__(self) -> None:
         self.total = self.stored = self.done = 0.0
+        self.cost = self.stored_cost = self.cost_done = 0.0
         self.runs = 0
 
-    def start(self, description, runs, stored_runs, work, stored_work, unit="runs") -> None:
-        self.total, self.stored, self.unit = work, stored_work, unit
+    def start(self, sections) -> None:
+        (section,) = sections
+        self.total, self.stored, self.unit = section.work, section.stored_work, section.unit
+        self.cost, self.stored_cost = section.cost, section.stored_cost
 
-    def advance(self, work: float) -> None:
+    def advance(self, section: str, work: float, cost: float) -> None:
         self.done += work
+        self.cost_done += cost
 
-    def run_finished(self) -> None:
+    def run_finished(self, section: str) -> None:
         self.runs += 1
 
 
@@ -151,6 +155,7 @@ def test_progress_has_a_total_and_reaches_it(tmp_path, workers: int) -> None:
         seen = Recording()
         run_sweep(specs, store, workers=workers, observer=seen)
     assert seen.unit == "episodes" and seen.total == seen.stored + seen.done
+    assert seen.cost == pytest.approx(seen.stored_cost + seen.cost_done)
     assert seen.stored == first.total and seen.runs == len(specs) - 1
 
 

@@ -33,13 +33,14 @@ def test_put_get_missing_roundtrip(tmp_path) -> None:
         assert store.count() == 2
 
 
-def test_same_key_replaces_and_other_config_is_a_different_run(tmp_path) -> None:
+def test_a_stored_run_is_never_changed_and_other_config_is_a_different_run(tmp_path) -> None:
     with ResultStore(tmp_path / "s.sqlite") as store:
-        store.put(key(0), {"v": 1}, 0.1, "x")
-        store.put(key(0), {"v": 2}, 0.1, "x")
-        store.put(key(0, '{"a":2}'), {"v": 3}, 0.1, "x")
+        assert store.put(key(0), {"v": 1}, 0.1, "x")
+        assert not store.put(key(0), {"v": 2}, 0.1, "y")  # a second result is dropped
+        assert store.put(key(0, '{"a":2}'), {"v": 3}, 0.1, "x")
         assert store.count() == 2
-        assert store.get([key(0)])[0].metrics == {"v": 2}
+        (first,) = store.get([key(0)])
+        assert (first.metrics, first.version) == ({"v": 1}, "x")
 
 
 def test_each_put_is_committed_immediately(tmp_path) -> None:

@@ -1,8 +1,11 @@
 """Reports rendered from stored runs: paper-style tables, their figures, their JSON.
 
 Each ``*_report`` function takes the stored records of one group of runs (one table's
-worth), draws its figures into a folder, prints its tables to a rich console (or nothing,
-for ``--json``) and returns the JSON document of the group. Figure files are named by
+worth), draws its figures into a folder, prints its tables to a rich console (or
+nothing, for ``--json``; or records them in a :class:`~cmarlcd.document.Recorder`, for a
+Markdown or HTML report) and returns the JSON document of the group, with its title, its
+settings and the package versions its runs were computed by (a warning is shown when
+they differ). Figure files are named by
 what they show: a readable stem and a digest of the group's settings, so groups with
 other settings never overwrite each other; the printed line after each figure says
 which settings it shows.
@@ -12,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from pathlib import Path
@@ -22,6 +26,7 @@ from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
+from cmarlcd.document import Recorder, version_warning
 from cmarlcd.experiments import episodic
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments.episodic import EpisodicGame, Row
@@ -40,9 +45,15 @@ def percent(rate: float | None) -> str:
     return f"{value:.0f}" if abs(value - round(value)) < 1e-9 else f"{value:.1f}"
 
 
-def show(console: Console, table: Table) -> None:
+Output = Console | Recorder
+
+
+def show(console: Output, table: Table) -> None:
     """Print ``table`` with its title and caption as lines of their own: a narrow table
     would wrap them to its width."""
+    if isinstance(console, Recorder):
+        console.table(table)
+        return
     title, caption = table.title, table.caption
     table.title = table.caption = None
     if title:
@@ -52,9 +63,32 @@ def show(console: Console, table: Table) -> None:
         console.print(Text(str(caption), style="dim"), soft_wrap=True)
 
 
-def say(console: Console, text: str) -> None:
+def say(console: Output, text: str) -> None:
     """One line of plain text (paths stay whole: no wrapping)."""
+    if isinstance(console, Recorder):
+        console.text(text)
+        return
     console.print(Text(text), soft_wrap=True)
+
+
+def figure_line(console: Output, path: Path, what: str) -> None:
+    """Where a figure was drawn and what it shows."""
+    if isinstance(console, Recorder):
+        console.figure(path, what)
+        return
+    say(console, f"figure: {path} ({what})")
+
+
+def versions(records: Sequence[RunRecord], console: Output | None) -> dict[str, int]:
+    """Runs per package version; warns when a group mixes versions."""
+    counts = Counter(rec.version for rec in records)
+    warning = version_warning(counts)
+    if warning is not None and console is not None:
+        if isinstance(console, Recorder):
+            console.text(warning, warning=True)
+        else:
+            console.print(Text(warning, style="bold yellow"), soft_wrap=True)
+    return dict(counts)
 
 
 def figure_name(stem: str, settings: Any) -> str:
@@ -121,7 +155,7 @@ def games_table(cells: Sequence[CellSummary], title: str) -> Table:
 
 
 def repeated_report(
-    records: Sequence[RunRecord], figures: Path, console: Console | None
+    records: Sequence[RunRecord], figures: Path, console: Output | None
 ) -> dict[str, Any]:
     """Table 1 or 2 and its heatmap from the records of one group of runs."""
     from cmarlcd import figures as figs
@@ -132,14 +166,16 @@ def repeated_report(
     settings = rep.group_key(records[0].config, seed)
     name = figure_name(f"repeated-case{case}-seed{seed}", settings)
     path = figs.repeated_heatmap(cells, title, figures / name)
+    settings = rep.settings_text(records)
     if console is not None:
         show(console, success_table(cells, title))
-        games_title = f"Median games to convergence ({rep.settings_text(records)})"
-        show(console, games_table(cells, games_title))
-        say(console, f"figure: {path} ({rep.settings_text(records)})")
+        show(console, games_table(cells, f"Median games to convergence ({settings})"))
+        figure_line(console, path, settings)
     return {
         "experiment": rep.EXPERIMENT,
-        "title": title,
+        "title": f"Table {case}: random cooperative repeated games, case {case}",
+        "settings": settings,
+        "versions": versions(records, console),
         "case": case,
         "seed": seed,
         "figure": str(path),
@@ -214,7 +250,7 @@ def protocol_text(records: Sequence[RunRecord], rows: Sequence[Row]) -> str:
 
 
 def dsn_report(
-    game: EpisodicGame, records: Sequence[RunRecord], figures: Path, console: Console | None
+    game: EpisodicGame, records: Sequence[RunRecord], figures: Path, console: Output | None
 ) -> dict[str, Any]:
     """Tables 3-7, the learning curves and Fig. 4 of one group of DSN runs."""
     from cmarlcd import figures as figs
@@ -244,9 +280,12 @@ def dsn_report(
         for table in dsn_tables(rows, protocol):
             show(console, table)
         for key, path in paths.items():
-            say(console, f"figure: {path} ({shown[key]})")
+            figure_line(console, Path(path), shown[key])
     return {
         "experiment": game.experiment,
+        "title": "Tables 3-7 and Fig. 4: the distributed sensor network task",
+        "settings": protocol,
+        "versions": versions(records, console),
         "seed": seed,
         "note": TRAIN_ONCE_NOTE,
         "rows": [r.to_dict() for r in rows],
@@ -257,14 +296,16 @@ def dsn_report(
 # ------------------------------------------------------------------- Theorem 1
 
 
-def theory_report(doc: dict[str, Any], console: Console) -> None:
+def theory_report(doc: dict[str, Any], console: Output) -> None:
     """Where the ODE starts went, and the Jacobian's eigenvalues against eq. (13)."""
     n, m, t = doc["n_agents"], doc["n_optima"], doc["temperature"]
-    console.print(f"[bold]Theorem 1[/]: {n} agents, {m} optimal joint actions, T = {t:g}")
+    if not isinstance(console, Recorder):
+        console.print(f"[bold]Theorem 1[/]: {n} agents, {m} optimal joint actions, T = {t:g}")
     reached = ", ".join(f"optimum {j}: {k}" for j, k in enumerate(doc["converged_to"]))
-    console.print(
+    say(
+        console,
         f"ODE (8) from {doc['starts']} random interior starts -> {reached}; "
-        f"elsewhere: {doc['unconverged']}"
+        f"elsewhere: {doc['unconverged']}",
     )
     table = Table(
         title="Jacobian of the reduced system (12) at each optimum, by finite differences"
@@ -276,10 +317,17 @@ def theory_report(doc: dict[str, Any], console: Console) -> None:
             str(j), f"{min(values):.8f} .. {max(values):.8f}", f"{doc['expected_eigenvalue']:g}"
         )
     show(console, table)
-    verdict = "[green]confirmed[/]" if doc["confirmed"] else "[red]NOT confirmed[/]"
-    console.print(f"max |eigenvalue + 2/T| = {doc['max_eigen_error']:.2e}: {verdict}")
+    verdict = "confirmed" if doc["confirmed"] else "NOT confirmed"
+    say(console, f"max |eigenvalue + 2/T| = {doc['max_eigen_error']:.2e}: {verdict}")
     if "figure" in doc:
-        say(console, f"phase portrait: {doc['figure']}")
+        figure_line(console, Path(doc["figure"]), f"phase portrait of system (12), T = {t:g}")
+
+
+def theory_title(doc: dict[str, Any]) -> tuple[str, str]:
+    """The title and settings of one Theorem 1 check."""
+    title = f"Theorem 1: {doc['n_agents']} agents, {doc['n_optima']} optimal joint actions"
+    settings = f"T = {doc['temperature']:g}, {doc['starts']} random starts, seed {doc['seed']}"
+    return title, settings
 
 
 # ------------------------------------------------------------- the tournament
@@ -336,7 +384,7 @@ def tournament_tables(cells: Sequence[Any], names: dict[str, str], caption: str)
 
 
 def tournament_report(
-    records: Sequence[RunRecord], figures: Path, console: Console | None
+    records: Sequence[RunRecord], figures: Path, console: Output | None
 ) -> dict[str, Any]:
     """Figs. 6-7 (tables and PNGs) and the check of the paper's claims, from one
     tournament's stored matches."""
@@ -378,9 +426,12 @@ def tournament_report(
         for claim in claims:
             say(console, f"  {claim.claim}: {claim.verdict.upper()} — {claim.evidence}")
         for key, path in paths.items():
-            say(console, f"figure: {path} (Fig. {key[3:]}, {settings})")
+            figure_line(console, path, f"Fig. {key[3:]}, {settings}")
     return {
         "experiment": tour.EXPERIMENT,
+        "title": "Figs. 6-7: the blood battlefield tournament",
+        "settings": settings,
+        "versions": versions(records, console),
         "seed": seed,
         "rounds": len(rounds),
         "learn_episodes": first.config["learn_episodes"],

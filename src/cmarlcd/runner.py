@@ -1,142 +1,88 @@
-"""Fan runs out over worker processes and commit each result to the store.
+"""A sweep: compute every run a store lacks, on a backend, committing each as it finishes.
 
-Backends: ``workers == 1`` runs in-process; otherwise a pool of forked local processes
-(spawned where fork is unavailable). Results come back to the parent, which alone writes
-to the store, one transaction per run, as each finishes. Runs of one config that the
-experiment can batch (seeds stacked in one model) travel together, ``seed_batch`` at a
-time. A worker whose parent dies (``kill -9``, an out-of-memory kill) exits at once
-rather than holding the store open; Ctrl-C stops the workers and keeps every finished run.
+The sweep's process is the store's one writer: results come back from the backend
+(:mod:`cmarlcd.backends`: in-process, local processes or Ray) and are committed one
+transaction per run. Runs of one config that the experiment can batch (seeds stacked in
+one model) travel together, ``seed_batch`` at a time.
 
-How a sweep is shown is up to the caller: the runner reports to a :class:`SweepObserver`
-(the command line draws it with rich; the default shows nothing).
+**Sharing a store.** Before a batch is handed to the backend its runs are claimed in the
+store (:mod:`cmarlcd.claims`); only as many batches are handed out as the backend can
+work on, so two sweeps started on one store take turns claiming and split the work. Runs
+another live sweep has claimed are waited for, not recomputed; a claim whose owner died
+is taken over. A heartbeat thread keeps this sweep's claims fresh.
+
+**Progress** is reported to a :class:`SweepObserver` by *section* (a part of the sweep
+the caller names, e.g. one table), in the section's work units and in estimated seconds
+(each experiment's ``cost``), so one view can show every section and an overall ETA.
+Ctrl-C stops the backend and keeps every finished run.
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import multiprocessing
-import os
-import signal
-import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
-from queue import Empty
+from pathlib import Path
 from typing import Any
 
+from cmarlcd.backends import BACKENDS, default_workers, make_backend
+from cmarlcd.claims import CLAIM_TIMEOUT, HEARTBEAT_SECONDS, Owner
 from cmarlcd.errors import require
 from cmarlcd.experiments import get_experiment
-from cmarlcd.progress import Throttled, install_sink, progress_sink
 from cmarlcd.runs import RunSpec
-from cmarlcd.store import ResultStore
+from cmarlcd.store import ResultStore, RunKey, StoreWriteError
 
-Outcome = tuple[RunSpec, dict[str, Any], float]
+__all__ = ["SweepInterrupted", "SweepObserver", "SweepResult", "default_workers", "run_sweep"]
 
-#: How often a worker checks that its parent is still alive, in seconds (where the
-#: operating system cannot tell it, as Linux's parent-death signal does).
-PARENT_CHECK_SECONDS = 0.5
+#: How often a sweep asks the store about runs another sweep holds, in seconds.
+WAIT_POLL_SECONDS = 1.0
+
+
+@dataclass(frozen=True)
+class Section:
+    """One part of a sweep as a progress view shows it."""
+
+    name: str
+    runs: int
+    stored_runs: int
+    work: float
+    stored_work: float
+    unit: str
+    cost: float
+    """Estimated seconds of every run (``Experiment.cost``)."""
+    stored_cost: float
 
 
 class SweepObserver:
     """Receives a sweep's progress; the default ignores it."""
 
-    def start(
-        self,
-        description: str,
-        runs: int,
-        stored_runs: int,
-        work: float,
-        stored_work: float,
-        unit: str = "runs",
-    ) -> None:
-        """The sweep has ``runs`` runs (``stored_runs`` already stored) and ``work``
-        progress units (``unit``) in all, ``stored_work`` of them done by the stored runs."""
+    def start(self, sections: Sequence[Section]) -> None:
+        """The sweep has these sections (stored runs count as done)."""
 
-    def advance(self, work: float) -> None:
-        """``work`` more units are done."""
+    def advance(self, section: str, work: float, cost: float) -> None:
+        """``work`` more units of ``section`` are done, ``cost`` estimated seconds."""
 
-    def run_finished(self) -> None:
-        """One more run is computed and stored."""
+    def run_finished(self, section: str) -> None:
+        """One more run of ``section`` is stored."""
 
     def finish(self) -> None:
         """The sweep has ended (finished or interrupted)."""
 
 
-def execute(spec: RunSpec) -> Outcome:
-    """Compute one run (in whatever process calls it)."""
-    start = time.perf_counter()
-    metrics = get_experiment(spec.experiment).run(spec.config, spec.seed_sequence())
-    return spec, metrics, time.perf_counter() - start
-
-
-def execute_batch(specs: list[RunSpec]) -> list[Outcome]:
-    """Compute runs that share one config, together when the experiment can batch them."""
-    experiment = get_experiment(specs[0].experiment)
-    if len(specs) == 1 or experiment.run_batch is None:
-        return [execute(spec) for spec in specs]
-    start = time.perf_counter()
-    results = experiment.run_batch(specs[0].config, [s.seed_sequence() for s in specs])
-    seconds = (time.perf_counter() - start) / len(specs)
-    return [(spec, metrics, seconds) for spec, metrics in zip(specs, results, strict=True)]
-
-
-_worker_sink: Throttled | None = None
-
-
-def _execute_in_worker(specs: list[RunSpec]) -> list[Outcome]:
-    """:func:`execute_batch` in a pool worker, sending on the progress it still holds."""
-    try:
-        return execute_batch(specs)
-    finally:
-        if _worker_sink is not None:
-            _worker_sink.flush()
-
-
-def _worker_init(queue: Any, threads: int, parent: int) -> None:
-    global _worker_sink
-    _exit_with_parent(parent)
-    _worker_sink = Throttled(queue.put)
-    install_sink(_worker_sink)
-    os.environ["OMP_NUM_THREADS"] = str(threads)
-    if "torch" in sys.modules:  # forked from a parent that imported it
-        sys.modules["torch"].set_num_threads(threads)
-
-
-def _exit_with_parent(parent: int) -> None:
-    """End this worker as soon as the process that started it is gone."""
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(OSError, AttributeError):
-            pr_set_pdeathsig = 1
-            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL)
-    if os.getppid() != parent:  # the parent died before the signal was armed
-        os._exit(1)
-
-    def watch() -> None:  # elsewhere (or as a second line): poll, between compiled calls
-        while os.getppid() == parent:
-            time.sleep(PARENT_CHECK_SECONDS)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
-
-
-def default_workers() -> int:
-    """All cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 @dataclass
 class SweepResult:
-    """How a sweep went: how many runs were computed now and how many came from the store."""
+    """How a sweep went: runs computed here, found in the store at the start, and stored
+    meanwhile by another sweep on the same store."""
 
     total: int
     computed: int = 0
     reused: int = 0
+    shared: int = 0
+    duplicates: int = 0
+    """Runs computed here that another sweep had stored first (its result was kept)."""
     wall_seconds: float = 0.0
     interrupted: bool = False
     run_seconds: list[float] = field(default_factory=list)
@@ -147,11 +93,25 @@ class SweepInterrupted(RuntimeError):
 
     def __init__(self, result: SweepResult) -> None:
         self.result = result
-        left = result.total - result.reused - result.computed
+        stored = result.reused + result.computed + result.shared
         super().__init__(
-            f"interrupted: {result.reused + result.computed} of {result.total} runs are stored,"
-            f" {left} left; run the same command again to resume"
+            f"interrupted: {stored} of {result.total} runs are stored,"
+            f" {result.total - stored} left; run the same command again to resume"
         )
+
+
+def work_of(spec: RunSpec) -> float:
+    """The progress units of one run (the run itself, for an experiment that reports none)."""
+    work = get_experiment(spec.experiment).work(spec.config)
+    return 1.0 if work is None else float(work)
+
+
+def cost_of(spec: RunSpec) -> float:
+    return float(get_experiment(spec.experiment).cost(spec.config))
+
+
+def reports_work(spec: RunSpec) -> bool:
+    return get_experiment(spec.experiment).work(spec.config) is not None
 
 
 def run_sweep(
@@ -163,59 +123,170 @@ def run_sweep(
     observer: SweepObserver | None = None,
     description: str = "runs",
     seed_batch: int = 1,
+    backend: str = "process",
+    address: str | None = None,
+    section: Callable[[RunSpec], str] | None = None,
+    claim_timeout: float = CLAIM_TIMEOUT,
 ) -> SweepResult:
     """Compute every spec not yet in ``store`` and commit each as it finishes.
+
+    Args:
+        workers: processes (``process``) or CPUs (``ray``); default all cores, or for
+            Ray with an address, all CPUs of the cluster.
+        section: names the progress section of a spec (default: ``description``).
+        backend: ``process`` or ``ray``; ``address`` joins a running Ray cluster.
+        claim_timeout: seconds after which another host's silent claim is stale.
 
     Runs of one config whose experiment can batch them are computed ``seed_batch`` at a
     time in one call (the results are the same as one by one).
     """
-    workers = default_workers() if workers is None else workers
-    require(workers >= 1, "workers", f"must be >= 1 (got {workers})")
+    require(
+        backend in BACKENDS, "backend", f"must be one of {', '.join(BACKENDS)} (got {backend!r})"
+    )
+    require(address is None or backend == "ray", "address", "needs --backend ray")
+    if workers is None and not (backend == "ray" and address):
+        workers = default_workers()
+    require(workers is None or workers >= 1, "workers", f"must be >= 1 (got {workers})")
     require(seed_batch >= 1, "seed_batch", f"must be >= 1 (got {seed_batch})")
-    observer = observer or SweepObserver()
-    todo = _order_by_cost(store_missing(store, specs))
-    result = SweepResult(total=len(specs), reused=len(specs) - len(todo))
-    missing = set(todo)
-    stored_work = sum(_work(s) for s in specs if s not in missing)
-    unit = get_experiment(specs[0].experiment).work_unit if specs else "runs"
-    total = sum(map(_work, specs))
-    observer.start(description, len(specs), result.reused, total, stored_work, unit)
-    start = time.perf_counter()
+    sweep = _Sweep(
+        specs, store, version, observer or SweepObserver(), section or (lambda _: description)
+    )
 
-    def commit(spec: RunSpec, metrics: dict[str, Any], seconds: float) -> None:
-        store.put(spec.key, metrics, seconds, version)
-        result.computed += 1
-        result.run_seconds.append(seconds)
-        if get_experiment(spec.experiment).work(spec.config) is None:
-            observer.advance(1.0)
-        observer.run_finished()
+    def start_backend(progress: Callable[[int, float], None], batches: int) -> Any:
+        used = workers if workers is None else min(workers, batches)
+        return make_backend(backend, used, progress, address)
 
-    try:
-        if todo:
-            _dispatch(_batches(todo, seed_batch), workers, commit, observer.advance)
-    except KeyboardInterrupt:
-        result.interrupted = True
-        raise SweepInterrupted(result) from None
-    finally:
-        result.wall_seconds = time.perf_counter() - start
-        observer.finish()
-    return result
+    return sweep.run(seed_batch, claim_timeout, start_backend)
 
 
-def _work(spec: RunSpec) -> float:
-    """The progress units of one run (the run itself, for an experiment that reports none)."""
-    work = get_experiment(spec.experiment).work(spec.config)
-    return 1.0 if work is None else float(work)
+class _Sweep:
+    """The state of one :func:`run_sweep` call."""
 
+    def __init__(
+        self,
+        specs: Sequence[RunSpec],
+        store: ResultStore,
+        version: str,
+        observer: SweepObserver,
+        section: Callable[[RunSpec], str],
+    ) -> None:
+        self.specs, self.store, self.version = list(specs), store, version
+        self.observer, self.section = observer, section
+        self.owner = Owner.current()
+        self.inflight: dict[int, list[RunSpec]] = {}
+        self.waiting: dict[RunKey, RunSpec] = {}
 
-def store_missing(store: ResultStore, specs: Sequence[RunSpec]) -> list[RunSpec]:
-    missing = set(store.missing(s.key for s in specs))
-    return [s for s in specs if s.key in missing]
+    def run(self, seed_batch: int, claim_timeout: float, backend_factory: Callable) -> SweepResult:
+        missing = set(self.store.missing(s.key for s in self.specs))
+        todo = sorted((s for s in self.specs if s.key in missing), key=lambda s: -cost_of(s))
+        self.result = SweepResult(total=len(self.specs), reused=len(self.specs) - len(todo))
+        self.observer.start(self._sections(missing))
+        self.queue = deque(_batches(todo, seed_batch))
+        self.claim_timeout = claim_timeout
+        start = time.perf_counter()
+        backend = None
+        try:
+            if todo:
+                for name in {s.experiment for s in todo}:
+                    get_experiment(name).warm_up()
+                backend = backend_factory(self._progress, len(self.queue))
+                with _Heartbeat(self.store.path, self.owner):
+                    self._loop(backend)
+        except KeyboardInterrupt:
+            self.result.interrupted = True
+            raise SweepInterrupted(self.result) from None
+        finally:
+            if backend is not None:
+                backend.close(cancel=bool(self.inflight) or self.result.interrupted)
+            with contextlib.suppress(StoreWriteError):
+                self.store.release(self.owner)
+            self.result.wall_seconds = time.perf_counter() - start
+            self.observer.finish()
+        return self.result
 
+    def _sections(self, missing: set[RunKey]) -> list[Section]:
+        grouped: dict[str, list[RunSpec]] = {}
+        for spec in self.specs:
+            grouped.setdefault(self.section(spec), []).append(spec)
+        sections = []
+        for name, specs in grouped.items():
+            stored = [s for s in specs if s.key not in missing]
+            sections.append(
+                Section(
+                    name,
+                    len(specs),
+                    len(stored),
+                    sum(map(work_of, specs)),
+                    sum(map(work_of, stored)),
+                    get_experiment(specs[0].experiment).work_unit,
+                    sum(map(cost_of, specs)),
+                    sum(map(cost_of, stored)),
+                )
+            )
+        return sections
 
-def _order_by_cost(specs: list[RunSpec]) -> list[RunSpec]:
-    """Longest first, so the slowest runs do not start last (results are unaffected)."""
-    return sorted(specs, key=lambda s: -get_experiment(s.experiment).cost(s.config))
+    # ------------------------------------------------------------------ the loop
+
+    def _loop(self, backend: Any) -> None:
+        self.tags: dict[int, tuple[str, float]] = {}  # batch tag -> (section, cost per unit)
+        next_poll = 0.0
+        while self.queue or self.inflight or self.waiting:
+            while self.queue and len(self.inflight) < backend.capacity:
+                self._hand_out(backend, self.queue.popleft())
+            for tag, outcomes in backend.poll(0.2 if self.inflight else WAIT_POLL_SECONDS):
+                del self.inflight[tag]
+                for outcome in outcomes:
+                    self._commit(*outcome)
+            if self.waiting and time.monotonic() >= next_poll:
+                self._check_waiting()
+                next_poll = time.monotonic() + WAIT_POLL_SECONDS
+
+    def _hand_out(self, backend: Any, batch: list[RunSpec]) -> None:
+        """Claim ``batch`` and give the backend the runs no one else holds."""
+        mine, theirs = self.store.claim([s.key for s in batch], self.owner, self.claim_timeout)
+        by_key = {s.key: s for s in batch}
+        for key in theirs:
+            self.waiting[key] = by_key[key]
+        for key in set(by_key) - set(mine) - set(theirs):  # stored meanwhile
+            self._stored_elsewhere(by_key[key])
+        claimed = [by_key[key] for key in mine]
+        if claimed:
+            tag = len(self.tags)
+            self.tags[tag] = (self.section(claimed[0]), cost_of(claimed[0]) / work_of(claimed[0]))
+            self.inflight[tag] = claimed
+            backend.submit(tag, claimed)
+
+    def _check_waiting(self) -> None:
+        """Runs another sweep holds: count those it stored, take over the stale ones."""
+        keys = list(self.waiting)
+        mine, theirs = self.store.claim(keys, self.owner, self.claim_timeout)
+        held = set(theirs)
+        for key in keys:
+            if key in held:
+                continue
+            spec = self.waiting.pop(key)
+            if key in mine:  # its owner died: ours now
+                self.queue.append([spec])
+            else:
+                self._stored_elsewhere(spec)
+
+    def _progress(self, tag: int, amount: float) -> None:
+        name, cost_per_unit = self.tags[tag]
+        self.observer.advance(name, amount, amount * cost_per_unit)
+
+    def _commit(self, spec: RunSpec, metrics: dict[str, Any], seconds: float) -> None:
+        if not self.store.put(spec.key, metrics, seconds, self.version):
+            self.result.duplicates += 1
+        self.result.computed += 1
+        self.result.run_seconds.append(seconds)
+        if not reports_work(spec):
+            self.observer.advance(self.section(spec), 1.0, cost_of(spec))
+        self.observer.run_finished(self.section(spec))
+
+    def _stored_elsewhere(self, spec: RunSpec) -> None:
+        self.result.shared += 1
+        self.observer.advance(self.section(spec), work_of(spec), cost_of(spec))
+        self.observer.run_finished(self.section(spec))
 
 
 def _batches(todo: list[RunSpec], seed_batch: int) -> list[list[RunSpec]]:
@@ -228,56 +299,28 @@ def _batches(todo: list[RunSpec], seed_batch: int) -> list[list[RunSpec]]:
         batchable = get_experiment(specs[0].experiment).batchable(specs[0].config)
         limit = seed_batch if batchable else 1
         batches += [specs[i : i + limit] for i in range(0, len(specs), limit)]
-    return batches
+    return sorted(batches, key=lambda batch: -cost_of(batch[0]))
 
 
-def _dispatch(
-    batches: list[list[RunSpec]],
-    workers: int,
-    commit: Callable[[RunSpec, dict[str, Any], float], None],
-    advance: Callable[[float], None],
-) -> None:
-    for name in {b[0].experiment for b in batches}:
-        get_experiment(name).warm_up()
-    workers = min(workers, len(batches))
-    if workers == 1:
-        with progress_sink(advance):
-            for batch in batches:
-                for outcome in execute_batch(batch):
-                    commit(*outcome)
-        return
-    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    context = multiprocessing.get_context(method)
-    queue = context.Queue()
-    threads = max(1, default_workers() // workers)
-    pool = ProcessPoolExecutor(
-        workers,
-        mp_context=context,
-        initializer=_worker_init,
-        initargs=(queue, threads, os.getpid()),
-    )
-    try:
-        pending: set[Future] = {pool.submit(_execute_in_worker, batch) for batch in batches}
-        while pending:
-            done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
-            _drain(queue, advance)
-            for future in done:
-                for outcome in future.result():
-                    commit(*outcome)
-        _drain(queue, advance)
-    except BaseException:
-        # Ctrl-C reaches the workers too and ends them; do not wait for queued runs.
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    pool.shutdown(wait=True)
+class _Heartbeat:
+    """A thread that refreshes ``owner``'s claims every :data:`HEARTBEAT_SECONDS`, on a
+    connection of its own."""
 
+    def __init__(self, path: Path, owner: Owner) -> None:
+        self.path, self.owner = path, owner
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._beat, name="claim-heartbeat", daemon=True)
 
-def _drain(queue: Any, advance: Callable[[float], None]) -> None:
-    total = 0.0
-    while True:
-        try:
-            total += queue.get_nowait()
-        except Empty:
-            break
-    if total:
-        advance(total)
+    def __enter__(self) -> _Heartbeat:
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop.set()
+        self.thread.join()
+
+    def _beat(self) -> None:
+        with contextlib.suppress(Exception), ResultStore(self.path) as store:
+            while not self.stop.wait(HEARTBEAT_SECONDS):
+                with contextlib.suppress(StoreWriteError):
+                    store.heartbeat(self.owner)

@@ -50,7 +50,9 @@ class Experiment:
         name: the store's experiment name.
         run: computes one run's metrics from its config and seed sequence.
         warm_up: compiles the kernels once in the parent before workers fork.
-        cost: a rough relative cost of a config, used to start expensive runs first.
+        cost: the estimated seconds of one run of a config on one core (rough, fitted to
+            measured runs): expensive runs start first, and a sweep of several
+            experiments weighs their progress by it for one overall ETA.
         run_batch: optional; computes several runs of one config together (e.g. seeds
             stacked in one model). It must give each run the metrics ``run`` would.
         batchable: whether runs of a config may share one ``run_batch`` call.

@@ -5,6 +5,16 @@ A run is identified by ``(experiment, algorithm, config, root_seed, run_index)``
 that differ in any field are different experiments. Each run is committed in its own
 transaction the moment it finishes (WAL journal), so a killed sweep loses at most the
 runs that were in flight, and re-running the same command recomputes nothing stored.
+A stored run is never changed: the first result written for a key is kept. Each row
+records the package version that computed it.
+
+Sweeps that share a store share its work through *claims* (:mod:`cmarlcd.claims`): a
+sweep claims a run before computing it, and another sweep leaves a claimed run to its
+owner unless the claim is stale. Storing a run removes its claim in the same transaction.
+
+A write that fails (disk full, no permission, the file gone read-only) raises a
+:class:`StoreWriteError` naming the store in one line; SQLite rolls the transaction
+back, so every run stored before stays intact.
 
 Opening a store checks it first: a path that is a directory, lies under a regular file
 or cannot be written, and a file that is not a cmarl-cd store (not SQLite, truncated or
@@ -25,6 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from cmarlcd.claims import CLAIM_TIMEOUT, Owner, is_stale
 from cmarlcd.errors import ConfigError, require
 
 SCHEMA = """
@@ -39,8 +50,21 @@ CREATE TABLE IF NOT EXISTS runs (
     version        TEXT    NOT NULL,
     finished_at    REAL    NOT NULL,
     PRIMARY KEY (experiment, algorithm, config, root_seed, run_index)
-)
+);
+CREATE TABLE IF NOT EXISTS claims (
+    experiment     TEXT    NOT NULL,
+    algorithm      TEXT    NOT NULL,
+    config         TEXT    NOT NULL,
+    root_seed      INTEGER NOT NULL,
+    run_index      INTEGER NOT NULL,
+    host           TEXT    NOT NULL,
+    pid            INTEGER NOT NULL,
+    started        INTEGER NOT NULL,
+    heartbeat      REAL    NOT NULL,
+    PRIMARY KEY (experiment, algorithm, config, root_seed, run_index)
+);
 """
+KEY = "experiment = ? AND algorithm = ? AND config = ? AND root_seed = ? AND run_index = ?"
 
 #: Default location, relative to the working directory; override with ``--store``.
 DEFAULT_STORE = Path("results") / "cmarl-cd.sqlite"
@@ -123,18 +147,37 @@ class RunKey:
     root_seed: int
     run_index: int
 
+    def values(self) -> tuple[str, str, str, int, int]:
+        return (self.experiment, self.algorithm, self.config, self.root_seed, self.run_index)
+
 
 @dataclass(frozen=True)
 class RunRecord:
-    """A stored run: its key, its metrics and how long it took."""
+    """A stored run: its key, its metrics, how long it took and the package version that
+    computed it."""
 
     key: RunKey
     metrics: dict[str, Any]
     wall_seconds: float
+    version: str = ""
 
     @property
     def config(self) -> dict[str, Any]:
         return json.loads(self.key.config)
+
+
+class StoreWriteError(ConfigError):
+    """Writing to the store failed (disk full, no permission); nothing stored before is
+    lost."""
+
+    def __init__(self, path: Path, exc: BaseException) -> None:
+        reason = str(exc).removesuffix(".")
+        super().__init__(
+            "store", f"cannot write {path}: {reason}; the runs stored before are intact"
+        )
+
+
+Claims = tuple[list[RunKey], list[RunKey]]
 
 
 class ResultStore:
@@ -148,11 +191,15 @@ class ResultStore:
         check_store(self.path, create)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._conn = sqlite3.connect(self.path, timeout=60.0)
+            # autocommit: each write below is one explicit transaction
+            self._conn = sqlite3.connect(self.path, timeout=60.0, isolation_level=None)
             self._conn.execute("PRAGMA journal_mode=WAL")
             self._conn.execute("PRAGMA synchronous=NORMAL")
-            with self._conn:
-                self._conn.execute(SCHEMA)
+            with self._writing() as conn:
+                for statement in filter(str.strip, SCHEMA.split(";")):
+                    conn.execute(statement)
+        except ConfigError:
+            raise
         except (OSError, sqlite3.Error) as exc:
             raise ConfigError("store", f"cannot open {self.path} ({exc})") from None
 
@@ -165,23 +212,95 @@ class ResultStore:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    @contextlib.contextmanager
+    def _writing(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction, taken at once (``BEGIN IMMEDIATE``: no other writer can
+        slip in between its reads and its writes); a failure rolls it back."""
+        try:
+            self._conn.execute("BEGIN IMMEDIATE")
+            yield self._conn
+            self._conn.execute("COMMIT")
+        except BaseException as exc:
+            if self._conn.in_transaction:  # SQLite may have rolled back already
+                with contextlib.suppress(sqlite3.Error):
+                    self._conn.execute("ROLLBACK")
+            if isinstance(exc, sqlite3.OperationalError):
+                raise StoreWriteError(self.path, exc) from None
+            raise
+
     def put(
-        self, key: RunKey, metrics: Mapping[str, Any], wall_seconds: float, version: str
-    ) -> None:
-        """Commit one finished run atomically (replacing a stored run with the same key)."""
+        self,
+        key: RunKey,
+        metrics: Mapping[str, Any],
+        wall_seconds: float,
+        version: str,
+    ) -> bool:
+        """Commit one finished run and drop its claim, atomically. Returns False, storing
+        nothing, when the run is already stored (the first result is kept)."""
         row = (
-            key.experiment,
-            key.algorithm,
-            key.config,
-            key.root_seed,
-            key.run_index,
+            *key.values(),
             json.dumps(dict(metrics), sort_keys=True),
             float(wall_seconds),
             version,
             time.time(),
         )
-        with self._conn:
-            self._conn.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?)", row)
+        with self._writing() as conn:
+            added = conn.execute(
+                "INSERT INTO runs VALUES (?,?,?,?,?,?,?,?,?) ON CONFLICT DO NOTHING", row
+            ).rowcount
+            conn.execute(f"DELETE FROM claims WHERE {KEY}", key.values())
+        return added == 1
+
+    # ---------------------------------------------------------------- claims
+
+    def claim(self, keys: Iterable[RunKey], owner: Owner, timeout: float = CLAIM_TIMEOUT) -> Claims:
+        """Claim for ``owner`` every key that is neither stored nor claimed by another
+        live owner (stale claims are taken over). Returns (claimed, held by others); keys
+        already stored are in neither."""
+        mine: list[RunKey] = []
+        theirs: list[RunKey] = []
+        now = time.time()
+        with self._writing() as conn:
+            for key in keys:
+                if conn.execute(f"SELECT 1 FROM runs WHERE {KEY}", key.values()).fetchone():
+                    continue
+                held = conn.execute(
+                    f"SELECT host, pid, started, heartbeat FROM claims WHERE {KEY}", key.values()
+                ).fetchone()
+                if held is not None:
+                    other = Owner(*held[:3])
+                    if other != owner and not is_stale(other, held[3], now, timeout):
+                        theirs.append(key)
+                        continue
+                conn.execute(
+                    "INSERT OR REPLACE INTO claims VALUES (?,?,?,?,?,?,?,?,?)",
+                    (*key.values(), owner.host, owner.pid, owner.started, now),
+                )
+                mine.append(key)
+        return mine, theirs
+
+    def heartbeat(self, owner: Owner) -> None:
+        """Refresh the heartbeat of every claim ``owner`` holds."""
+        with self._writing() as conn:
+            conn.execute(
+                "UPDATE claims SET heartbeat = ? WHERE host = ? AND pid = ? AND started = ?",
+                (time.time(), owner.host, owner.pid, owner.started),
+            )
+
+    def release(self, owner: Owner) -> None:
+        """Drop every claim ``owner`` still holds (its unfinished runs are free again)."""
+        with self._writing() as conn:
+            conn.execute(
+                "DELETE FROM claims WHERE host = ? AND pid = ? AND started = ?",
+                (owner.host, owner.pid, owner.started),
+            )
+
+    def claims(self) -> list[tuple[RunKey, Owner, float]]:
+        """Every claim: its run, owner and last heartbeat."""
+        rows = self._conn.execute("SELECT * FROM claims").fetchall()
+        return [(RunKey(*row[:5]), Owner(*row[5:8]), float(row[8])) for row in rows]
+
+    # ----------------------------------------------------------------- reads
 
     def stored_keys(self, experiment: str) -> set[RunKey]:
         """Keys of every stored run of ``experiment``."""
@@ -203,8 +322,8 @@ class ResultStore:
     def records(self, experiment: str | None = None) -> Iterator[RunRecord]:
         """Stored runs, optionally of one experiment, in key order."""
         query = (
-            "SELECT experiment, algorithm, config, root_seed, run_index, metrics, wall_seconds "
-            "FROM runs"
+            "SELECT experiment, algorithm, config, root_seed, run_index, metrics, wall_seconds,"
+            " version FROM runs"
         )
         args: tuple[Any, ...] = ()
         if experiment is not None:
@@ -212,7 +331,7 @@ class ResultStore:
             args = (experiment,)
         query += " ORDER BY experiment, algorithm, config, root_seed, run_index"
         for row in self._conn.execute(query, args):
-            yield RunRecord(RunKey(*row[:5]), json.loads(row[5]), float(row[6]))
+            yield RunRecord(RunKey(*row[:5]), json.loads(row[5]), float(row[6]), row[7])
 
     def get(self, keys: Iterable[RunKey]) -> list[RunRecord]:
         """The stored records of ``keys`` (missing keys are skipped), in the given order."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import json
+import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -19,12 +20,15 @@ from cmarlcd import __version__, registry, report
 from cmarlcd import theory as theory_module
 from cmarlcd.cli.options import (
     DEFAULT_FIGURES,
+    AddressOption,
+    BackendOption,
     FiguresOption,
     JsonOption,
     ProgressOption,
     SeedOption,
     StoreOption,
     WorkersOption,
+    check_backend,
     check_outputs,
     check_workers,
     fails_cleanly,
@@ -35,7 +39,7 @@ from cmarlcd.cli.options import (
 )
 from cmarlcd.cli.progress import RichSweepView
 from cmarlcd.errors import require
-from cmarlcd.experiments import episodic
+from cmarlcd.experiments import episodic, theorem
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.experiments import tournament as tour
@@ -81,38 +85,60 @@ def main(
 # ------------------------------------------------------------------------ sweeps
 
 
+@dataclass(frozen=True)
+class Execution:
+    """Where a command's runs are computed and its results go."""
+
+    store: Path
+    figures: Path
+    workers: int | None = None
+    progress: bool = True
+    backend: str = "process"
+    address: str | None = None
+
+    def check(self) -> None:
+        """Every choice is valid and every output path usable, before anything runs."""
+        check_workers(self.workers)
+        check_backend(self.backend, self.address)
+        check_outputs(self.store, self.figures)
+
+
 def _sweep(
     specs: Sequence[RunSpec],
-    store_path: Path,
-    workers: int | None,
-    progress: bool,
+    run: Execution,
     label: str,
     seed_batch: int = 1,
+    section: Callable[[RunSpec], str] | None = None,
 ) -> tuple[list[RunRecord], SweepResult]:
     """Compute what the store lacks of ``specs``; return their records and the tally."""
-    with ResultStore(store_path) as store:
+    with ResultStore(run.store) as store:
         done = run_sweep(
             specs,
             store,
-            workers=workers,
+            workers=run.workers,
             version=__version__,
-            observer=RichSweepView(show=progress),
+            observer=RichSweepView(show=run.progress),
             description=label,
             seed_batch=seed_batch,
+            backend=run.backend,
+            address=run.address,
+            section=section,
         )
         return store.get(s.key for s in specs), done
 
 
 def _run_counts(done: SweepResult, store_path: Path, console: Console | None) -> dict[str, Any]:
     if console is not None:
+        shared = f", {done.shared} by another sweep on the same store" if done.shared else ""
         report.say(
             console,
-            f"{done.computed} runs computed, {done.reused} from the store in "
+            f"{done.computed} runs computed, {done.reused} from the store{shared} in "
             f"{done.wall_seconds:.1f} s",
         )
     return {
         "runs_computed": done.computed,
         "runs_reused": done.reused,
+        "runs_shared": done.shared,
         "wall_seconds": done.wall_seconds,
         "store": str(store_path),
     }
@@ -130,17 +156,19 @@ def _console(as_json: bool) -> Console | None:
 
 
 def _run_repeated(
-    sweep: rep.RepeatedSweep,
-    store: Path,
-    figures: Path,
-    workers: int | None,
-    progress: bool,
-    console: Console | None,
+    sweep: rep.RepeatedSweep, run: Execution, console: Console | None
 ) -> dict[str, Any]:
     """Run (or resume) one sweep of Tables 1-2 and report it; return its JSON document."""
-    records, done = _sweep(sweep.specs(), store, workers, progress, f"case {sweep.case}")
-    doc = report.repeated_report(records, figures, console)
-    return {**doc, "learner": asdict(sweep.learner), **_run_counts(done, store, console)}
+    records, done = _sweep(sweep.specs(), run, f"case {sweep.case}")
+    doc = _repeated_document(sweep, records, run, console)
+    return {**doc, **_run_counts(done, run.store, console)}
+
+
+def _repeated_document(
+    sweep: rep.RepeatedSweep, records: list[RunRecord], run: Execution, console: Console | None
+) -> dict[str, Any]:
+    doc = report.repeated_report(records, run.figures, console)
+    return {**doc, "learner": asdict(sweep.learner)}
 
 
 @app.command()
@@ -167,6 +195,8 @@ def repeated(
         int, typer.Option(help="Cap on games per run (a failure).")
     ] = ALGORITHM.max_games,
     workers: WorkersOption = None,
+    backend: BackendOption = "process",
+    address: AddressOption = None,
     as_json: JsonOption = False,
     store: StoreOption = DEFAULT_STORE,
     figures: FiguresOption = DEFAULT_FIGURES,
@@ -186,13 +216,9 @@ def repeated(
         seed=seed,
         learner=replace(ALGORITHM, temperature=temperature, delta=delta, max_games=max_games),
     )
-    check_workers(workers)
-    check_outputs(store, figures)
-    console = _console(as_json)
-    doc = _run_repeated(sweep, store, figures, workers, progress, console)
-    _where(store, figures, console)
-    if as_json:
-        print(json.dumps(doc, indent=2))
+    run = Execution(store, figures, workers, progress, backend, address)
+    run.check()
+    _print_results(as_json, run, lambda console: _run_repeated(sweep, run, console))
 
 
 # --------------------------------------------------------------------------- DSN
@@ -267,6 +293,8 @@ def dsn(
         int, typer.Option(help="VDN/QMIX seeds trained together in one stacked model.")
     ] = dsn_exp.SEED_BATCH,
     workers: WorkersOption = None,
+    backend: BackendOption = "process",
+    address: AddressOption = None,
     as_json: JsonOption = False,
     store: StoreOption = DEFAULT_STORE,
     figures: FiguresOption = DEFAULT_FIGURES,
@@ -291,60 +319,36 @@ def dsn(
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),
         seed=seed,
     )
-    check_workers(workers)
     require(seed_batch >= 1, "seed_batch", f"must be >= 1 (got {seed_batch})")
     deep = [name for name in names if registry.needs_torch(name)]
     require(not deep or _has_torch(), "algorithms", _needs_torch(deep))
-    check_outputs(store, figures)
-    _print_results(
-        as_json,
-        store,
-        figures,
-        lambda console: _run_dsn(sweep, store, figures, workers, progress, console, seed_batch),
-    )
+    run = Execution(store, figures, workers, progress, backend, address)
+    run.check()
+    _print_results(as_json, run, lambda console: _run_dsn(sweep, run, console, seed_batch))
 
 
 def _print_results(
-    as_json: bool, store: Path, figures: Path, compute: Callable[[Console | None], dict]
+    as_json: bool, run: Execution, compute: Callable[[Console | None], dict]
 ) -> None:
     """Compute and print a command's results: tables and a last line saying where they
     went, or its JSON document alone."""
     console = _console(as_json)
     doc = compute(console)
-    _where(store, figures, console)
+    _where(run.store, run.figures, console)
     if as_json:
         print(json.dumps(doc, indent=2))
 
 
-def _run_and_report(
-    specs: Sequence[RunSpec],
-    label: str,
-    render: Callable[[list[RunRecord], Console | None], dict[str, Any]],
-    where: tuple[Path, Path, int | None, bool],
-    console: Console | None,
-    seed_batch: int,
-) -> dict[str, Any]:
-    """Run (or resume) ``specs`` and render their records: the command's JSON document.
-    ``where`` is (store, figures, workers, progress)."""
-    store, _, workers, progress = where
-    records, done = _sweep(specs, store, workers, progress, label, seed_batch)
-    return {**render(records, console), **_run_counts(done, store, console)}
-
-
 def _run_dsn(
     sweep: dsn_exp.DsnSweep,
-    store: Path,
-    figures: Path,
-    workers: int | None,
-    progress: bool,
+    run: Execution,
     console: Console | None,
     seed_batch: int = dsn_exp.SEED_BATCH,
 ) -> dict[str, Any]:
-    def render(records: list[RunRecord], shown: Console | None) -> dict[str, Any]:
-        return report.dsn_report(dsn_exp.DSN_GAME, records, figures, shown)
-
-    where = (store, figures, workers, progress)
-    return _run_and_report(sweep.specs(), "DSN", render, where, console, seed_batch)
+    """Run (or resume) a DSN sweep and report it; return its JSON document."""
+    records, done = _sweep(sweep.specs(), run, "DSN", seed_batch)
+    doc = report.dsn_report(dsn_exp.DSN_GAME, records, run.figures, console)
+    return {**doc, **_run_counts(done, run.store, console)}
 
 
 # -------------------------------------------------------------------- tournament
@@ -382,6 +386,8 @@ def tournament(
         typer.Option(help="Rounds of a pairing with VDN/QMIX that learn together (one model)."),
     ] = tour.SEED_BATCH,
     workers: WorkersOption = None,
+    backend: BackendOption = "process",
+    address: AddressOption = None,
     as_json: JsonOption = False,
     store: StoreOption = DEFAULT_STORE,
     figures: FiguresOption = DEFAULT_FIGURES,
@@ -396,28 +402,22 @@ def tournament(
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),
         seed=seed,
     )
-    check_workers(workers)
     require(seed_batch >= 1, "seed_batch", f"must be >= 1 (got {seed_batch})")
-    check_outputs(store, figures)
-    where = (store, figures, workers, progress)
-    _print_results(
-        as_json,
-        store,
-        figures,
-        lambda console: _run_tournament(contest, where, console, seed_batch),
-    )
+    run = Execution(store, figures, workers, progress, backend, address)
+    run.check()
+    _print_results(as_json, run, lambda console: _run_tournament(contest, run, console, seed_batch))
 
 
 def _run_tournament(
     contest: tour.Tournament,
-    where: tuple[Path, Path, int | None, bool],
+    run: Execution,
     console: Console | None,
     seed_batch: int = tour.SEED_BATCH,
 ) -> dict[str, Any]:
-    def render(records: list[RunRecord], shown: Console | None) -> dict[str, Any]:
-        return report.tournament_report(records, where[1], shown)
-
-    return _run_and_report(contest.specs(), "battlefield", render, where, console, seed_batch)
+    """Run (or resume) a tournament and report it; return its JSON document."""
+    records, done = _sweep(contest.specs(), run, "battlefield", seed_batch)
+    doc = report.tournament_report(records, run.figures, console)
+    return {**doc, **_run_counts(done, run.store, console)}
 
 
 # --------------------------------------------------------------------- reproduce
@@ -503,32 +503,62 @@ def reproduce(
     ] = "quick",
     seed: SeedOption = 0,
     workers: WorkersOption = None,
+    backend: BackendOption = "process",
+    address: AddressOption = None,
     as_json: JsonOption = False,
     store: StoreOption = DEFAULT_STORE,
     figures: FiguresOption = DEFAULT_FIGURES,
     progress: ProgressOption = True,
 ) -> None:
-    """Reproduce the paper: Tables 1-7, Figs. 4, 6 and 7, and the Theorem 1 check
-    (resumable)."""
-    from cmarlcd.theory import check_theorem1, plot_phase_portrait
-
+    """Reproduce the paper: Tables 1-7, Figs. 4, 6 and 7, and the Theorem 1 check, as
+    one resumable sweep with one progress view and an overall ETA."""
     require(preset in PRESETS, "preset", f"must be one of {', '.join(PRESETS)} (got {preset!r})")
     require(seed >= 0, "seed", f"must be >= 0 (got {seed})")
-    check_workers(workers)
-    check_outputs(store, figures)
+    run = Execution(store, figures, workers, progress, backend, address)
+    run.check()
     chosen, console = PRESETS[preset], _console(as_json)
-    doc: dict[str, Any] = {"preset": preset, "repeated": [], "dsn": None, "tournament": None}
-    sweep = dsn_exp.DsnSweep(
+    doc: dict[str, Any] = {"preset": preset}
+    plan = _reproduction_plan(chosen, seed, doc, as_json)
+    section_of = {spec.key: name for name, specs in plan.items() for spec in specs}
+    everything = [spec for specs in plan.values() for spec in specs]
+    records, done = _sweep(
+        everything,
+        run,
+        "paper",
+        max(dsn_exp.SEED_BATCH, tour.SEED_BATCH),
+        lambda spec: section_of[spec.key],
+    )
+    stored = {rec.key: rec for rec in records}
+    part = {name: [stored[s.key] for s in specs] for name, specs in plan.items()}
+    doc["repeated"] = [
+        _repeated_document(sweep, part[f"Table {sweep.case}"], run, console)
+        for sweep in _paper_sweeps(chosen, seed)
+    ]
+    doc["dsn"] = report.dsn_report(dsn_exp.DSN_GAME, part["Tables 3-7"], run.figures, console)
+    doc["tournament"] = report.tournament_report(part["Figs. 6-7"], run.figures, console)
+    doc["theorem1"] = _theorem_documents(part["Theorem 1"], run.figures, console)
+    doc.update(_run_counts(done, run.store, console))
+    if console is None:
+        print(json.dumps(doc, indent=2))
+        return
+    _where(run.store, run.figures, console)
+
+
+def _paper_sweeps(chosen: Preset, seed: int) -> list[rep.RepeatedSweep]:
+    return [rep.paper_sweep(case, chosen.repeated_runs, seed) for case in (1, 2)]
+
+
+def _reproduction_plan(
+    chosen: Preset, seed: int, doc: dict[str, Any], as_json: bool
+) -> dict[str, list[RunSpec]]:
+    """Every run of a preset, by section of the paper."""
+    dsn_sweep = dsn_exp.DsnSweep(
         learners=_reproduced_learners(chosen, doc, as_json),
         episodes=chosen.dsn_episodes,
         runs=chosen.dsn_runs,
         eval_episodes=chosen.dsn_eval_episodes,
         seed=seed,
     )
-    for case in (1, 2):
-        cases = rep.paper_sweep(case, chosen.repeated_runs, seed)
-        doc["repeated"].append(_run_repeated(cases, store, figures, workers, progress, console))
-    doc["dsn"] = _run_dsn(sweep, store, figures, workers, progress, console)
     contest = tour.Tournament(
         learners=_reproduced_tournament(chosen, doc, as_json),
         rounds=chosen.tournament_rounds,
@@ -536,21 +566,38 @@ def reproduce(
         eval_episodes=chosen.tournament_episodes,
         seed=seed,
     )
-    where = (store, figures, workers, progress)
-    doc["tournament"] = _run_tournament(contest, where, console)
-    doc["theorem1"] = [check_theorem1(n, m, 1.0, seed=seed).to_dict() for n, m in ((2, 2), (7, 5))]
-    portrait = plot_phase_portrait(figures / "theorem1-phase-T1.png", temperature=1.0, seed=seed)
-    doc["phase_portrait"] = str(portrait)
-    if console is None:
-        print(json.dumps(doc, indent=2))
-        return
-    for check in doc["theorem1"]:
-        report.theory_report(check, console)
-    report.say(console, f"phase portrait: {portrait}")
-    _where(store, figures, console)
+    table1, table2 = (sweep.specs() for sweep in _paper_sweeps(chosen, seed))
+    return {
+        "Table 1": table1,
+        "Table 2": table2,
+        "Tables 3-7": dsn_sweep.specs(),
+        "Figs. 6-7": contest.specs(),
+        "Theorem 1": theorem.specs(seed=seed),
+    }
+
+
+def _theorem_documents(
+    records: Sequence[RunRecord], figures: Path, console: Console | None
+) -> list[dict[str, Any]]:
+    """The stored Theorem 1 checks, with the phase portrait beside the 2-agent one."""
+    from cmarlcd.theory import plot_phase_portrait
+
+    docs = []
+    for rec in records:
+        doc = dict(rec.metrics)
+        if (doc["n_agents"], doc["n_optima"]) == (2, 2):
+            path = figures / f"theorem1-phase-T{doc['temperature']:g}.png"
+            doc["figure"] = str(plot_phase_portrait(path, doc["temperature"], rec.key.root_seed))
+        if console is not None:
+            report.theory_report(doc, console)
+        docs.append(doc)
+    return docs
 
 
 # ------------------------------------------------------------------------ report
+
+
+FORMATS = ("text", "markdown", "html", "json")
 
 
 @app.command("report")
@@ -562,34 +609,149 @@ def report_command(
     seed: Annotated[
         int | None, typer.Option(help="Only sweeps with this root seed.", show_default=False)
     ] = None,
+    output_format: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            help="text: tables on the terminal; markdown; html: one self-contained page "
+            "(figures inlined); json.",
+        ),
+    ] = "text",
+    output: Annotated[
+        Path | None,
+        typer.Option(help="Write the report to this file [default: stdout].", show_default=False),
+    ] = None,
     store: StoreOption = DEFAULT_STORE,
     figures: FiguresOption = DEFAULT_FIGURES,
-    as_json: JsonOption = False,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Same as --format json.", show_default=False)
+    ] = False,
 ) -> None:
-    """Re-render the tables and figures from the results store (computes nothing)."""
+    """Render every table and figure from the results store, beside the paper's values,
+    with the settings, code version and run count of each group (computes nothing)."""
     require(case in (None, 1, 2), "case", f"must be 1 or 2 (got {case})")
+    output_format = "json" if as_json else output_format
+    require(
+        output_format in FORMATS,
+        "format",
+        f"must be one of {', '.join(FORMATS)} (got {output_format!r})",
+    )
+    if output is not None:
+        require(not output.is_dir(), "output", f"{output} is a directory, not a file")
+        check_outputs(figures=output.parent)
     with ResultStore(store, create=False) as db:
         check_outputs(figures=figures)
-        repeated_groups = rep.stored_tables(db.records(rep.EXPERIMENT))
-        dsn_groups = _groups(db.records(dsn_exp.EXPERIMENT), episodic.protocol_key)
-        tournament_groups = _groups(db.records(tour.EXPERIMENT), tour.protocol_key)
-    console = _console(as_json)
-    docs: dict[str, list] = {"repeated": [], "dsn": [], "tournament": []}
-    for records in repeated_groups.values():
-        if case in (None, records[0].config["case"]) and seed in (None, records[0].key.root_seed):
-            docs["repeated"].append(report.repeated_report(records, figures, console))
-    for records in dsn_groups.values():
-        if case is None and seed in (None, records[0].key.root_seed):
-            docs["dsn"].append(report.dsn_report(dsn_exp.DSN_GAME, records, figures, console))
-    for records in tournament_groups.values():
-        if case is None and seed in (None, records[0].key.root_seed):
-            docs["tournament"].append(report.tournament_report(records, figures, console))
-    if as_json:
-        print(json.dumps({"store": str(store), **docs}, indent=2))
-    elif not any(docs.values()):
+        groups = _report_groups(db, case, seed)
+    if output_format == "text":
+        _text_report(groups, store, figures)
+        return
+    text = _document(groups, output_format, store, figures, output)
+    if output is None:
+        print(text)
+    else:
+        output.write_text(text + "\n", encoding="utf-8")
+        print(f"report: {output} ({len(groups)} sections from {store})", file=sys.stderr)
+
+
+Renderer = Callable[[Sequence[RunRecord], Path, Any], dict[str, Any]]
+
+
+def _report_groups(
+    db: ResultStore, case: int | None, seed: int | None
+) -> list[tuple[str, Renderer, list[RunRecord]]]:
+    """The stored groups of runs the filters keep, in the paper's order: (kind, renderer,
+    records)."""
+
+    def dsn(records: Sequence[RunRecord], figures: Path, out: Any) -> dict[str, Any]:
+        return report.dsn_report(dsn_exp.DSN_GAME, records, figures, out)
+
+    found: list[tuple[str, Renderer, list[RunRecord]]] = []
+    for records in rep.stored_tables(db.records(rep.EXPERIMENT)).values():
+        if case in (None, records[0].config["case"]):
+            found.append(("repeated", report.repeated_report, records))
+    if case is None:
+        kinds = (
+            ("dsn", dsn, dsn_exp.EXPERIMENT, episodic.protocol_key),
+            ("tournament", report.tournament_report, tour.EXPERIMENT, tour.protocol_key),
+            ("theorem1", _theorem_report, theorem.EXPERIMENT, _theorem_key),
+        )
+        for kind, render, experiment, key in kinds:
+            for records in _groups(db.records(experiment), key).values():
+                found.append((kind, render, records))
+    return [g for g in found if seed in (None, g[2][0].key.root_seed)]
+
+
+def _theorem_key(rec: RunRecord) -> tuple[str, int]:
+    return rec.key.config, rec.key.root_seed
+
+
+def _theorem_report(records: Sequence[RunRecord], figures: Path, out: Any) -> dict[str, Any]:
+    (doc,) = _theorem_documents(records, figures, out)
+    title, settings = report.theory_title(doc)
+    return {
+        **doc,
+        "title": title,
+        "settings": settings,
+        "versions": report.versions(records, out),
+    }
+
+
+def _text_report(
+    groups: list[tuple[str, Renderer, list[RunRecord]]], store: Path, figures: Path
+) -> None:
+    console = Console()
+    for _, render, records in groups:
+        render(records, figures, console)
+    if not groups:
         print(f"the store {store} holds no finished runs matching the filters")
     else:
         report.say(console, f"results: read from {store}, figures in {figures}/")
+
+
+def _document(
+    groups: list[tuple[str, Renderer, list[RunRecord]]],
+    output_format: str,
+    store: Path,
+    figures: Path,
+    output: Path | None,
+) -> str:
+    """The whole report in one format other than text."""
+    from collections import Counter
+
+    from cmarlcd import document
+
+    sections, docs = [], {"repeated": [], "dsn": [], "tournament": [], "theorem1": []}
+    for kind, render, records in groups:
+        recorder = document.Recorder()
+        doc = render(records, figures, recorder)
+        docs[kind].append({**doc, "runs": len(records)})
+        sections.append(
+            document.Section(
+                doc["title"],
+                doc["settings"],
+                Counter(doc["versions"]),
+                len(records),
+                recorder.blocks,
+            )
+        )
+    every = Counter()
+    for section in sections:
+        every.update(section.versions)
+    preamble = [
+        f"Results store: {store} ({sum(s.runs for s in sections)} runs in "
+        f"{len(sections)} groups); rendered by cmarl-cd {__version__}.",
+        "Our numbers come first; the paper's, where it reports them for the same "
+        "settings, follow in brackets.",
+    ]
+    warning = document.version_warning(every)
+    if warning is not None:
+        preamble.append(warning)
+    title = "CMARL-CD: reproduction report"
+    if output_format == "json":
+        return json.dumps({"store": str(store), "versions": dict(every), **docs}, indent=2)
+    if output_format == "markdown":
+        return document.render_markdown(title, preamble, sections, output)
+    return document.render_html(title, preamble, sections)
 
 
 def _groups(records: Iterable[Any], key: Callable[[Any], Any]) -> dict[Any, list]:
@@ -682,7 +844,7 @@ def theory(
     check_outputs(figures=figures)
     result = check_theorem1(agents, optima, temperature, starts=starts, seed=seed)
     doc = result.to_dict()
-    if agents == 2 and optima == 2:
+    if agents == 2 and optima == 2:  # the portrait is of this case only
         path = figures / f"theorem1-phase-T{temperature:g}.png"
         doc["figure"] = str(plot_phase_portrait(path, temperature=temperature, seed=seed))
     if as_json:

@@ -1,12 +1,15 @@
 """Parsing and checking what the user typed: option types, value parsers, clean failures.
 
 Every failure a user can cause ends in one line, ``error: --option: what is wrong``, and
-exit status 2, before anything is computed or written.
+exit status 2, before anything is computed or written; a disk that fills up or turns
+read-only while results are written ends the same way, keeping what was stored before.
 """
 
 from __future__ import annotations
 
+import errno
 import functools
+import importlib.util
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -14,6 +17,7 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 
+from cmarlcd.backends import BACKENDS
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.runner import SweepInterrupted
 from cmarlcd.store import check_output_directory, check_store
@@ -21,6 +25,8 @@ from cmarlcd.store import check_output_directory, check_store
 F = TypeVar("F", bound=Callable[..., Any])
 
 DEFAULT_FIGURES = Path("results") / "figures"
+#: The write failures a user's disk can cause, reported in one line.
+WRITE_ERRORS = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS}
 
 StoreOption = Annotated[Path, typer.Option("--store", help="SQLite results store.")]
 FiguresOption = Annotated[Path, typer.Option("--figures", help="Folder for PNG figures.")]
@@ -35,6 +41,23 @@ ProgressOption = Annotated[
     bool, typer.Option("--progress/--no-progress", help="Progress bar (on stderr).")
 ]
 SeedOption = Annotated[int, typer.Option(help="Root seed.")]
+BackendOption = Annotated[
+    str,
+    typer.Option(
+        "--backend",
+        help="Where runs are computed: process (local worker processes) or ray (a Ray "
+        "cluster; pip install 'cmarl-cd[ray]').",
+    ),
+]
+AddressOption = Annotated[
+    str | None,
+    typer.Option(
+        "--address",
+        help="Address of a running Ray cluster, e.g. ray://head:10001 [default: start a "
+        "local Ray on this machine].",
+        show_default=False,
+    ),
+]
 
 
 def fails_cleanly(command: F) -> F:
@@ -51,6 +74,14 @@ def fails_cleanly(command: F) -> F:
         except SweepInterrupted as err:
             print(str(err), file=sys.stderr)
             raise typer.Exit(130) from None
+        except OSError as err:  # writing a figure or a report: disk full, no permission
+            if err.errno not in WRITE_ERRORS:
+                raise
+            print(
+                f"error: cannot write {err.filename or 'the output'}: {err.strerror}",
+                file=sys.stderr,
+            )
+            raise typer.Exit(2) from None
 
     return wrapper  # type: ignore[return-value]
 
@@ -66,6 +97,22 @@ def check_outputs(store: Path | None = None, figures: Path | None = None) -> Non
 
 def check_workers(workers: int | None) -> None:
     require(workers is None or workers >= 1, "workers", f"must be >= 1 (got {workers})")
+
+
+def check_backend(backend: str, address: str | None) -> None:
+    """A known backend, an address only for Ray, and Ray installed when chosen (checked
+    without importing it)."""
+    require(
+        backend in BACKENDS, "backend", f"must be one of {', '.join(BACKENDS)} (got {backend!r})"
+    )
+    require(address is None or backend == "ray", "address", "needs --backend ray")
+    require(address is None or address.strip() != "", "address", "must not be empty")
+    if backend == "ray":
+        require(
+            importlib.util.find_spec("ray") is not None,
+            "backend",
+            "ray needs Ray: pip install 'cmarl-cd[ray]'",
+        )
 
 
 def parse_range(text: str, parameter: str, low: int, high: int) -> tuple[int, ...]:

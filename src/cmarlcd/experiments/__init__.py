@@ -3,12 +3,13 @@
 * :mod:`~.repeated` -- Section IV-C, Tables 1-2;
 * :mod:`~.episodic` -- learn then evaluate greedily, for any one-team game;
 * :mod:`~.sensor_network` -- Section V-A on the DSN, Tables 3-7 and Fig. 4;
-* :mod:`~.tournament` -- Section V-B, the blood battlefield tournament, Figs. 6-7.
+* :mod:`~.tournament` -- Section V-B, the blood battlefield tournament, Figs. 6-7;
+* :mod:`~.theorem` -- Section IV-B, the numerical check of Theorem 1.
 """
 
 from __future__ import annotations
 
-from cmarlcd.experiments import repeated, sensor_network, tournament
+from cmarlcd.experiments import repeated, sensor_network, theorem, tournament
 from cmarlcd.runs import Experiment
 
 _REGISTRY: dict[str, Experiment] = {}
@@ -25,7 +26,14 @@ def get_experiment(name: str) -> Experiment:
     return _REGISTRY[name]
 
 
-for _experiment in (repeated.REPEATED, sensor_network.DSN, tournament.TOURNAMENT):
+for _experiment in (repeated.REPEATED, sensor_network.DSN, tournament.TOURNAMENT, theorem.THEOREM1):
     register(_experiment)
 
-__all__ = ["get_experiment", "register", "repeated", "sensor_network", "tournament"]
+__all__ = [
+    "get_experiment",
+    "register",
+    "repeated",
+    "sensor_network",
+    "theorem",
+    "tournament",
+]

@@ -202,10 +202,11 @@ def _work(config: Mapping[str, Any]) -> float:
 
 
 def _cost(config: Mapping[str, Any]) -> float:
-    """[choice] A deep side costs about 20 tabular ones per episode (measured, see
+    """Estimated seconds of one match: about 6 µs per episode, and a deep side costs
+    about 20 tabular ones (fitted to the 6 x 500k tournament's stored wall times, see
     benchmarks/bench_battlefield.py): matches with deep sides start first."""
     deep = sum(name not in TABULAR for name in config["algorithms"])
-    return _work(config) * (1 + 20 * deep)
+    return 6e-6 * _work(config) * (1 + 20 * deep)
 
 
 def round_of(seed: np.random.SeedSequence) -> int:
