@@ -48,3 +48,16 @@ STORE_PROBLEMS = [
     "another program's",
     "unwritable",
 ]
+
+
+def fill_the_disk(monkeypatch, pages_left: int = 0) -> None:
+    """Every store opened from now on finds its disk full after ``pages_left`` more pages
+    (SQLite's own page limit: its writes then fail as on a full disk, SQLITE_FULL)."""
+    opened = ResultStore.__init__
+
+    def full(self, *args, **kwargs) -> None:
+        opened(self, *args, **kwargs)
+        pages = self._conn.execute("PRAGMA page_count").fetchone()[0]
+        self._conn.execute(f"PRAGMA max_page_count = {pages + pages_left}")
+
+    monkeypatch.setattr(ResultStore, "__init__", full)

@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 from cmarlcd import __version__
 from cmarlcd.cli import app, parse_range
 from cmarlcd.errors import ConfigError
+from cmarlcd.store import ResultStore
 from tests.helpers import STORE_PROBLEMS, not_a_store
 
 runner = CliRunner()
@@ -589,3 +590,173 @@ def test_tournament_deep_without_torch_names_the_extra(paths, monkeypatch) -> No
     result = invoke("tournament", "--rounds", "1", *where)
     assert_rejected_cleanly(result, "--algorithms", store, figures)
     assert "pip install 'cmarl-cd[deep]'" in result.stderr
+
+
+# ------------------------------------------------- backends, write failures, report
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["--backend", "spark"], "--backend"),
+        (["--address", "ray://head:10001"], "--address"),
+        (["--backend", "ray", "--address", " "], "--address"),
+    ],
+)
+def test_bad_backend_choices_fail_at_once(paths, args, option) -> None:
+    store, figures, where = paths
+    for command in ("repeated", "dsn", "tournament", "reproduce"):
+        result = invoke(command, *where, *args)
+        assert_rejected_cleanly(result, option, store, figures)
+
+
+def test_ray_backend_without_ray_names_the_extra(paths, monkeypatch) -> None:
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "ray" else real(name, *a)
+    )
+    store, figures, where = paths
+    result = invoke("repeated", "--runs", "1", "--backend", "ray", *where)
+    assert_rejected_cleanly(result, "--backend", store, figures)
+    assert "pip install 'cmarl-cd[ray]'" in result.stderr
+
+
+def small_repeated(where: list[str], runs: str = "2") -> object:
+    args = ("--agents", "2-3", "--actions", "2", "--runs", runs, "--no-progress")
+    return invoke("repeated", *args, *where)
+
+
+def test_a_full_disk_during_a_sweep_is_one_line_and_keeps_the_stored_runs(
+    paths, monkeypatch
+) -> None:
+    from tests.helpers import fill_the_disk
+
+    store, _, where = paths
+    assert small_repeated(where, "1").exit_code == 0
+    with ResultStore(store) as db:
+        before = [(r.key, r.metrics) for r in db.records()]
+    fill_the_disk(monkeypatch)
+    args = ("--agents", "2-4", "--actions", "2-3", "--runs", "40", "--no-progress")
+    result = invoke("repeated", *args, *where)
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: --store: cannot write"), result.stderr
+    assert "database or disk is full" in lines[0]
+    monkeypatch.undo()
+    with ResultStore(store) as db:  # the runs stored before (and until the disk filled)
+        after = [(r.key, r.metrics) for r in db.records()]
+        assert set(map(repr, before)) <= set(map(repr, after)) and len(after) < 6 * 40
+
+
+def test_a_full_disk_while_drawing_a_figure_is_one_line(paths, monkeypatch) -> None:
+    import errno
+
+    from cmarlcd import figures as figs
+
+    def no_space(fig, path):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(figs, "_save", no_space)
+    result = small_repeated(paths[2])
+    assert result.exit_code == 2
+    assert result.stderr.strip().startswith("error: cannot write ")
+    assert result.stderr.strip().endswith("No space left on device")
+
+
+def tiny_reproduction(paths, monkeypatch):
+    """``reproduce`` of a tiny preset into ``paths``; returns its JSON document."""
+    from cmarlcd.cli import commands as cli
+
+    tiny = cli.Preset(
+        repeated_runs=1,
+        dsn_runs=1,
+        dsn_eval_episodes=50,
+        dsn_episodes=(100,),
+        tournament_rounds=1,
+        tournament_episodes=20,
+    )
+    monkeypatch.setitem(cli.PRESETS, "quick", tiny)
+    result = invoke("reproduce", "--workers", "1", "--json", *paths[2])
+    assert result.exit_code == 0, result.output
+    return json.loads(result.stdout)
+
+
+SECTIONS = ("Table 1", "Table 2", "Tables 3-7", "Figs. 6-7", "Theorem 1")
+
+
+def test_reproduce_is_one_sweep_with_a_section_per_part_of_the_paper(paths, monkeypatch) -> None:
+    from cmarlcd.cli import progress
+
+    seen = {}
+    start = progress.RichSweepView.start
+
+    def record(self, sections):
+        seen["sections"] = [s.name for s in sections]
+        seen["cost"] = sum(s.cost for s in sections)
+        start(self, sections)
+
+    monkeypatch.setattr(progress.RichSweepView, "start", record)
+    doc = tiny_reproduction(paths, monkeypatch)
+    assert seen["sections"] == list(SECTIONS) and seen["cost"] > 0
+    assert doc["runs_computed"] > 0 and doc["runs_reused"] == 0
+    again = invoke("reproduce", "--workers", "1", "--json", *paths[2])
+    assert json.loads(again.stdout)["runs_computed"] == 0
+
+
+def test_report_renders_every_section_in_every_format(paths, monkeypatch, tmp_path) -> None:
+    store, figures, where = paths
+    tiny_reproduction(paths, monkeypatch)
+    markdown = tmp_path / "out" / "report.md"
+    result = invoke("report", *where, "--format", "markdown", "--output", str(markdown))
+    assert result.exit_code == 0, result.output
+    text = markdown.read_text()
+    for section in SECTIONS:
+        assert f"## {section}" in text
+    assert "(100)" in text  # the paper's value beside ours (Table 1: 100 %)
+    assert f"computed by cmarl-cd {__version__}" in text
+    assert "1 stored run" in text and "runs per cell" in text
+    for link in [line.split("](")[1][:-1] for line in text.splitlines() if line.startswith("![")]:
+        assert (markdown.parent / link).is_file(), link  # figures linked from the file's folder
+    html = invoke("report", *where, "--format", "html")
+    assert html.exit_code == 0
+    for section in SECTIONS:
+        assert f"<h2>{section}" in html.stdout
+    doc = json.loads(invoke("report", *where, "--format", "json").stdout)
+    assert {len(doc[k]) for k in ("repeated", "dsn", "tournament", "theorem1")} >= {1}
+    assert doc["versions"] == {__version__: sum(1 for _ in ResultStore(store).records())}
+
+
+def test_the_html_report_opens_with_no_other_file(paths, monkeypatch, tmp_path) -> None:
+    import re
+
+    tiny_reproduction(paths, monkeypatch)
+    page = tmp_path / "report.html"
+    assert invoke("report", *paths[2], "--format", "html", "--output", str(page)).exit_code == 0
+    html = page.read_text()
+    sources = re.findall(r'(?:src|href)="([^"]*)"', html)
+    assert sources and all(s.startswith("data:image/png;base64,") for s in sources)
+    assert "<link" not in html and "<script" not in html and "url(" not in html
+    figures = sorted(paths[1].glob("*.png"))
+    assert len(sources) == len(figures)  # every figure drawn is in the page
+
+
+def test_a_report_that_mixes_versions_says_so(paths) -> None:
+    store, _, where = paths
+    assert small_repeated(where).exit_code == 0
+    with ResultStore(store) as db:
+        db._conn.execute("UPDATE runs SET version = '0.0.1' WHERE run_index = 0")
+    text = invoke("report", *where)
+    assert "mix package versions (0.0.1, " in " ".join(text.stdout.split())
+    markdown = invoke("report", *where, "--format", "markdown").stdout
+    assert "mix package versions" in markdown and "0.0.1 (2 runs)" in markdown
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [(["--format", "pdf"], "--format"), (["--output", "."], "--output")],
+)
+def test_report_bad_format_or_output(paths, args, option) -> None:
+    _, _, where = paths
+    assert small_repeated(where).exit_code == 0
+    result = invoke("report", *where, *args)
+    assert result.exit_code == 2 and result.stderr.startswith(f"error: {option}:")

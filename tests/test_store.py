@@ -7,8 +7,8 @@ import sqlite3
 import pytest
 
 from cmarlcd.errors import ConfigError
-from cmarlcd.store import ResultStore, RunKey, canonical_json
-from tests.helpers import STORE_PROBLEMS, not_a_store
+from cmarlcd.store import ResultStore, RunKey, StoreWriteError, canonical_json
+from tests.helpers import STORE_PROBLEMS, fill_the_disk, not_a_store
 
 
 def key(index: int, config: str = '{"a":1}') -> RunKey:
@@ -78,3 +78,40 @@ def test_an_empty_file_and_a_killed_writer_s_store_open_fine(tmp_path) -> None:
     with ResultStore(path) as again:  # as after a kill -9 of the first writer
         assert again.count() == 1
     store.close()
+
+
+# ------------------------------------------------------------------ write failures
+
+
+def big_key(index: int) -> RunKey:
+    return key(index, canonical_json({"pad": "x" * 50_000}))
+
+
+@pytest.mark.parametrize(
+    ("fail", "words"),
+    [
+        ("full", "database or disk is full"),
+        ("read-only", "attempt to write a readonly database"),
+    ],
+)
+def test_a_failed_write_is_one_error_and_keeps_what_was_stored(
+    tmp_path, monkeypatch, fail, words
+) -> None:
+    path = tmp_path / "s.sqlite"
+    with ResultStore(path) as store:
+        store.put(key(0), {"v": 1}, 0.1, "x")
+    if fail == "full":
+        fill_the_disk(monkeypatch)
+    with ResultStore(path) as store:
+        if fail == "read-only":
+            store._conn.execute("PRAGMA query_only = 1")
+        with pytest.raises(StoreWriteError, match=words) as info:
+            store.put(big_key(1), {"v": 2}, 0.1, "x")
+        assert info.value.parameter == "store"
+        assert "the runs stored before are intact" in info.value.message
+        assert "\n" not in info.value.message
+    monkeypatch.undo()
+    with ResultStore(path) as store:
+        assert [(r.key, r.metrics) for r in store.records()] == [(key(0), {"v": 1})]
+        store.put(big_key(1), {"v": 2}, 0.1, "x")  # with room again, writes work again
+        assert store.count() == 2

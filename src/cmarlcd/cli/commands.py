@@ -649,6 +649,7 @@ def report_command(
     if output is None:
         print(text)
     else:
+        output.parent.mkdir(parents=True, exist_ok=True)
         output.write_text(text + "\n", encoding="utf-8")
         print(f"report: {output} ({len(groups)} sections from {store})", file=sys.stderr)
 

@@ -1,0 +1,45 @@
+"""A sweep of slow toy runs on a given store, for tests that start several sweeps at once.
+
+Usage: python tests/sleepy_sweep.py STORE RUNS SECONDS GO_FILE
+Waits until GO_FILE exists (so sweeps started together begin together), runs the sweep
+in this process and prints its tally as JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cmarlcd.experiments import register
+from cmarlcd.runner import run_sweep
+from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.store import ResultStore
+
+
+def slow_draw(config: dict, seed: np.random.SeedSequence) -> dict:
+    time.sleep(config["seconds"])
+    return {"value": float(np.random.default_rng(seed).random())}
+
+
+register(Experiment("sleepy", slow_draw))
+
+
+def specs(runs: int, seconds: float) -> list[RunSpec]:
+    return [RunSpec.make("sleepy", "alg", {"seconds": seconds}, 0, i) for i in range(runs)]
+
+
+def main() -> None:
+    store, runs, seconds, go = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+    while not Path(go).exists():
+        time.sleep(0.01)
+    with ResultStore(store) as db:
+        done = run_sweep(specs(runs, seconds), db, workers=1)
+    print(json.dumps({"computed": done.computed, "reused": done.reused, "shared": done.shared}))
+
+
+if __name__ == "__main__":
+    main()

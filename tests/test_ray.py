@@ -1,0 +1,77 @@
+"""The Ray backend: a local Ray of 2 CPUs stores exactly what local processes store."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import pytest
+
+from cmarlcd.experiments import repeated as rep
+from cmarlcd.experiments import theorem
+from cmarlcd.experiments.sensor_network import DsnSweep
+from cmarlcd.experiments.tournament import Tournament, battlefield_learners
+from cmarlcd.learners.coordination import RepeatedConfig
+from cmarlcd.registry import LEARNERS
+from cmarlcd.runner import run_sweep
+from cmarlcd.store import ResultStore
+
+ray = pytest.importorskip("ray")
+DEEP = importlib.util.find_spec("torch") is not None
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    """One local Ray for the module (starting one costs seconds); the sweeps join it."""
+    ray.init(num_cpus=2, include_dashboard=False, object_store_memory=80 * 1024**2)
+    yield
+    ray.shutdown()
+
+
+def without_timings(metrics: dict) -> dict:
+    return {k: v for k, v in metrics.items() if k != "seconds" and not k.endswith("_seconds")}
+
+
+def tiny_sweeps() -> dict[str, tuple[list, int]]:
+    """(specs, seed batch) of a tiny sweep of each experiment."""
+    dsn_learners = [LEARNERS["cmarl-cd"], *([LEARNERS["vdn"]] if DEEP else [])]
+    players = ["cmarl-cd", "la-oca", *(["vdn"] if DEEP else [])]
+    known = battlefield_learners()
+    return {
+        "repeated": (
+            rep.RepeatedSweep(1, (2, 3), (2,), 2, 0, RepeatedConfig()).specs(),
+            1,
+        ),
+        "dsn": (
+            DsnSweep(
+                learners=tuple(dsn_learners), episodes=(60,), runs=3, eval_episodes=20
+            ).specs(),
+            2,
+        ),
+        "tournament": (
+            Tournament(tuple(known[p] for p in players), 2, 30, 30, 0).specs(),
+            2,
+        ),
+        "theorem1": (theorem.specs(((2, 2),), starts=5), 1),
+    }
+
+
+@pytest.mark.parametrize("experiment", ["repeated", "dsn", "tournament", "theorem1"])
+def test_local_ray_stores_what_local_processes_store(local_ray, tmp_path, experiment) -> None:
+    specs, seed_batch = tiny_sweeps()[experiment]
+    stored = {}
+    for backend in ("process", "ray"):
+        with ResultStore(tmp_path / f"{backend}.sqlite") as store:
+            done = run_sweep(specs, store, workers=2, backend=backend, seed_batch=seed_batch)
+            assert done.computed == len(specs)
+            stored[backend] = {r.key: without_timings(r.metrics) for r in store.records()}
+            assert store.claims() == []
+    assert len(stored["ray"]) == len(specs)
+    assert stored["ray"] == stored["process"]
+
+
+def test_a_ray_sweep_resumes_from_the_store(local_ray, tmp_path) -> None:
+    specs, _ = tiny_sweeps()["repeated"]
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        run_sweep(specs[:3], store, workers=2, backend="ray")
+        done = run_sweep(specs, store, workers=2, backend="ray")
+    assert (done.reused, done.computed) == (3, len(specs) - 3)
