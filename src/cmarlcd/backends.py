@@ -1,10 +1,12 @@
 """Where runs are computed: in this process, in local worker processes, or on Ray.
 
-A backend takes *batches* (runs of one config, computed together when the experiment
-can batch them) tagged with a number, computes them somewhere, and hands back each
-batch's outcomes when asked (:meth:`Backend.poll`). Progress reported from inside a run
-(:func:`cmarlcd.progress.report_progress`) reaches the ``on_progress(tag, amount)``
-callback given to the backend. Only the caller writes to the store.
+A backend takes *tasks* tagged with a number, computes them somewhere, and hands back
+each task's outcomes when asked (:meth:`Backend.poll`). A task is a list of *batches*
+(runs of one config, computed together when the experiment can batch them): one long
+batch, or several short ones packed together so that each task is worth sending (a
+backend says how long a task should be, :attr:`Backend.task_seconds`). Progress reported
+from inside a run (:func:`cmarlcd.progress.report_progress`) reaches the
+``on_progress(tag, amount)`` callback given to the backend. Only the caller writes to the store.
 
 - :class:`InlineBackend`: this process, one batch at a time (``--workers 1``).
 - :class:`ProcessBackend`: a pool of forked local processes. A worker whose parent dies
@@ -36,6 +38,7 @@ from cmarlcd.runs import RunSpec
 
 Outcome = tuple[RunSpec, dict[str, Any], float]
 Finished = tuple[int, list[Outcome]]
+Task = list[list[RunSpec]]
 ProgressCallback = Callable[[int, float], None]
 
 #: The backends ``--backend`` accepts.
@@ -63,13 +66,18 @@ def execute_batch(specs: list[RunSpec]) -> list[Outcome]:
     return [(spec, metrics, seconds) for spec, metrics in zip(specs, results, strict=True)]
 
 
-def execute_reporting(tag: int, specs: list[RunSpec], put: Callable[[Any], None]) -> list[Outcome]:
-    """:func:`execute_batch`, sending ``(tag, amount)`` progress through ``put`` (at most
-    every 0.1 s) and flushing what is left when the batch ends."""
+def execute_task(task: Task) -> list[Outcome]:
+    """Every batch of a task, in turn."""
+    return [outcome for batch in task for outcome in execute_batch(batch)]
+
+
+def execute_reporting(tag: int, task: Task, put: Callable[[Any], None]) -> list[Outcome]:
+    """:func:`execute_task`, sending ``(tag, amount)`` progress through ``put`` (at most
+    every 0.1 s) and flushing what is left when the task ends."""
     sink = Throttled(lambda amount: put((tag, amount)))
     install_sink(sink)
     try:
-        return execute_batch(specs)
+        return execute_task(task)
     finally:
         sink.flush()
         install_sink(None)
@@ -87,10 +95,12 @@ class Backend(Protocol):
     """Computes tagged batches of runs."""
 
     capacity: int
-    """How many batches it should hold at once (queued or running)."""
+    """How many tasks it should hold at once (queued or running)."""
+    task_seconds: float
+    """Short batches are packed into tasks of about this many estimated seconds."""
 
-    def submit(self, tag: int, batch: list[RunSpec]) -> None:
-        """Start computing ``batch``."""
+    def submit(self, tag: int, task: Task) -> None:
+        """Start computing ``task``."""
 
     def poll(self, timeout: float) -> list[Finished]:
         """The batches finished since the last call, waiting up to ``timeout`` seconds
@@ -101,24 +111,25 @@ class Backend(Protocol):
 
 
 class InlineBackend:
-    """This process, one batch per :meth:`poll`."""
+    """This process, one task per :meth:`poll`."""
 
     capacity = 1
+    task_seconds = 0.0  # nothing to save by packing
 
     def __init__(self, on_progress: ProgressCallback) -> None:
         self.on_progress = on_progress
-        self.queue: deque[tuple[int, list[RunSpec]]] = deque()
+        self.queue: deque[tuple[int, Task]] = deque()
 
-    def submit(self, tag: int, batch: list[RunSpec]) -> None:
-        self.queue.append((tag, batch))
+    def submit(self, tag: int, task: Task) -> None:
+        self.queue.append((tag, task))
 
     def poll(self, timeout: float) -> list[Finished]:
         if not self.queue:
             time.sleep(timeout)
             return []
-        tag, batch = self.queue.popleft()
+        tag, task = self.queue.popleft()
         with progress_sink(lambda amount: self.on_progress(tag, amount)):
-            return [(tag, execute_batch(batch))]
+            return [(tag, execute_task(task))]
 
     def close(self, cancel: bool) -> None:
         self.queue.clear()
@@ -127,8 +138,8 @@ class InlineBackend:
 _progress_queue: Any = None
 
 
-def _execute_in_worker(tag: int, specs: list[RunSpec]) -> Finished:
-    return tag, execute_reporting(tag, specs, _progress_queue.put)
+def _execute_in_worker(tag: int, task: Task) -> Finished:
+    return tag, execute_reporting(tag, task, _progress_queue.put)
 
 
 def _worker_init(queue: Any, threads: int, parent: int) -> None:
@@ -161,6 +172,8 @@ class ProcessBackend:
     """A pool of ``workers`` local processes (forked where the system can), each with
     an equal share of the cores for its threads."""
 
+    task_seconds = 0.05  # a task costs a fraction of a millisecond to send
+
     def __init__(self, workers: int, on_progress: ProgressCallback) -> None:
         self.on_progress = on_progress
         self.capacity = 2 * workers  # one running and one queued per worker
@@ -176,8 +189,8 @@ class ProcessBackend:
         )
         self.pending: set[Future] = set()
 
-    def submit(self, tag: int, batch: list[RunSpec]) -> None:
-        self.pending.add(self.pool.submit(_execute_in_worker, tag, batch))
+    def submit(self, tag: int, task: Task) -> None:
+        self.pending.add(self.pool.submit(_execute_in_worker, tag, task))
 
     def poll(self, timeout: float) -> list[Finished]:
         if self.pending:

@@ -1,7 +1,8 @@
 """Runs on a Ray cluster (``--backend ray [--address ADDR]``; the ``[ray]`` extra).
 
 Each batch of runs (one run, or the seeds of a deep config stacked in one model) is one
-Ray task of one CPU. Results come back to the sweep's process, the store's one writer.
+Ray task of one CPU; short runs are packed into tasks of about :attr:`RayBackend.task_seconds`
+estimated seconds. Results come back to the sweep's process, the store's one writer.
 A task whose worker or node dies is retried by Ray (:data:`TASK_RETRIES` times); a run is
 stored once whatever happens, because the store keeps the first result of a key and the
 results are the same by seed. Progress from inside the runs reaches the driver through a
@@ -25,9 +26,8 @@ from collections.abc import Callable
 from typing import Any
 
 from cmarlcd import __version__
-from cmarlcd.backends import Finished, ProgressCallback, execute_reporting
+from cmarlcd.backends import Finished, ProgressCallback, Task, execute_reporting
 from cmarlcd.errors import ConfigError, require
-from cmarlcd.runs import RunSpec
 
 #: How many times Ray reruns a task whose worker process or node died.
 TASK_RETRIES = 3
@@ -48,8 +48,8 @@ def ray_module() -> Any:
     return ray
 
 
-def _compute(tag: int, specs: list[RunSpec], relay: Any, version: str) -> Finished:
-    """One task: the batch's outcomes, its progress sent to ``relay`` on the way."""
+def _compute(tag: int, task: Task, relay: Any, version: str) -> Finished:
+    """One task: its outcomes, its progress sent to ``relay`` on the way."""
     if version != __version__:
         raise RuntimeError(
             f"this Ray node runs cmarl-cd {__version__}, the sweep {version}: install "
@@ -62,7 +62,7 @@ def _compute(tag: int, specs: list[RunSpec], relay: Any, version: str) -> Finish
         torch.set_num_threads(1)
     except ImportError:
         pass
-    return tag, execute_reporting(tag, specs, lambda item: relay.add.remote(*item))
+    return tag, execute_reporting(tag, task, lambda item: relay.add.remote(*item))
 
 
 class _Relay:
@@ -82,6 +82,10 @@ class _Relay:
 class RayBackend:
     """Tasks on a Ray cluster: the one at ``address``, or a local one of ``workers``
     CPUs."""
+
+    #: [choice] A Ray task costs milliseconds to schedule and return: short runs go in
+    #: tasks of about a second (estimated), long ones (a deep seed batch) alone.
+    task_seconds = 1.0
 
     def __init__(
         self, workers: int | None, on_progress: ProgressCallback, address: str | None = None
@@ -113,8 +117,8 @@ class RayBackend:
             parameter = "address" if address else "backend"
             raise ConfigError(parameter, f"cannot start {where}: {first}") from None
 
-    def submit(self, tag: int, batch: list[RunSpec]) -> None:
-        ref = self.task.remote(tag, batch, self.relay, __version__)
+    def submit(self, tag: int, task: Task) -> None:
+        ref = self.task.remote(tag, task, self.relay, __version__)
         self.pending[ref] = tag
 
     def poll(self, timeout: float) -> list[Finished]:

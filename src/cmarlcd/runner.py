@@ -181,7 +181,7 @@ class _Sweep:
         todo = sorted((s for s in self.specs if s.key in missing), key=lambda s: -cost_of(s))
         self.result = SweepResult(total=len(self.specs), reused=len(self.specs) - len(todo))
         self.observer.start(self._sections(missing))
-        self.queue = deque(_batches(todo, seed_batch))
+        self.batches = _batches(todo, seed_batch)
         self.claim_timeout = claim_timeout
         start = time.perf_counter()
         backend = None
@@ -189,7 +189,8 @@ class _Sweep:
             if todo:
                 for name in {s.experiment for s in todo}:
                     get_experiment(name).warm_up()
-                backend = backend_factory(self._progress, len(self.queue))
+                backend = backend_factory(self._progress, len(self.batches))
+                self.queue = deque(self._tasks(backend.task_seconds))
                 with _Heartbeat(self.store.path, self.owner):
                     self._loop(backend)
         except KeyboardInterrupt:
@@ -241,20 +242,43 @@ class _Sweep:
                 self._check_waiting()
                 next_poll = time.monotonic() + WAIT_POLL_SECONDS
 
-    def _hand_out(self, backend: Any, batch: list[RunSpec]) -> None:
-        """Claim ``batch`` and give the backend the runs no one else holds."""
-        mine, theirs = self.store.claim([s.key for s in batch], self.owner, self.claim_timeout)
-        by_key = {s.key: s for s in batch}
+    def _tasks(self, task_seconds: float) -> list[list[list[RunSpec]]]:
+        """The batches, in order, with short batches of one section packed into tasks of
+        up to ``task_seconds`` estimated seconds."""
+        tasks: list[list[list[RunSpec]]] = []
+        seconds = 0.0
+        for batch in self.batches:
+            cost = sum(map(cost_of, batch))
+            if tasks and seconds + cost <= task_seconds and self._alike(tasks[-1][0], batch):
+                tasks[-1].append(batch)
+                seconds += cost
+            else:
+                tasks.append([batch])
+                seconds = cost
+        return tasks
+
+    def _alike(self, one: list[RunSpec], other: list[RunSpec]) -> bool:
+        """Batches of one experiment and section (one task reports to one section)."""
+        a, b = one[0], other[0]
+        return a.experiment == b.experiment and self.section(a) == self.section(b)
+
+    def _hand_out(self, backend: Any, task: list[list[RunSpec]]) -> None:
+        """Claim ``task``'s runs and give the backend those no one else holds."""
+        specs = [spec for batch in task for spec in batch]
+        mine, theirs = self.store.claim([s.key for s in specs], self.owner, self.claim_timeout)
+        by_key = {s.key: s for s in specs}
         for key in theirs:
             self.waiting[key] = by_key[key]
         for key in set(by_key) - set(mine) - set(theirs):  # stored meanwhile
             self._stored_elsewhere(by_key[key])
-        claimed = [by_key[key] for key in mine]
-        if claimed:
-            tag = len(self.tags)
-            self.tags[tag] = (self.section(claimed[0]), cost_of(claimed[0]) / work_of(claimed[0]))
-            self.inflight[tag] = claimed
-            backend.submit(tag, claimed)
+        claimed = set(mine)
+        kept = [[s for s in batch if s.key in claimed] for batch in task]
+        kept = [batch for batch in kept if batch]
+        if kept:
+            tag, first = len(self.tags), kept[0][0]
+            self.tags[tag] = (self.section(first), cost_of(first) / work_of(first))
+            self.inflight[tag] = [spec for batch in kept for spec in batch]
+            backend.submit(tag, kept)
 
     def _check_waiting(self) -> None:
         """Runs another sweep holds: count those it stored, take over the stale ones."""
@@ -266,7 +290,7 @@ class _Sweep:
                 continue
             spec = self.waiting.pop(key)
             if key in mine:  # its owner died: ours now
-                self.queue.append([spec])
+                self.queue.append([[spec]])
             else:
                 self._stored_elsewhere(spec)
 
