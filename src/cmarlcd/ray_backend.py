@@ -18,11 +18,13 @@ Ray is imported only here, and this module only when the backend is chosen.
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import logging
 import os
+import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from cmarlcd import __version__
@@ -63,6 +65,20 @@ def _compute(tag: int, task: Task, relay: Any, version: str) -> Finished:
     except ImportError:
         pass
     return tag, execute_reporting(tag, task, lambda item: relay.add.remote(*item))
+
+
+@contextlib.contextmanager
+def _silenced_stderr() -> Iterator[None]:
+    """Send what is written to file descriptor 2 (C++ logs included) nowhere."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "wb") as devnull:
+            os.dup2(devnull.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 class _Relay:
@@ -110,7 +126,8 @@ class RayBackend:
         if address is None:
             options.update(num_cpus=workers, object_store_memory=LOCAL_OBJECT_STORE_BYTES)
         try:
-            self.ray.init(address=address, **options)
+            with _silenced_stderr():  # Ray's C++ core logs each retry of a bad address
+                self.ray.init(address=address, **options)
         except (ConnectionError, RuntimeError, ValueError) as exc:
             where = f"the Ray cluster at {address}" if address else "a local Ray"
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__

@@ -180,16 +180,17 @@ class _Sweep:
         missing = set(self.store.missing(s.key for s in self.specs))
         todo = sorted((s for s in self.specs if s.key in missing), key=lambda s: -cost_of(s))
         self.result = SweepResult(total=len(self.specs), reused=len(self.specs) - len(todo))
-        self.observer.start(self._sections(missing))
         self.batches = _batches(todo, seed_batch)
         self.claim_timeout = claim_timeout
+        # connect first (a wrong Ray address fails before anything is shown); local
+        # workers start with the first task, after the warm-up they then inherit
+        backend = backend_factory(self._progress, len(self.batches)) if todo else None
+        self.observer.start(self._sections(missing))
         start = time.perf_counter()
-        backend = None
         try:
-            if todo:
+            if backend is not None:
                 for name in {s.experiment for s in todo}:
                     get_experiment(name).warm_up()
-                backend = backend_factory(self._progress, len(self.batches))
                 self.queue = deque(self._tasks(backend.task_seconds))
                 with _Heartbeat(self.store.path, self.owner):
                     self._loop(backend)
