@@ -287,7 +287,8 @@ def test_dsn_bad_input(paths, args, option) -> None:
     assert_rejected_cleanly(result, option, store, figures)
 
 
-def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
+def tiny_reproduction(paths, monkeypatch):
+    """``reproduce`` of a tiny preset into ``paths``; returns its JSON document."""
     from cmarlcd.cli import commands as cli
 
     tiny = cli.Preset(
@@ -299,10 +300,14 @@ def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
         tournament_episodes=20,
     )
     monkeypatch.setitem(cli.PRESETS, "quick", tiny)
-    _, figures, where = paths
-    result = invoke("reproduce", "--workers", "1", "--json", *where)
+    result = invoke("reproduce", "--workers", "1", "--json", *paths[2])
     assert result.exit_code == 0, result.output
-    doc = json.loads(result.stdout)
+    return json.loads(result.stdout)
+
+
+def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
+    _, figures, where = paths
+    doc = tiny_reproduction(paths, monkeypatch)
     assert [t["case"] for t in doc["repeated"]] == [1, 2]
     assert len(doc["repeated"][0]["cells"]) == 24 and len(doc["repeated"][1]["cells"]) == 12
     assert {r["algorithm"] for r in doc["dsn"]["rows"]} == {"cmarl-cd", "la-oca"}
@@ -663,24 +668,6 @@ def test_a_full_disk_while_drawing_a_figure_is_one_line(paths, monkeypatch) -> N
     assert result.stderr.strip().endswith("No space left on device")
 
 
-def tiny_reproduction(paths, monkeypatch):
-    """``reproduce`` of a tiny preset into ``paths``; returns its JSON document."""
-    from cmarlcd.cli import commands as cli
-
-    tiny = cli.Preset(
-        repeated_runs=1,
-        dsn_runs=1,
-        dsn_eval_episodes=50,
-        dsn_episodes=(100,),
-        tournament_rounds=1,
-        tournament_episodes=20,
-    )
-    monkeypatch.setitem(cli.PRESETS, "quick", tiny)
-    result = invoke("reproduce", "--workers", "1", "--json", *paths[2])
-    assert result.exit_code == 0, result.output
-    return json.loads(result.stdout)
-
-
 SECTIONS = ("Table 1", "Table 2", "Tables 3-7", "Figs. 6-7", "Theorem 1")
 
 
@@ -704,7 +691,7 @@ def test_reproduce_is_one_sweep_with_a_section_per_part_of_the_paper(paths, monk
 
 
 def test_report_renders_every_section_in_every_format(paths, monkeypatch, tmp_path) -> None:
-    store, figures, where = paths
+    store, _, where = paths
     tiny_reproduction(paths, monkeypatch)
     markdown = tmp_path / "out" / "report.md"
     result = invoke("report", *where, "--format", "markdown", "--output", str(markdown))
