@@ -2,10 +2,11 @@
 
 Runs a sweep once without interruption (the reference), then again into a second store,
 killing the sweep's process with SIGKILL (as an out-of-memory killer would; its workers
-must exit by themselves) at a random moment ``--kills`` times: after a random number of
-further runs are stored, plus a random fraction of a second, so kills land between and
-in the middle of runs. Each time it resumes with the same command; a resumed sweep that
-finishes before its kill is checked, and a new one started. Finally it lets it finish.
+must exit by themselves) at a random moment ``--kills`` times: once the resumed sweep
+has stored its first run, after a random part of the time the reference took from
+there to its last run, so kills land between and in the middle of runs. Each time it
+resumes with the same command; a resumed sweep that finishes before its kill is
+checked, and a new one started. Finally it lets it finish.
 It then checks that:
 
 - every run is stored exactly once (the stores hold the same keys, and as many rows as
@@ -77,17 +78,18 @@ def group_alive(pgid: int) -> bool:
     return True
 
 
-def kill_when(process: subprocess.Popen, store: Path, target: int, extra: float) -> bool:
+def kill_when(process: subprocess.Popen, store: Path, target: int, extra: float) -> int | None:
     """SIGKILL the sweep (its parent process only, as an OOM killer would) ``extra``
-    seconds after ``target`` runs are stored; False if it finished first. Its workers
-    must then exit by themselves."""
+    seconds after ``target`` runs are stored; the runs stored at that moment, or None if
+    it finished first. Its workers must then exit by themselves."""
     while process.poll() is None and stored(store) < target:
         time.sleep(0.02)
     try:
         process.wait(timeout=extra)
-        return False
+        return None
     except subprocess.TimeoutExpired:
         pass
+    at_kill = stored(store)
     os.kill(process.pid, signal.SIGKILL)
     process.wait()
     deadline = time.monotonic() + 10
@@ -96,7 +98,19 @@ def kill_when(process: subprocess.Popen, store: Path, target: int, extra: float)
     if group_alive(process.pid):
         os.killpg(process.pid, signal.SIGKILL)
         raise SystemExit("FAIL: a worker outlived its killed sweep by 10 s")
-    return True
+    return at_kill
+
+
+def timeline(process: subprocess.Popen, store: Path) -> list[float]:
+    """Seconds from the start of ``process`` to the moment its store held 1, 2, ... runs
+    (polled every 20 ms, until it exits)."""
+    began, times = time.perf_counter(), []
+    while process.poll() is None:
+        count = stored(store)
+        times += [time.perf_counter() - began] * (count - len(times))
+        time.sleep(0.02)
+    count = stored(store)
+    return times + [time.perf_counter() - began] * (count - len(times))
 
 
 def stored(path: Path) -> int:
@@ -153,26 +167,31 @@ def main(argv: list[str] | None = None) -> int:
 
     began = time.perf_counter()
     done = start(sweep_command(args.sweep, args.workers, reference, figures))
+    stored_at = timeline(done, reference)
     if done.wait() != 0:
         raise SystemExit(f"FAIL: the reference sweep failed: {done.stderr.read().decode()}")
     total = stored(reference)
-    print(f"reference: {total} runs in {time.perf_counter() - began:.1f} s")
+    print(f"reference: {total} runs in {time.perf_counter() - began:.1f} s, "
+          f"stored from {stored_at[0]:.1f} s to {stored_at[-1]:.1f} s")  # fmt: skip
 
     rng = random.Random(args.seed)
-    kills = attempts = chain = 0
+    kills = attempts = chain = late = 0
     failed = False
     command = sweep_command(args.sweep, args.workers, crashed, figures)
     while kills < args.kills:
         attempts += 1
-        # a random moment of the computation: after a random number of runs more are
-        # stored, and a random fraction of a second (often in the middle of a run)
+        # a random moment of the computation: once the resumed sweep stores its first
+        # run, a random part of the time the reference took from there to its last run
+        # (so kills land between and in the middle of runs, seed batches included)
         before = stored(crashed)
-        target, extra = rng.randint(min(before, total - 1), total - 1), rng.uniform(0.0, 1.0)
-        killed = kill_when(start(command), crashed, target, extra) if before < total else False
-        kills, chain = kills + killed, chain + killed
-        print(f"attempt {attempts}: {'killed' if killed else 'finished'} "
-              f"{extra:.2f} s after run {target}; {before} -> {stored(crashed)}/{total} "
-              "runs stored")  # fmt: skip
+        target = min(before + 1, total)
+        extra = rng.uniform(0.0, max(stored_at[-1] - stored_at[target - 1], 0.05))
+        at_kill = kill_when(start(command), crashed, target, extra) if before < total else None
+        killed = at_kill is not None
+        kills, chain, late = kills + killed, chain + killed, late + (at_kill == total)
+        moment = f"killed at {at_kill}/{total} stored" if killed else "finished"
+        print(f"attempt {attempts}: {moment} ({extra:.2f} s after run {target}); "
+              f"{before} -> {stored(crashed)}/{total} runs stored")  # fmt: skip
         if not killed:  # a resumed sweep finished: check it, then start a new one
             failed |= report(check(reference, crashed), chain, total)
             for suffix in ("", "-wal", "-shm"):
@@ -183,7 +202,9 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"FAIL: the final resume failed: {last.stderr.read().decode()}")
     print(f"resumed to the end: {stored(crashed)}/{total} runs stored")
     failed |= report(check(reference, crashed), chain, total)
-    print(f"{'FAIL' if failed else 'PASS'}: {kills} kills in {attempts + 1} attempts")
+    print(f"{'FAIL' if failed else 'PASS'}: {kills} kills in {attempts + 1} attempts "
+          f"({kills - late} with runs still to compute, {late} after the last run was "
+          "stored)")  # fmt: skip
     return 1 if failed else 0
 
 

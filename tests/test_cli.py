@@ -747,3 +747,14 @@ def test_report_bad_format_or_output(paths, args, option) -> None:
     assert small_repeated(where).exit_code == 0
     result = invoke("report", *where, *args)
     assert result.exit_code == 2 and result.stderr.startswith(f"error: {option}:")
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc")
+def test_a_report_that_cannot_be_written_is_one_line(paths) -> None:
+    """/proc takes no new file, even from root (for whom os.access says it could)."""
+    _, _, where = paths
+    assert small_repeated(where).exit_code == 0
+    result = invoke("report", *where, "--format", "html", "--output", "/proc/report.html")
+    assert result.exit_code == 2
+    assert result.stderr.startswith("error:") and "/proc" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1

@@ -74,13 +74,11 @@ def fails_cleanly(command: F) -> F:
         except SweepInterrupted as err:
             print(str(err), file=sys.stderr)
             raise typer.Exit(130) from None
-        except OSError as err:  # writing a figure or a report: disk full, no permission
-            if err.errno not in WRITE_ERRORS:
+        except OSError as err:  # a figure, a report or a store on a path that refuses it
+            if err.errno not in WRITE_ERRORS and err.filename is None:
                 raise
-            print(
-                f"error: cannot write {err.filename or 'the output'}: {err.strerror}",
-                file=sys.stderr,
-            )
+            action = "cannot write " if err.errno in WRITE_ERRORS else ""
+            print(f"error: {action}{err.filename or 'the output'}: {err.strerror}", file=sys.stderr)
             raise typer.Exit(2) from None
 
     return wrapper  # type: ignore[return-value]
