@@ -758,3 +758,38 @@ def test_a_report_that_cannot_be_written_is_one_line(paths) -> None:
     assert result.exit_code == 2
     assert result.stderr.startswith("error:") and "/proc" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+# ------------------------------------------------------------------------ compare
+
+
+def test_compare_end_to_end_json_then_resume(paths) -> None:
+    where = paths[2]
+    args = ["compare", "--learners", "cmarl-cd,fmq", "--games", "climbing,climbing-ps"]
+    first = invoke(*args, "--runs", "3", "--json", "--no-progress", *where)
+    assert first.exit_code == 0, first.stderr
+    doc = json.loads(first.stdout)
+    cells = {(c["learner"], c["game"]): c for c in doc["cells"]}
+    assert set(cells) == {(a, g) for a in ("cmarl-cd", "fmq") for g in ("climbing", "climbing-ps")}
+    for cell in cells.values():
+        assert cell["runs"] == 3 and 0.0 <= cell["optimal_rate"] <= 1.0
+        assert cell["median_games"] >= 0
+    assert doc["runs_computed"] == 12 and Path(doc["figure"]).is_file()
+    again = invoke(*args, "--runs", "3", "--no-progress", *where)
+    assert again.exit_code == 0 and "0 runs computed, 12 from the store" in again.stdout
+    assert "% of runs ending on an optimal joint action" in again.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["--learners", "sarsa"], "--learners"),
+        (["--games", "chess"], "--games"),
+        (["--runs", "0"], "--runs"),
+        (["--learners", ""], "--learners"),
+    ],
+)
+def test_compare_rejects_bad_input(paths, args, option) -> None:
+    store, figures, where = paths
+    result = invoke("compare", *args, *where)
+    assert_rejected_cleanly(result, option, store, figures)

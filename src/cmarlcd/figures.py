@@ -202,3 +202,28 @@ def tournament_bars(
     )
     fig.tight_layout()
     return _save(fig, path)
+
+
+def comparison_heatmap(
+    rates: np.ndarray, labels: Sequence[Sequence[str]], rows: Sequence[str],
+    columns: Sequence[str], title: str, path: Path,
+) -> Path:  # fmt: skip
+    """Learners (rows) × games (columns): % of runs ending on an optimal joint action,
+    coloured by it, each cell labelled (``labels``); NaN cells (not played) grey."""
+    plt = _pyplot()
+    from matplotlib.patheffects import withStroke
+
+    halo = [withStroke(linewidth=2.5, foreground="white")]
+    fig, ax = plt.subplots(figsize=(2.0 + 1.05 * len(columns), 1.4 + 0.5 * len(rows)))
+    cmap = plt.get_cmap("RdYlGn").copy()
+    cmap.set_bad("#dddddd")
+    image = ax.imshow(np.ma.masked_invalid(100 * rates), cmap=cmap, vmin=0, vmax=100, aspect="auto")
+    fig.colorbar(image, ax=ax, shrink=0.8, label="% of runs optimal")
+    ax.set_xticks(range(len(columns)), columns, rotation=35, ha="right", fontsize=8)
+    ax.set_yticks(range(len(rows)), rows, fontsize=9)
+    for r, row in enumerate(labels):
+        for c, text in enumerate(row):
+            ax.text(c, r, text, ha="center", va="center", fontsize=7.5, path_effects=halo)
+    ax.set_title(textwrap.fill(title, 95), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path)

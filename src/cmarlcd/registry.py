@@ -10,7 +10,7 @@ network settings), and any other setting is ``dataclasses.replace(default, ...)`
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, replace
+from dataclasses import asdict, fields, replace
 from typing import Any
 
 from cmarlcd.errors import require
@@ -20,6 +20,12 @@ from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.automata import AutomatonConfig
 from cmarlcd.learners.coordination import RepeatedConfig, StochasticConfig
 from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.learners.distributed_q import DistributedQConfig
+from cmarlcd.learners.fmq import FMQConfig
+from cmarlcd.learners.hysteretic import HystereticConfig
+from cmarlcd.learners.joint_action import JointActionConfig
+from cmarlcd.learners.lenient import LenientConfig
+from cmarlcd.learners.q_learning import IQLConfig
 from cmarlcd.learners.tabular import TabularConfig
 
 LearnerConfig = TabularConfig | DeepConfig
@@ -35,8 +41,30 @@ LEARNERS: dict[str, LearnerConfig] = {
     )
 }
 
-#: Learners for repeated games (Algorithm 1), by name, with the paper's settings.
-REPEATED_LEARNERS: dict[str, RepeatedConfig] = {RepeatedConfig.name: RepeatedConfig()}
+RepeatedLearnerConfig = (
+    RepeatedConfig
+    | IQLConfig
+    | DistributedQConfig
+    | HystereticConfig
+    | FMQConfig
+    | LenientConfig
+    | JointActionConfig
+)
+
+#: Learners for repeated games, by name, with their papers' settings: CMARL-CD
+#: (Algorithm 1) and the classic learners it is compared with (``cmarl-cd compare``).
+REPEATED_LEARNERS: dict[str, RepeatedLearnerConfig] = {
+    config.name: config
+    for config in (
+        RepeatedConfig(),
+        IQLConfig(),
+        DistributedQConfig(),
+        HystereticConfig(),
+        FMQConfig(),
+        LenientConfig(),
+        JointActionConfig(),
+    )
+}
 
 #: Games by name: each a function returning its spec.
 GAMES: dict[str, Callable[[], GameSpec]] = {
@@ -78,3 +106,20 @@ def display_name(name: str) -> str:
 def needs_torch(name: str) -> bool:
     """Whether learner ``name`` needs the ``[deep]`` extra (PyTorch)."""
     return isinstance(LEARNERS.get(name), DeepConfig)
+
+
+def repeated_learner_names() -> str:
+    return ", ".join(REPEATED_LEARNERS)
+
+
+def repeated_learner(name: str, settings: Mapping[str, Any] | None = None) -> RepeatedLearnerConfig:
+    """Repeated-game learner ``name`` with those of ``settings`` that are its fields (the
+    others keep its defaults), or a one-line error listing the known ones."""
+    require(
+        name in REPEATED_LEARNERS,
+        "learners",
+        f"unknown {name!r}; available: {repeated_learner_names()}",
+    )
+    default = REPEATED_LEARNERS[name]
+    own = {f.name for f in fields(default)}
+    return replace(default, **{k: v for k, v in (settings or {}).items() if k in own})

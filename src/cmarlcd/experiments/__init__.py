@@ -4,12 +4,13 @@
 * :mod:`~.episodic` -- learn then evaluate greedily, for any one-team game;
 * :mod:`~.sensor_network` -- Section V-A on the DSN, Tables 3-7 and Fig. 4;
 * :mod:`~.tournament` -- Section V-B, the blood battlefield tournament, Figs. 6-7;
-* :mod:`~.theorem` -- Section IV-B, the numerical check of Theorem 1.
+* :mod:`~.theorem` -- Section IV-B, the numerical check of Theorem 1;
+* :mod:`~.compare` -- beyond the paper: CMARL-CD against the classic independent learners.
 """
 
 from __future__ import annotations
 
-from cmarlcd.experiments import repeated, sensor_network, theorem, tournament
+from cmarlcd.experiments import compare, repeated, sensor_network, theorem, tournament
 from cmarlcd.runs import Experiment
 
 _REGISTRY: dict[str, Experiment] = {}
@@ -26,10 +27,17 @@ def get_experiment(name: str) -> Experiment:
     return _REGISTRY[name]
 
 
-for _experiment in (repeated.REPEATED, sensor_network.DSN, tournament.TOURNAMENT, theorem.THEOREM1):
+for _experiment in (
+    repeated.REPEATED,
+    sensor_network.DSN,
+    tournament.TOURNAMENT,
+    theorem.THEOREM1,
+    compare.COMPARE,
+):
     register(_experiment)
 
 __all__ = [
+    "compare",
     "get_experiment",
     "register",
     "repeated",

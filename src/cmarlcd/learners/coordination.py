@@ -36,7 +36,12 @@ from cmarlcd.learners.max_return import (
     check_gamma_tolerance,
     visit,
 )
-from cmarlcd.learners.policy import greedy_action, sample_from_strategies, sample_joint_action
+from cmarlcd.learners.policy import (
+    greedy_action,
+    sample_from_strategies,
+    sample_joint_action,
+    softmax_strategy,
+)
 from cmarlcd.learners.tabular import (
     RepeatedKernels,
     TabularConfig,
@@ -45,23 +50,6 @@ from cmarlcd.learners.tabular import (
 )
 
 # --------------------------------------------------------------------------- rules
-
-
-@njit(cache=True)
-def softmax_strategy(
-    c_row: np.ndarray, legal_row: np.ndarray, count: int, temperature: float, p_row: np.ndarray
-) -> None:
-    """Eqs. (5) and (17): ``p = softmax(c / T)`` over the legal actions (others get 0)."""
-    top = -np.inf
-    for a in range(count):
-        if legal_row[a]:
-            top = max(top, c_row[a])
-    total = 0.0
-    for a in range(count):
-        p_row[a] = np.exp((c_row[a] - top) / temperature) if legal_row[a] else 0.0
-        total += p_row[a]
-    for a in range(count):
-        p_row[a] /= total
 
 
 @njit(cache=True)

@@ -49,6 +49,24 @@ def sample_from_strategies(
 
 
 @njit(cache=True)
+def softmax_strategy(
+    c_row: np.ndarray, legal_row: np.ndarray, count: int, temperature: float, p_row: np.ndarray
+) -> None:
+    """``p = softmax(c / T)`` over the legal actions (others get 0): CMARL-CD's eqs. (5)
+    and (17), and the Boltzmann exploration of the classic learners."""
+    top = -np.inf
+    for a in range(count):
+        if legal_row[a]:
+            top = max(top, c_row[a])
+    total = 0.0
+    for a in range(count):
+        p_row[a] = np.exp((c_row[a] - top) / temperature) if legal_row[a] else 0.0
+        total += p_row[a]
+    for a in range(count):
+        p_row[a] /= total
+
+
+@njit(cache=True)
 def greedy_action(values_row: np.ndarray, legal_row: np.ndarray, count: int) -> int:
     """``argmax`` of ``values_row`` over the legal actions, lowest index on ties."""
     best = -1

@@ -1,9 +1,11 @@
-"""Algorithm 1's run on a repeated game: play until the learner has converged.
+"""Runs on a repeated game: play until the learner has converged (Algorithm 1), or for a
+budget of games while watching the greedy joint action (the learner comparison).
 
-:func:`play_until_converged` is a template (:mod:`cmarlcd.compiled`): ``game``
-is bound to a game's kernels (in practice a matrix game's, :mod:`cmarlcd.games.matrix`)
-and ``learner`` to a repeated-game learner's (:class:`cmarlcd.learners.tabular.RepeatedKernels`).
-:func:`fit` runs it for a learner object such as :class:`cmarlcd.learners.CMARLCD`.
+:func:`play_until_converged` and :func:`play_watching_greedy` are templates
+(:mod:`cmarlcd.compiled`): ``game`` is bound to a game's kernels (a matrix game's,
+:mod:`cmarlcd.games.matrix`) and ``learner`` to a repeated-game learner's
+(:class:`cmarlcd.learners.tabular.RepeatedKernels`). :func:`fit` runs the first for a
+learner object such as :class:`cmarlcd.learners.CMARLCD`.
 """
 
 from __future__ import annotations
@@ -34,6 +36,38 @@ def play_until_converged(env, tables, params, counts, max_games, rng) -> tuple[i
         ):
             return played + 1, True
     return max_games, False
+
+
+def play_watching_greedy(
+    env, tables, params, counts, max_games, env_rng, rng, greedy
+) -> tuple[int, bool, int]:
+    """Template: like :func:`play_until_converged`, with the game's draws from ``env_rng``
+    and the greedy joint action watched: ``greedy`` holds it throughout. Returns
+    ``(games_played, converged, settled)``, ``settled`` being the games played when the
+    greedy joint action last changed (0 if it never did): from then on it stayed.
+
+    For learners without a stopping rule (``converged`` always False) this plays
+    ``max_games`` games."""
+    n_agents = counts.shape[0]
+    joint = np.zeros(n_agents, dtype=np.int64)
+    candidate = np.zeros(n_agents, dtype=np.int64)
+    rewards = np.zeros(1)
+    learner.greedy(tables, counts, greedy)
+    settled = 0
+    for played in range(max_games):
+        learner.act(tables, params, counts, rng, joint)
+        game.step(env, joint, env_rng, rewards)
+        if not learner.learn(tables, params, counts, joint, rewards[0]):
+            continue
+        learner.greedy(tables, counts, candidate)
+        for i in range(n_agents):
+            if candidate[i] != greedy[i]:
+                greedy[:] = candidate
+                settled = played + 1
+                break
+        if learner.converged(tables, params, counts):
+            return played + 1, True, settled
+    return max_games, False, settled
 
 
 @dataclass(frozen=True)

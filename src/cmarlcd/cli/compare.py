@@ -1,0 +1,85 @@
+"""``cmarl-cd compare``: CMARL-CD against the classic independent learners (beyond the
+paper; :mod:`cmarlcd.experiments.compare`)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+
+from cmarlcd import registry
+from cmarlcd.cli.commands import Execution, _print_results, _run_counts, _sweep, app
+from cmarlcd.cli.options import (
+    DEFAULT_FIGURES,
+    AddressOption,
+    BackendOption,
+    FiguresOption,
+    JsonOption,
+    ProgressOption,
+    SeedOption,
+    StoreOption,
+    WorkersOption,
+    fails_cleanly,
+    parse_names,
+)
+from cmarlcd.compare_report import compare_report
+from cmarlcd.experiments import compare as cmp
+from cmarlcd.store import DEFAULT_STORE
+
+
+def comparison(learners: str, games: str, runs: int, seed: int) -> cmp.Comparison:
+    """The comparison the options ask for (each learner with its paper's defaults)."""
+    return cmp.Comparison(
+        learners=tuple(registry.repeated_learner(n) for n in parse_names(learners, "learners")),
+        games=parse_names(games, "games"),
+        runs=runs,
+        seed=seed,
+    )
+
+
+def run_comparison(
+    sweep: cmp.Comparison, run: Execution, console: Console | None
+) -> dict[str, Any]:
+    """Run (or resume) a comparison and report it; return its JSON document."""
+    records, done = _sweep(sweep.specs(), run, "compare")
+    doc = compare_report(records, run.figures, console)
+    skipped = [{"learner": learner, "game": game} for learner, game in sweep.skipped()]
+    if skipped and console is not None:
+        pairs = ", ".join(f"{s['learner']} on {s['game']}" for s in skipped)
+        console.print(
+            f"not played (joint action space over {cmp.joint_action.MAX_JOINT_ACTIONS:,} "
+            f"at some sizes): {pairs}",
+            soft_wrap=True,
+        )
+    return {**doc, "skipped": skipped, **_run_counts(done, run.store, console)}
+
+
+@app.command(short_help="Beyond the paper: CMARL-CD against the classic independent learners.")
+@fails_cleanly
+def compare(
+    learners: Annotated[
+        str, typer.Option(help=f"Comma list of {registry.repeated_learner_names()}.")
+    ] = ",".join(registry.REPEATED_LEARNERS),
+    games: Annotated[str, typer.Option(help=f"Comma list of {', '.join(cmp.GAMES)}.")] = ",".join(
+        cmp.GAMES
+    ),
+    runs: Annotated[
+        int, typer.Option(help="Runs per learner and game (random games: per size).")
+    ] = cmp.DEFAULT_RUNS,
+    seed: SeedOption = 0,
+    workers: WorkersOption = None,
+    backend: BackendOption = "process",
+    address: AddressOption = None,
+    as_json: JsonOption = False,
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    progress: ProgressOption = True,
+) -> None:
+    """Every learner on every game, many seeds: % of runs ending on an optimal joint
+    action and the games until the greedy joint action settled, a table and a heatmap
+    (stored and resumable like every experiment)."""
+    sweep = comparison(learners, games, runs, seed)
+    run = Execution(store, figures, workers, progress, backend, address)
+    run.check()
+    _print_results(as_json, run, lambda console: run_comparison(sweep, run, console))

@@ -1,0 +1,133 @@
+"""The report of ``cmarl-cd compare``: learners × games, its heatmap and its JSON."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rich import box
+from rich.table import Table
+
+from cmarlcd import registry
+from cmarlcd.experiments import compare
+from cmarlcd.experiments.compare import CompareCell
+from cmarlcd.report import Output, figure_line, figure_name, percent, show, versions
+from cmarlcd.store import RunRecord
+
+TITLE = "CMARL-CD and the classic independent learners on repeated games"
+
+
+def _display(learner: str) -> str:
+    config = registry.REPEATED_LEARNERS.get(learner)
+    return config.display_name if config is not None else learner
+
+
+def _cell_text(cell: CompareCell | None) -> str:
+    if cell is None:
+        return "—"
+    return f"{percent(cell.optimal_rate)} % · {cell.median_games:,.0f}"
+
+
+def _games(games: float) -> str:
+    """``812`` -> ``"812"``, ``4975`` -> ``"5.0k"``, ``16040`` -> ``"16k"``: narrow
+    enough for ten columns."""
+    if games < 1000:
+        return f"{games:.0f}"
+    return f"{games / 1000:.1f}k" if games < 10_000 else f"{games / 1000:,.0f}k"
+
+
+def _grid(cells: Sequence[CompareCell]) -> tuple[list[str], list[str], dict]:
+    learners = list(dict.fromkeys(c.learner for c in cells))
+    games = [g for g in compare.GAMES if any(c.game == g for c in cells)]
+    return learners, games, {(c.learner, c.game): c for c in cells}
+
+
+def comparison_tables(cells: Sequence[CompareCell], caption: str) -> list[Table]:
+    """Two tables, learners × games: % of runs ending on an optimal joint action, and
+    the median games until the greedy joint action settled."""
+    learners, games, at = _grid(cells)
+    tables = []
+    for what, value in (
+        ("% of runs ending on an optimal joint action", lambda c: f"{100 * c.optimal_rate:.0f}"),
+        ("median games until the greedy joint action settled", lambda c: _games(c.median_games)),
+    ):
+        table = Table(
+            title=f"{TITLE}: {what}",
+            caption=caption,
+            box=box.SIMPLE_HEAD,
+            padding=(0, 1),
+            pad_edge=False,
+            show_edge=False,
+        )
+        table.add_column("learner", no_wrap=True)
+        for game in games:
+            table.add_column(compare.GAMES[game].short, justify="right", no_wrap=True)
+        for learner in learners:
+            row = [at.get((learner, g)) for g in games]
+            table.add_row(_display(learner), *("—" if c is None else value(c) for c in row))
+        tables.append(table)
+    return tables
+
+
+def runs_text(records: Sequence[RunRecord]) -> str:
+    """``"50 runs per learner and game (random games: per size), seed 0"``."""
+    runs: dict[tuple, int] = {}
+    for rec in records:
+        config = rec.config
+        key = (rec.key.algorithm, config["game"], config.get("agents"), config.get("actions"))
+        runs[key] = runs.get(key, 0) + 1
+    low, high = min(runs.values()), max(runs.values())
+    per = f"{low}" if low == high else f"{low}-{high}"
+    seed = records[0].key.root_seed
+    return f"{per} runs per learner and game (random games: per size), seed {seed}"
+
+
+def settings_text(records: Sequence[RunRecord]) -> str:
+    """The comparison's settings and what its column names mean."""
+    return (
+        "climb: climbing game; k: penalty game; PS, FS: partially, fully stochastic "
+        "climbing game; case1, case2: random games of Tables 1, 2 (all sizes); "
+        f"{runs_text(records)}; budget max({compare.MIN_GAMES:,}, "
+        f"{compare.GAMES_PER_JOINT_ACTION} × joint actions) games"
+    )
+
+
+def compare_report(
+    records: Sequence[RunRecord], figures: Path, console: Output | None
+) -> dict[str, Any]:
+    """The comparison table and heatmap from the stored runs of one comparison."""
+    from cmarlcd import figures as figs
+
+    cells = compare.summarize(records)
+    learners, games, at = _grid(cells)
+    settings = settings_text(records)
+    rates = np.array(
+        [[at[(lr, g)].optimal_rate if (lr, g) in at else np.nan for g in games] for lr in learners]
+    )
+    labels = [[_cell_text(at.get((lr, g))).replace(" · ", "\n") for g in games] for lr in learners]
+    seed = records[0].key.root_seed
+    name = figure_name(f"compare-seed{seed}", sorted({r.key.config for r in records}))
+    path = figs.comparison_heatmap(
+        rates,
+        labels,
+        [_display(lr) for lr in learners],
+        [compare.GAMES[g].short for g in games],
+        f"% of runs ending on an optimal joint action (top) and median games until the "
+        f"greedy joint action settled (bottom); {runs_text(records)}",
+        figures / name,
+    )
+    if console is not None:
+        for table in comparison_tables(cells, settings):
+            show(console, table)
+        figure_line(console, path, f"comparison heatmap, {runs_text(records)}")
+    return {
+        "experiment": compare.EXPERIMENT,
+        "title": TITLE,
+        "settings": settings,
+        "versions": versions(records, console),
+        "seed": seed,
+        "figure": str(path),
+        "cells": [c.to_dict() for c in cells],
+    }

@@ -1,0 +1,319 @@
+"""Beyond the paper: CMARL-CD against the classic independent learners on the repeated
+games that made their names.
+
+Each run plays one learner on one game for a budget of games and records whether the
+greedy joint action it ends on is optimal (by expected payoff, for stochastic payoffs)
+and when that greedy joint action last changed (*settled*). The games are the climbing
+game, the penalty game for several ``k``, the partially and fully stochastic climbing
+games (Kapetanakis & Kudenko 2002), and the random games of Tables 1-2 at their sizes
+(a fresh game per run; every learner meets the same games: runs' seeds do not depend on
+the learner).
+
+[choice] Every learner gets the same budget, ``max(MIN_GAMES, GAMES_PER_JOINT_ACTION ·
+|A|)`` games for ``|A|`` joint actions; CMARL-CD stops earlier when its strategies are
+pure (its own stopping rule), the classic learners play the whole budget. The classic
+learners keep their papers' exploration schedules, which were tuned on 3 × 3 games.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections import defaultdict
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass
+from itertools import product
+from typing import Any
+
+import numpy as np
+
+from cmarlcd import registry
+from cmarlcd.compiled import specialise
+from cmarlcd.errors import require
+from cmarlcd.experiments.repeated import PAPER_ACTIONS, PAPER_AGENTS
+from cmarlcd.games.matrix import MatrixGame, climbing_game, penalty_game, random_game
+from cmarlcd.games.matrix.stochastic import (
+    StochasticMatrixGame,
+    fully_stochastic_climbing_game,
+    partially_stochastic_climbing_game,
+)
+from cmarlcd.learners import joint_action
+from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.store import RunRecord
+from cmarlcd.training.repeated import play_watching_greedy
+
+EXPERIMENT = "compare"
+#: [choice] The budget of games of a run: at least this many ...
+MIN_GAMES = 5_000
+#: ... and this many per joint action of the game.
+GAMES_PER_JOINT_ACTION = 10
+DEFAULT_RUNS = 50
+
+Game = MatrixGame | StochasticMatrixGame
+Size = tuple[int, int]
+
+
+@dataclass(frozen=True)
+class CompareGame:
+    """A column of the comparison.
+
+    Attributes:
+        name: its name on the command line and in the store.
+        title: what it is, in words (figures, JSON).
+        short: its column header in tables.
+        sizes: the (agents, actions) of its random games; empty for a fixed game.
+        make: the game of one run, from the run's config and a generator.
+    """
+
+    name: str
+    title: str
+    short: str
+    make: Callable[[Mapping[str, Any], np.random.Generator], Game]
+    sizes: tuple[Size, ...] = ()
+
+    def joint_actions(self, size: Size | None) -> int:
+        if size is None:
+            return math.prod(self.make({}, np.random.default_rng(0)).action_counts)
+        agents, actions = size
+        return actions**agents
+
+
+def _fixed(name: str, title: str, short: str, make: Callable[[], Game]) -> CompareGame:
+    return CompareGame(name, title, short, lambda config, rng: make())
+
+
+def _penalty(k: int) -> CompareGame:
+    name = f"penalty{k}" if k else "penalty-0"
+    return _fixed(name, f"penalty k={k}", f"k={k}", lambda: penalty_game(k))
+
+
+def _random(case: int) -> CompareGame:
+    sizes = tuple(product(PAPER_AGENTS[case], PAPER_ACTIONS[case]))
+
+    def make(config: Mapping[str, Any], rng: np.random.Generator) -> Game:
+        return random_game(case, config["agents"], config["actions"], rng)
+
+    return CompareGame(
+        f"case{case}", f"case {case} (Table {case} sizes)", f"case{case}", make, sizes
+    )
+
+
+#: The games of the comparison, in column order.
+GAMES: dict[str, CompareGame] = {
+    game.name: game
+    for game in (
+        _fixed("climbing", "climbing", "climb", climbing_game),
+        *(_penalty(k) for k in (0, -10, -50, -100)),
+        _fixed(
+            "climbing-ps",
+            "climbing, partially stochastic",
+            "PS",
+            partially_stochastic_climbing_game,
+        ),
+        _fixed("climbing-fs", "climbing, fully stochastic", "FS", fully_stochastic_climbing_game),
+        _random(1),
+        _random(2),
+    )
+}
+
+
+def budget(joint_actions: int) -> int:
+    """The games of one run on a game of ``joint_actions`` joint actions."""
+    return max(MIN_GAMES, GAMES_PER_JOINT_ACTION * joint_actions)
+
+
+def plays(learner: str, joint_actions: int) -> bool:
+    """Whether ``learner`` plays a game that size (JAL only small ones)."""
+    return learner != joint_action.JointActionConfig.name or (
+        joint_actions <= joint_action.MAX_JOINT_ACTIONS
+    )
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Learners × games × runs (random games: runs per size)."""
+
+    learners: tuple[Any, ...]
+    games: tuple[str, ...]
+    runs: int = DEFAULT_RUNS
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        require(len(self.learners) > 0, "learners", "needs at least one learner")
+        names = [config.name for config in self.learners]
+        require(len(set(names)) == len(names), "learners", f"each at most once (got {names})")
+        require(len(self.games) > 0, "games", "needs at least one game")
+        for name in self.games:
+            require(name in GAMES, "games", f"unknown {name!r}; available: {', '.join(GAMES)}")
+        require(len(set(self.games)) == len(self.games), "games", "each at most once")
+        require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
+        require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
+
+    def cells(self) -> list[tuple[Any, dict[str, Any]]]:
+        """(learner, config) of every cell the learner plays."""
+        out = []
+        for name in self.games:
+            game = GAMES[name]
+            for size in game.sizes or (None,):
+                joint_actions = game.joint_actions(size)
+                where = {} if size is None else {"agents": size[0], "actions": size[1]}
+                for learner in self.learners:
+                    if not plays(learner.name, joint_actions):
+                        continue
+                    config = {
+                        "game": name,
+                        **where,
+                        "budget": budget(joint_actions),
+                        "learner": learner.name,
+                        **asdict(learner),
+                    }
+                    out.append((learner, config))
+        return out
+
+    def specs(self) -> list[RunSpec]:
+        return [
+            RunSpec.make(EXPERIMENT, learner.name, config, self.seed, r)
+            for learner, config in self.cells()
+            for r in range(self.runs)
+        ]
+
+    def skipped(self) -> list[tuple[str, str]]:
+        """(learner, game) pairs with sizes the learner does not play."""
+        out = []
+        for name in self.games:
+            game = GAMES[name]
+            for learner in self.learners:
+                if not all(
+                    plays(learner.name, game.joint_actions(s)) for s in game.sizes or (None,)
+                ):
+                    out.append((learner.name, name))
+        return out
+
+
+def learner_of(config: Mapping[str, Any]) -> Any:
+    """The learner config stored in a run's config."""
+    return registry.repeated_learner(config["learner"], config)
+
+
+def run_compare(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+    """One run: the game (fresh if random), the learner, the budget; the greedy joint
+    action's optimality and the game it settled at."""
+    game_seed, env_seed, learner_seed = seed.spawn(3)
+    game = GAMES[config["game"]].make(config, np.random.default_rng(game_seed))
+    learner = learner_of(config)
+    spec = game.spec()
+    counts = spec.action_counts.copy()
+    greedy = np.zeros(counts.shape[0], dtype=np.int64)
+    loop = specialise(play_watching_greedy, game=spec.kernels, learner=learner.kernels)
+    games, converged, settled = loop(
+        game.new_env(),
+        learner.new_tables(counts),
+        learner.params(),
+        counts,
+        int(config["budget"]),
+        np.random.default_rng(env_seed),
+        np.random.default_rng(learner_seed),
+        greedy,
+    )
+    joint = tuple(int(a) for a in greedy)
+    return {
+        "optimal": bool(game.is_optimal(joint)),
+        "greedy_payoff": game.payoff(joint),
+        "max_payoff": game.max_payoff,
+        "games": int(games),
+        "settled": int(settled),
+        "converged": bool(converged),
+    }
+
+
+def _warm_up() -> None:
+    """Compile every learner's loop on deterministic and stochastic payoffs (a few games
+    each)."""
+    for game in ("climbing", "climbing-ps"):
+        for name in registry.REPEATED_LEARNERS:
+            config = {"game": game, "budget": 10, "learner": name}
+            run_compare(config, np.random.SeedSequence(0))
+
+
+#: Estimated seconds per game and agent-action of each learner (measured on this
+#: project's 2-core machine; CMARL-CD usually stops long before its budget), and JAL's
+#: per game, agent and joint action (it sums over the joint actions every game).
+SECONDS_PER_GAME_ACTION = {
+    "cmarl-cd": 1e-9,
+    "iql": 2e-8,
+    "hysteretic": 2e-8,
+    "fmq": 2.2e-8,
+    "lenient": 5e-9,
+    "distributed-q": 2e-9,
+}
+JAL_SECONDS_PER_JOINT_ACTION = 2e-9
+
+
+def _cost(config: Mapping[str, Any]) -> float:
+    """Estimated seconds of one run."""
+    size = (config["agents"], config["actions"]) if "agents" in config else (2, 3)
+    joint_actions = size[1] ** size[0]
+    learner = config["learner"]
+    per_game = SECONDS_PER_GAME_ACTION.get(learner, 2e-8) * size[0] * size[1]
+    if learner == joint_action.JointActionConfig.name:
+        per_game = JAL_SECONDS_PER_JOINT_ACTION * joint_actions * size[0]
+    return 0.001 + per_game * config["budget"]
+
+
+COMPARE = Experiment(EXPERIMENT, run_compare, _warm_up, _cost)
+
+
+# ------------------------------------------------------------------------ summary
+
+
+@dataclass(frozen=True)
+class CompareCell:
+    """The runs of one learner on one game (every size of a random family)."""
+
+    learner: str
+    game: str
+    runs: int
+    optimal_rate: float
+    median_games: float
+    """Median over runs of the games after which the greedy joint action never changed."""
+    sizes: dict[str, dict[str, float]]
+    """Random games: ``"n=…,m=…"`` -> runs and optimal rate of that size."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def summarize(records: Iterable[RunRecord]) -> list[CompareCell]:
+    """One cell per (learner, game), in the registry's and :data:`GAMES`' order."""
+    groups: dict[tuple[str, str], list[RunRecord]] = defaultdict(list)
+    for rec in records:
+        groups[(rec.key.algorithm, rec.config["game"])].append(rec)
+    learner_order = {name: i for i, name in enumerate(registry.REPEATED_LEARNERS)}
+    game_order = {name: i for i, name in enumerate(GAMES)}
+    cells = []
+    for (learner, game), recs in sorted(
+        groups.items(), key=lambda kv: (learner_order.get(kv[0][0], 99), game_order[kv[0][1]])
+    ):
+        cells.append(_cell(learner, game, recs))
+    return cells
+
+
+def _cell(learner: str, game: str, records: Sequence[RunRecord]) -> CompareCell:
+    by_size: dict[str, list[bool]] = defaultdict(list)
+    for rec in records:
+        if "agents" in rec.config:
+            by_size[f"n={rec.config['agents']},m={rec.config['actions']}"].append(
+                rec.metrics["optimal"]
+            )
+    sizes = {
+        size: {"runs": len(hits), "optimal_rate": sum(hits) / len(hits)}
+        for size, hits in by_size.items()
+    }
+    return CompareCell(
+        learner=learner,
+        game=game,
+        runs=len(records),
+        optimal_rate=sum(bool(r.metrics["optimal"]) for r in records) / len(records),
+        median_games=float(statistics.median(r.metrics["settled"] for r in records)),
+        sizes=sizes,
+    )

@@ -1,0 +1,108 @@
+"""Distributed Q-learning (Lauer & Riedmiller, 2000): optimistic independent learners
+for deterministic cooperative games.
+
+Each agent keeps the best reward ever received with each of its actions, and changes
+its policy only when that best improves:
+
+* ``q_i(a_i) ← max(q_i(a_i), r)`` (in a repeated game the update's ``γ max q(s')``
+  term is absent);
+* ``π_i ← a_i`` only when the update raised ``max_a q_i(a)``.
+
+In a deterministic game this finds an optimal joint action once it has been played;
+with stochastic payoffs its optimism is fooled by a lucky draw.
+
+[choice] ``q = −∞`` at the start (the paper assumes non-negative rewards and 0; −∞ keeps
+the rule's meaning, "the best reward seen", for games with negative payoffs), and no
+policy until the first reward. [choice] The paper leaves exploration open: ε-greedy
+around the policy, ``ε = 0.1``, uniform while an agent has no policy yet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
+
+import numpy as np
+
+from cmarlcd.compiled import kernel
+from cmarlcd.learners.independent import ClassicLearner, check_unit, no_stopping_rule, real_actions
+from cmarlcd.learners.tabular import RepeatedKernels
+
+
+class OptimisticTables(NamedTuple):
+    values: np.ndarray
+    """``q_i(a)``: the best reward seen with each action, shape (n_agents, width)."""
+    legal: np.ndarray
+    """Real (not padding) actions, same shape."""
+    policy: np.ndarray
+    """``π_i``, shape (n_agents,); -1 before the first reward."""
+
+
+class DistributedQParams(NamedTuple):
+    epsilon: float
+
+
+@kernel
+def epsilon_policy_act(tables, params, counts, rng, joint) -> None:
+    """Each agent: with probability ε (or while it has no policy) a uniform action, else
+    its policy's action (one or two uniforms each, in agent order)."""
+    for i in range(counts.shape[0]):
+        explore = rng.random() < params.epsilon
+        if explore or tables.policy[i] < 0:
+            joint[i] = int(rng.random() * counts[i])
+        else:
+            joint[i] = tables.policy[i]
+
+
+@kernel
+def distributed_learn(tables, params, counts, joint, reward: float) -> bool:
+    """``q_i(a_i) ← max(q_i(a_i), r)``; ``π_i ← a_i`` if that raised ``max q_i``.
+    True when a policy changed."""
+    changed = False
+    for i in range(counts.shape[0]):
+        a = joint[i]
+        best = -np.inf
+        for b in range(counts[i]):
+            best = max(best, tables.values[i, b])
+        if reward > tables.values[i, a]:
+            tables.values[i, a] = reward
+            if reward > best:
+                tables.policy[i] = a
+                changed = True
+    return changed
+
+
+@kernel
+def policy_greedy(tables, counts, joint) -> None:
+    """Execution: each agent's policy (action 0 before its first reward)."""
+    for i in range(counts.shape[0]):
+        joint[i] = max(tables.policy[i], 0)
+
+
+@dataclass(frozen=True)
+class DistributedQConfig(ClassicLearner):
+    """Distributed Q-learners in repeated games (Lauer & Riedmiller, 2000)."""
+
+    name: ClassVar[str] = "distributed-q"
+    display_name: ClassVar[str] = "Distributed Q"
+    citation: ClassVar[str] = (
+        "Lauer & Riedmiller (2000), An algorithm for distributed reinforcement learning in "
+        "cooperative multi-agent systems, ICML"
+    )
+    kernels: ClassVar[RepeatedKernels] = RepeatedKernels(
+        epsilon_policy_act, distributed_learn, no_stopping_rule, policy_greedy
+    )
+
+    epsilon: float = 0.1
+    """[choice] Exploration: probability of a uniform action, in (0, 1]."""
+
+    def __post_init__(self) -> None:
+        check_unit(epsilon=self.epsilon)
+
+    def params(self) -> DistributedQParams:
+        return DistributedQParams(self.epsilon)
+
+    def new_tables(self, counts: np.ndarray) -> OptimisticTables:
+        legal = real_actions(counts)
+        values = np.full(legal.shape, -np.inf)
+        return OptimisticTables(values, legal, np.full(counts.shape[0], -1, dtype=np.int64))

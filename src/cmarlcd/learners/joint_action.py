@@ -1,0 +1,153 @@
+"""Joint-action learners, JAL (Claus & Boutilier, 1998): the coordinated reference where
+the joint action space is small.
+
+Every agent observes the joint action and learns its value, ``Q(a) ← Q(a) + α (r − Q(a))``
+for the joint action ``a`` played, and counts how often each other agent played each of
+its actions. It acts by Boltzmann over the expected value of its own actions against
+those empirical frequencies:
+
+    ``EV_i(a_i) = Σ_{a_-i} Q(a_i, a_-i) Π_{j≠i} Pr_j(a_j)``.
+
+All agents see the same history, so their joint-action values and counts are equal: the
+tables hold them once. Each game costs ``O(n |A|)`` (``|A|`` joint actions), so the
+learner refuses games of more than :data:`MAX_JOINT_ACTIONS`.
+
+[choice] The counts start at 1 (a uniform prior; the paper leaves it open), ``Q = 0``,
+``α = 0.1``, and the Boltzmann schedule is Kapetanakis & Kudenko's
+``T(t) = 500 e^(-0.006 t) + 1``, as for the independent learners here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
+
+import numpy as np
+from numba import njit
+
+from cmarlcd.compiled import kernel
+from cmarlcd.errors import require
+from cmarlcd.learners.independent import (
+    KK_DECAY,
+    KK_MAX_TEMPERATURE,
+    ClassicLearner,
+    check_positive,
+    check_unit,
+    greedy_values,
+    no_stopping_rule,
+    real_actions,
+)
+from cmarlcd.learners.q_learning import BoltzmannQParams, boltzmann_act, q_update
+from cmarlcd.learners.tabular import RepeatedKernels
+
+#: [choice] The largest joint action space a JAL plays (the Q table and every game's
+#: expected values scale with it).
+MAX_JOINT_ACTIONS = 1_024
+
+
+class JointActionTables(NamedTuple):
+    values: np.ndarray
+    """``EV_i(a)``, what the agents act on, shape (n_agents, width)."""
+    legal: np.ndarray
+    probs: np.ndarray
+    plays: np.ndarray
+    q: np.ndarray
+    """``Q(a)`` per joint action, flattened in C order, shape (|A|,)."""
+    seen: np.ndarray
+    """How often each agent played each action (from 1), shape (n_agents, width)."""
+    strides: np.ndarray
+    """C-order strides of the flattened joint actions, shape (n_agents,)."""
+
+
+@njit(cache=True)
+def expected_values(q, seen, counts, values) -> None:
+    """``values[i, a] := EV_i(a)`` against the empirical frequencies ``seen``: one pass
+    over the joint actions, each adding ``Q(a) Π_{j≠i} Pr_j(a_j)`` to every agent."""
+    n_agents = counts.shape[0]
+    for i in range(n_agents):
+        values[i, : counts[i]] = 0.0
+    totals = np.zeros(n_agents)
+    for i in range(n_agents):
+        totals[i] = seen[i, : counts[i]].sum()
+    digits = np.zeros(n_agents, dtype=np.int64)
+    for flat in range(q.shape[0]):
+        remainder = flat
+        product = 1.0
+        for i in range(n_agents - 1, -1, -1):
+            digits[i] = remainder % counts[i]
+            remainder //= counts[i]
+            product *= seen[i, digits[i]] / totals[i]
+        for i in range(n_agents):
+            own = seen[i, digits[i]] / totals[i]
+            values[i, digits[i]] += q[flat] * product / own
+
+
+@kernel
+def jal_learn(tables, params, counts, joint, reward: float) -> bool:
+    """The joint action's value steps towards ``r``, the counts grow, ``EV`` follows."""
+    tables.plays[0] += 1
+    flat = 0
+    for i in range(counts.shape[0]):
+        flat += joint[i] * tables.strides[i]
+        tables.seen[i, joint[i]] += 1.0
+    tables.q[flat] = q_update(tables.q[flat], reward, params.alpha)
+    return True
+
+
+@njit(cache=True)
+def jal_learn_and_evaluate(tables, params, counts, joint, reward: float) -> bool:
+    """:func:`jal_learn`, then every agent's expected values (this allocates, so it is
+    compiled with reference counting, unlike a kernel)."""
+    jal_learn(tables, params, counts, joint, reward)
+    expected_values(tables.q, tables.seen, counts, tables.values)
+    return True
+
+
+@dataclass(frozen=True)
+class JointActionConfig(ClassicLearner):
+    """Joint-action learners in repeated games (Claus & Boutilier, 1998)."""
+
+    name: ClassVar[str] = "jal"
+    display_name: ClassVar[str] = "JAL"
+    citation: ClassVar[str] = (
+        "Claus & Boutilier (1998), The dynamics of reinforcement learning in cooperative "
+        "multiagent systems, AAAI"
+    )
+    kernels: ClassVar[RepeatedKernels] = RepeatedKernels(
+        boltzmann_act, jal_learn_and_evaluate, no_stopping_rule, greedy_values
+    )
+
+    alpha: float = 0.1
+    """[choice] Learning rate of ``Q``, in (0, 1]."""
+    max_temperature: float = KK_MAX_TEMPERATURE
+    """Boltzmann schedule ``T(t) = max_temperature · e^(-decay t) + 1``."""
+    decay: float = KK_DECAY
+    """See ``max_temperature``."""
+
+    def __post_init__(self) -> None:
+        check_unit(alpha=self.alpha)
+        check_positive(max_temperature=self.max_temperature, decay=self.decay)
+
+    def params(self) -> BoltzmannQParams:
+        return BoltzmannQParams(self.alpha, self.max_temperature, self.decay)
+
+    def new_tables(self, counts: np.ndarray) -> JointActionTables:
+        size = math.prod(int(k) for k in counts)
+        require(
+            size <= MAX_JOINT_ACTIONS,
+            "agents",
+            f"JAL plays games of at most {MAX_JOINT_ACTIONS:,} joint actions (got {size:,})",
+        )
+        legal = real_actions(counts)
+        strides = np.array(
+            [math.prod(int(k) for k in counts[i + 1 :]) for i in range(counts.shape[0])],
+            dtype=np.int64,
+        )
+        seen = np.where(legal, 1.0, 0.0)
+        values = np.zeros(legal.shape)
+        q = np.zeros(size)
+        expected_values(q, seen, counts, values)
+        return JointActionTables(
+            values, legal, np.zeros(legal.shape), np.zeros(1, dtype=np.int64), q, seen, strides
+        )

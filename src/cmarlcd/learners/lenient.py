@@ -1,0 +1,163 @@
+"""Lenient learners (Panait, Sullivan & Luke, 2006), in the form of Wei & Luke's LMRL2
+(2016), whose defaults are published: independent Q-learners that forgive their
+teammates' early exploration.
+
+Each agent keeps per action a value ``Q_i(a)`` and a temperature ``T_i(a)`` (starting
+at ``max_temperature``). After a game with reward ``r``:
+
+* lenience: with ``δ = r − Q_i(a_i)``, the update is made if ``δ ≥ 0``, and otherwise
+  only with probability ``1 − exp(−1 / (θ T_i(a_i)))``: while the action is hot, bad
+  news (most likely a teammate exploring) is mostly ignored;
+* ``Q_i(a_i) ← Q_i(a_i) + α δ`` if made; then ``T_i(a_i) ← decay · T_i(a_i)``.
+
+Acting: with ``T̄_i`` the mean temperature of the agent's actions, greedily once
+``T̄_i < min_temperature``, otherwise Boltzmann over ``Q_i / (ω T̄_i)``.
+
+Defaults (LMRL2): ``α = 0.1``, ``decay = 0.995``, ``max_temperature = 50``,
+``min_temperature = 2``, ``ω = θ = 1``. [choice] ``Q = 0`` at the start; greedy ties go
+to the lowest action (LMRL2 breaks them at random). Each agent's lenience draw is taken
+from the learners' stream when it acts (one uniform per agent after the actions), so
+``learn`` needs no stream of its own.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
+
+import numpy as np
+from numba import njit
+
+from cmarlcd.compiled import kernel
+from cmarlcd.errors import require
+from cmarlcd.learners.independent import (
+    ClassicLearner,
+    check_positive,
+    check_unit,
+    greedy_values,
+    no_stopping_rule,
+    real_actions,
+)
+from cmarlcd.learners.policy import greedy_action, sample_action, softmax_strategy
+from cmarlcd.learners.q_learning import q_update
+from cmarlcd.learners.tabular import RepeatedKernels
+
+
+class LenientTables(NamedTuple):
+    values: np.ndarray
+    """``Q_i(a)``, shape (n_agents, width)."""
+    legal: np.ndarray
+    probs: np.ndarray
+    temperatures: np.ndarray
+    """``T_i(a)``, same shape."""
+    draws: np.ndarray
+    """Each agent's lenience draw for the game being played, shape (n_agents,)."""
+
+
+class LenientParams(NamedTuple):
+    alpha: float
+    decay: float
+    min_temperature: float
+    action_moderation: float
+    lenience_moderation: float
+
+
+@kernel
+def lenient_act(tables, params, counts, rng, joint) -> None:
+    """Greedy once the agent's mean temperature is below ``min_temperature``, else
+    Boltzmann over ``Q / (ω T̄)``; then one lenience draw per agent."""
+    for i in range(counts.shape[0]):
+        mean = 0.0
+        for a in range(counts[i]):
+            mean += tables.temperatures[i, a]
+        mean /= counts[i]
+        if mean < params.min_temperature:
+            joint[i] = greedy_action(tables.values[i], tables.legal[i], counts[i])
+        else:
+            temperature = params.action_moderation * mean
+            softmax_strategy(
+                tables.values[i], tables.legal[i], counts[i], temperature, tables.probs[i]
+            )
+            joint[i] = sample_action(tables.probs[i], counts[i], rng.random())
+    for i in range(counts.shape[0]):
+        tables.draws[i] = rng.random()
+
+
+@njit(cache=True)
+def is_lenient(delta: float, temperature: float, moderation: float, draw: float) -> bool:
+    """Whether a decrease ``delta < 0`` is ignored: with probability
+    ``exp(−1 / (θ T))`` (``draw`` uniform)."""
+    return delta < 0.0 and draw >= 1.0 - math.exp(-1.0 / (moderation * temperature))
+
+
+@kernel
+def lenient_learn(tables, params, counts, joint, reward: float) -> bool:
+    """Every agent: the lenient Q step on its action, then that action cools down."""
+    for i in range(counts.shape[0]):
+        a = joint[i]
+        value, temperature = tables.values[i, a], tables.temperatures[i, a]
+        forgiven = is_lenient(
+            reward - value, temperature, params.lenience_moderation, tables.draws[i]
+        )
+        if not forgiven:
+            tables.values[i, a] = q_update(value, reward, params.alpha)
+        tables.temperatures[i, a] = params.decay * temperature
+    return True
+
+
+@dataclass(frozen=True)
+class LenientConfig(ClassicLearner):
+    """Lenient learners in repeated games (Panait, Sullivan & Luke, 2006; LMRL2)."""
+
+    name: ClassVar[str] = "lenient"
+    display_name: ClassVar[str] = "Lenient"
+    citation: ClassVar[str] = (
+        "Panait, Sullivan & Luke (2006), Lenient learners in cooperative multiagent "
+        "systems, AAMAS; defaults of Wei & Luke (2016), JMLR 17"
+    )
+    kernels: ClassVar[RepeatedKernels] = RepeatedKernels(
+        lenient_act, lenient_learn, no_stopping_rule, greedy_values
+    )
+
+    alpha: float = 0.1
+    """Learning rate, in (0, 1]."""
+    decay: float = 0.995
+    """Factor of an action's temperature each time it is played, in (0, 1]."""
+    max_temperature: float = 50.0
+    """Every action's temperature at the start, > 0."""
+    min_temperature: float = 2.0
+    """Below this mean temperature an agent acts greedily, >= 0."""
+    action_moderation: float = 1.0
+    """``ω``: scales the Boltzmann temperature, > 0."""
+    lenience_moderation: float = 1.0
+    """``θ``: scales the temperature in the lenience test, > 0."""
+
+    def __post_init__(self) -> None:
+        check_unit(alpha=self.alpha, decay=self.decay)
+        check_positive(
+            max_temperature=self.max_temperature,
+            action_moderation=self.action_moderation,
+            lenience_moderation=self.lenience_moderation,
+        )
+        low = self.min_temperature
+        require(bool(np.isfinite(low)) and low >= 0, "min_temperature", f"must be >= 0 (got {low})")
+
+    def params(self) -> LenientParams:
+        return LenientParams(
+            self.alpha,
+            self.decay,
+            self.min_temperature,
+            self.action_moderation,
+            self.lenience_moderation,
+        )
+
+    def new_tables(self, counts: np.ndarray) -> LenientTables:
+        legal = real_actions(counts)
+        return LenientTables(
+            np.zeros(legal.shape),
+            legal,
+            np.zeros(legal.shape),
+            np.where(legal, self.max_temperature, 0.0),
+            np.zeros(counts.shape[0]),
+        )

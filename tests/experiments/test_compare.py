@@ -1,0 +1,103 @@
+"""The learner comparison (beyond the paper): its runs, their seeds and its summary."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cmarlcd.errors import ConfigError
+from cmarlcd.experiments import compare
+from cmarlcd.experiments.compare import GAMES, Comparison, budget, run_compare, summarize
+from cmarlcd.games.matrix import climbing_game
+from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
+from cmarlcd.learners.q_learning import IQLConfig
+from cmarlcd.registry import REPEATED_LEARNERS
+from cmarlcd.runs import RunSpec
+from cmarlcd.store import RunRecord
+from cmarlcd.training.repeated import fit
+
+
+def test_cmarlcd_through_the_comparison_plays_as_algorithm_1() -> None:
+    """The watching loop consumes the learner's stream as fit does (deterministic games
+    draw nothing): same games, same greedy joint action."""
+    config = {"game": "climbing", "budget": 10_000_000, "learner": "cmarl-cd"}
+    metrics = run_compare(dict(config), np.random.SeedSequence(5))
+    _, _, learner_seed = np.random.SeedSequence(5).spawn(3)
+    game = climbing_game()
+    result = fit(CMARLCD(game.action_counts, RepeatedConfig(), seed=learner_seed), game)
+    assert metrics["games"] == result.games and metrics["converged"] == result.converged
+    assert metrics["optimal"] == result.success
+
+
+def test_a_run_is_determined_by_its_seed() -> None:
+    config = {"game": "climbing-fs", "budget": 3_000, "learner": "hysteretic"}
+    first = run_compare(dict(config), np.random.SeedSequence(1))
+    assert first == run_compare(dict(config), np.random.SeedSequence(1))
+
+
+def test_every_learner_meets_the_same_random_games() -> None:
+    """Runs' seeds leave the learner out: common random numbers across learners."""
+    sweep = Comparison((RepeatedConfig(), IQLConfig()), ("case1",), runs=2)
+    seeds = {}
+    for spec in sweep.specs():
+        where = (spec.config["agents"], spec.config["actions"], spec.key.run_index)
+        seeds.setdefault(where, set()).add(spec.seed_sequence().spawn(3)[0].entropy)
+    assert all(len(s) == 1 for s in seeds.values())
+
+
+def test_the_budget_grows_with_the_joint_actions() -> None:
+    assert budget(9) == compare.MIN_GAMES
+    assert budget(5**7) == compare.GAMES_PER_JOINT_ACTION * 5**7
+
+
+def test_jal_is_left_out_of_games_too_large_for_it() -> None:
+    sweep = Comparison(tuple(REPEATED_LEARNERS.values()), ("climbing", "case1"), runs=1)
+    jal_sizes = [
+        (s.config["agents"], s.config["actions"])
+        for s in sweep.specs()
+        if s.key.algorithm == "jal" and s.config["game"] == "case1"
+    ]
+    assert jal_sizes and all(m**n <= 1_024 for n, m in jal_sizes)
+    assert ("jal", "case1") in sweep.skipped() and ("jal", "climbing") not in sweep.skipped()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "parameter"),
+    [
+        ({"games": ("chess",)}, "games"),
+        ({"games": ()}, "games"),
+        ({"runs": 0}, "runs"),
+        ({"seed": -1}, "seed"),
+        ({"learners": ()}, "learners"),
+    ],
+)
+def test_bad_comparisons_are_rejected(kwargs, parameter) -> None:
+    settings = {"learners": (IQLConfig(),), "games": ("climbing",), **kwargs}
+    with pytest.raises(ConfigError) as err:
+        Comparison(**settings)
+    assert err.value.parameter == parameter
+
+
+def test_summary_counts_runs_and_optimal_rates_per_learner_and_game() -> None:
+    def record(learner: str, game: str, index: int, optimal: bool, settled: int, **size):
+        config = {"game": game, "learner": learner, **size}
+        spec = RunSpec.make(compare.EXPERIMENT, learner, config, 0, index)
+        return RunRecord(spec.key, {"optimal": optimal, "settled": settled}, 0.0, "test")
+
+    records = [
+        record("iql", "climbing", 0, True, 10),
+        record("iql", "climbing", 1, False, 30),
+        record("iql", "climbing", 2, True, 20),
+        record("fmq", "case1", 0, True, 5, agents=2, actions=2),
+        record("fmq", "case1", 1, False, 7, agents=3, actions=2),
+    ]
+    cells = {(c.learner, c.game): c for c in summarize(records)}
+    assert cells[("iql", "climbing")].runs == 3
+    assert cells[("iql", "climbing")].optimal_rate == pytest.approx(2 / 3)
+    assert cells[("iql", "climbing")].median_games == 20
+    fmq = cells[("fmq", "case1")]
+    assert fmq.sizes == {
+        "n=2,m=2": {"runs": 1, "optimal_rate": 1.0},
+        "n=3,m=2": {"runs": 1, "optimal_rate": 0.0},
+    }
+    assert list(GAMES).index("climbing") < list(GAMES).index("case1")
