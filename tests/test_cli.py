@@ -298,6 +298,9 @@ def tiny_reproduction(paths, monkeypatch):
         dsn_episodes=(100,),
         tournament_rounds=1,
         tournament_episodes=20,
+        compare_runs=1,
+        compare_games=("climbing", "dsn"),
+        compare_dsn_episodes=100,
     )
     monkeypatch.setitem(cli.PRESETS, "quick", tiny)
     result = invoke("reproduce", "--workers", "1", "--json", *paths[2])
@@ -316,6 +319,8 @@ def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
     players = 4 if importlib.util.find_spec("torch") else 2  # VDN, QMIX need the extra
     assert doc["tournament"]["rounds"] == 1 and len(doc["tournament"]["cells"]) == players**2
     assert Path(doc["tournament"]["figures"]["fig6"]).exists()
+    learners = {c["learner"] for c in doc["compare"]["cells"]}
+    assert {"cmarl-cd", "iql", "fmq", "jal"} <= learners and Path(doc["compare"]["figure"]).exists()
     bad = invoke("reproduce", "--preset", "huge", *where)
     assert bad.exit_code == 2 and bad.stderr.startswith("error: --preset:")
 
@@ -368,6 +373,9 @@ def tiny_paper_preset(monkeypatch) -> None:
         deep=True,
         tournament_rounds=1,
         tournament_episodes=20,
+        compare_runs=1,
+        compare_games=("climbing", "dsn"),
+        compare_dsn_episodes=100,
     )
     monkeypatch.setitem(cli.PRESETS, "paper", tiny)
 
@@ -376,7 +384,9 @@ def test_reproduce_paper_preset_has_the_deep_rows(paths, monkeypatch) -> None:
     pytest.importorskip("torch")
     tiny_paper_preset(monkeypatch)
     _, _, where = paths
-    result = invoke("reproduce", "--preset", "paper", "--workers", "1", "--json", *where)
+    result = invoke(
+        "reproduce", "--preset", "paper", "--workers", "1", "--no-compare", "--json", *where
+    )
     assert result.exit_code == 0, result.output
     rows = json.loads(result.stdout)["dsn"]["rows"]
     assert {r["algorithm"] for r in rows} == {"cmarl-cd", "la-oca", "vdn", "qmix"}
@@ -386,7 +396,7 @@ def test_reproduce_paper_preset_without_torch_says_what_it_left_out(paths, monke
     without_torch(monkeypatch)
     tiny_paper_preset(monkeypatch)
     _, _, where = paths
-    result = invoke("reproduce", "--preset", "paper", "--workers", "1", *where)
+    result = invoke("reproduce", "--preset", "paper", "--workers", "1", "--no-compare", *where)
     assert result.exit_code == 0, result.output
     assert "note: VDN and QMIX need PyTorch: pip install 'cmarl-cd[deep]'" in result.stderr
 
@@ -668,7 +678,7 @@ def test_a_full_disk_while_drawing_a_figure_is_one_line(paths, monkeypatch) -> N
     assert result.stderr.strip().endswith("No space left on device")
 
 
-SECTIONS = ("Table 1", "Table 2", "Tables 3-7", "Figs. 6-7", "Theorem 1")
+SECTIONS = ("Table 1", "Table 2", "Tables 3-7", "Figs. 6-7", "Theorem 1", "Comparison")
 
 
 def test_reproduce_is_one_sweep_with_a_section_per_part_of_the_paper(paths, monkeypatch) -> None:
@@ -709,7 +719,7 @@ def test_report_renders_every_section_in_every_format(paths, monkeypatch, tmp_pa
     for section in SECTIONS:
         assert f"<h2>{section}" in html.stdout
     doc = json.loads(invoke("report", *where, "--format", "json").stdout)
-    assert {len(doc[k]) for k in ("repeated", "dsn", "tournament", "theorem1")} >= {1}
+    assert {len(doc[k]) for k in ("repeated", "dsn", "tournament", "theorem1", "compare")} >= {1}
     assert doc["versions"] == {__version__: sum(1 for _ in ResultStore(store).records())}
 
 

@@ -16,7 +16,7 @@ from cmarlcd.experiments.compare import CompareCell
 from cmarlcd.report import Output, figure_line, figure_name, percent, show, versions
 from cmarlcd.store import RunRecord
 
-TITLE = "CMARL-CD and the classic independent learners on repeated games"
+TITLE = "Comparison: CMARL-CD and the classic independent learners"
 
 
 def _display(learner: str) -> str:
@@ -27,20 +27,25 @@ def _display(learner: str) -> str:
 def _cell_text(cell: CompareCell | None) -> str:
     if cell is None:
         return "—"
-    return f"{percent(cell.optimal_rate)} % · {cell.median_games:,.0f}"
+    return f"{percent(cell.optimal_rate)} % · {_median(cell)}"
+
+
+def _short(game: str) -> str:
+    return "DSN" if game == compare.DSN else compare.GAMES[game].short
+
+
+def _median(cell: CompareCell) -> str:
+    return "—" if cell.median_games is None else _games(cell.median_games)
 
 
 def _games(games: float) -> str:
-    """``812`` -> ``"812"``, ``4975`` -> ``"5.0k"``, ``16040`` -> ``"16k"``: narrow
-    enough for ten columns."""
-    if games < 1000:
-        return f"{games:.0f}"
-    return f"{games / 1000:.1f}k" if games < 10_000 else f"{games / 1000:,.0f}k"
+    """``812`` -> ``"812"``, ``4975`` -> ``"5k"``: narrow enough for ten columns."""
+    return f"{games:.0f}" if games < 1000 else f"{games / 1000:,.0f}k"
 
 
 def _grid(cells: Sequence[CompareCell]) -> tuple[list[str], list[str], dict]:
     learners = list(dict.fromkeys(c.learner for c in cells))
-    games = [g for g in compare.GAMES if any(c.game == g for c in cells)]
+    games = [g for g in (*compare.GAMES, compare.DSN) if any(c.game == g for c in cells)]
     return learners, games, {(c.learner, c.game): c for c in cells}
 
 
@@ -51,19 +56,19 @@ def comparison_tables(cells: Sequence[CompareCell], caption: str) -> list[Table]
     tables = []
     for what, value in (
         ("% of runs ending on an optimal joint action", lambda c: f"{100 * c.optimal_rate:.0f}"),
-        ("median games until the greedy joint action settled", lambda c: _games(c.median_games)),
+        ("median games until the greedy joint action settled", _median),
     ):
         table = Table(
             title=f"{TITLE}: {what}",
             caption=caption,
             box=box.SIMPLE_HEAD,
-            padding=(0, 1),
+            padding=(0, 0),
             pad_edge=False,
             show_edge=False,
         )
         table.add_column("learner", no_wrap=True)
         for game in games:
-            table.add_column(compare.GAMES[game].short, justify="right", no_wrap=True)
+            table.add_column(_short(game), justify="right", no_wrap=True, min_width=5)
         for learner in learners:
             row = [at.get((learner, g)) for g in games]
             table.add_row(_display(learner), *("—" if c is None else value(c) for c in row))
@@ -76,7 +81,8 @@ def runs_text(records: Sequence[RunRecord]) -> str:
     runs: dict[tuple, int] = {}
     for rec in records:
         config = rec.config
-        key = (rec.key.algorithm, config["game"], config.get("agents"), config.get("actions"))
+        game = config.get("game", compare.DSN)
+        key = (rec.key.algorithm, game, config.get("agents"), config.get("actions"))
         runs[key] = runs.get(key, 0) + 1
     low, high = min(runs.values()), max(runs.values())
     per = f"{low}" if low == high else f"{low}-{high}"
@@ -86,9 +92,17 @@ def runs_text(records: Sequence[RunRecord]) -> str:
 
 def settings_text(records: Sequence[RunRecord]) -> str:
     """The comparison's settings and what its column names mean."""
+    dsn = ""
+    dsn_configs = [r.config for r in records if r.key.experiment != compare.EXPERIMENT]
+    if dsn_configs:
+        episodes, evaluations = dsn_configs[0]["checkpoints"][0], dsn_configs[0]["eval_episodes"]
+        dsn = (
+            f"DSN: the greedy policy's success rate after L = {episodes:,} episodes (%, mean "
+            f"over runs, {evaluations:,} evaluation episodes each); "
+        )
     return (
         "climb: climbing game; k: penalty game; PS, FS: partially, fully stochastic "
-        "climbing game; case1, case2: random games of Tables 1, 2 (all sizes); "
+        f"climbing game; case1, case2: random games of Tables 1, 2 (all sizes); {dsn}"
         f"{runs_text(records)}; budget max({compare.MIN_GAMES:,}, "
         f"{compare.GAMES_PER_JOINT_ACTION} × joint actions) games"
     )
@@ -108,12 +122,13 @@ def compare_report(
     )
     labels = [[_cell_text(at.get((lr, g))).replace(" · ", "\n") for g in games] for lr in learners]
     seed = records[0].key.root_seed
-    name = figure_name(f"compare-seed{seed}", sorted({r.key.config for r in records}))
+    configs = sorted({r.key.config for r in records if r.key.experiment == compare.EXPERIMENT})
+    name = figure_name(f"compare-seed{seed}", configs)
     path = figs.comparison_heatmap(
         rates,
         labels,
         [_display(lr) for lr in learners],
-        [compare.GAMES[g].short for g in games],
+        [_short(g) for g in games],
         f"% of runs ending on an optimal joint action (top) and median games until the "
         f"greedy joint action settled (bottom); {runs_text(records)}",
         figures / name,

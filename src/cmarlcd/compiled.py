@@ -43,6 +43,20 @@ def kernel(function: Callable) -> Any:
     return njit(cache=True, _nrt=False)(function)
 
 
+def shared_kernel(function: Callable) -> Any:
+    """Compile ``function`` as a kernel that plug-ins share (the no-op hooks), *not*
+    cached on disk.
+
+    Numba keeps every compiled signature of a function in one on-disk index. A kernel
+    that a plug-in calls with its own types (its tables, a NamedTuple of its own module)
+    would record those types there, and a later process that cannot import that module
+    (a script's ``__main__``, a test file) would fail to read the index: every caller of
+    the kernel would then fail to compile. These kernels are trivial, so compiling them
+    in each process costs nothing; the loops that call them are still cached.
+    """
+    return njit(cache=False, _nrt=False)(function)
+
+
 class Unbound:
     """The value of a template's ``game`` / ``learner`` name before specialisation."""
 

@@ -215,8 +215,7 @@ def comparison_heatmap(
 
     halo = [withStroke(linewidth=2.5, foreground="white")]
     fig, ax = plt.subplots(figsize=(2.0 + 1.05 * len(columns), 1.4 + 0.5 * len(rows)))
-    cmap = plt.get_cmap("RdYlGn").copy()
-    cmap.set_bad("#dddddd")
+    cmap = plt.get_cmap("RdYlGn").with_extremes(bad="#dddddd")
     image = ax.imshow(np.ma.masked_invalid(100 * rates), cmap=cmap, vmin=0, vmax=100, aspect="auto")
     fig.colorbar(image, ax=ax, shrink=0.8, label="% of runs optimal")
     ax.set_xticks(range(len(columns)), columns, rotation=35, ha="right", fontsize=8)

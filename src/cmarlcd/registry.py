@@ -20,17 +20,18 @@ from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.automata import AutomatonConfig
 from cmarlcd.learners.coordination import RepeatedConfig, StochasticConfig
 from cmarlcd.learners.deep_config import DeepConfig
-from cmarlcd.learners.distributed_q import DistributedQConfig
+from cmarlcd.learners.distributed_q import DistributedQConfig, DistributedQStochasticConfig
 from cmarlcd.learners.fmq import FMQConfig
-from cmarlcd.learners.hysteretic import HystereticConfig
+from cmarlcd.learners.hysteretic import HystereticConfig, HystereticStochasticConfig
 from cmarlcd.learners.joint_action import JointActionConfig
-from cmarlcd.learners.lenient import LenientConfig
-from cmarlcd.learners.q_learning import IQLConfig
+from cmarlcd.learners.lenient import LenientConfig, LenientStochasticConfig
+from cmarlcd.learners.q_learning import IQLConfig, IQLStochasticConfig
 from cmarlcd.learners.tabular import TabularConfig
 
 LearnerConfig = TabularConfig | DeepConfig
 
-#: Learners for stochastic games, by name, with the paper's DSN settings.
+#: Learners for stochastic games, by name: the paper's (with its DSN settings) and the
+#: classic independent learners (with their papers' settings).
 LEARNERS: dict[str, LearnerConfig] = {
     config.name: config
     for config in (
@@ -38,8 +39,15 @@ LEARNERS: dict[str, LearnerConfig] = {
         AutomatonConfig(),
         DeepConfig(mixer="vdn"),
         DeepConfig(mixer="qmix"),
+        IQLStochasticConfig(),
+        DistributedQStochasticConfig(),
+        HystereticStochasticConfig(),
+        LenientStochasticConfig(),
     )
 }
+
+#: The learners of the paper's DSN tables (the others are compared beyond the paper).
+PAPER_LEARNERS = ("cmarl-cd", "la-oca", "vdn", "qmix")
 
 RepeatedLearnerConfig = (
     RepeatedConfig

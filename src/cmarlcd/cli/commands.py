@@ -38,7 +38,9 @@ from cmarlcd.cli.options import (
     parse_range,
 )
 from cmarlcd.cli.progress import RichSweepView
+from cmarlcd.compare_report import compare_report
 from cmarlcd.errors import require
+from cmarlcd.experiments import compare as cmp
 from cmarlcd.experiments import episodic, theorem
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
@@ -442,6 +444,13 @@ class Preset:
     """Rounds of the battlefield tournament (the paper: 30)."""
     tournament_episodes: int = tour.PAPER_LEARN_EPISODES
     """Learning and evaluation episodes of each match (the paper: 500,000 each)."""
+    compare_runs: int = cmp.DEFAULT_RUNS
+    """Runs per learner and game of the comparison with the classic learners (beyond
+    the paper)."""
+    compare_games: tuple[str, ...] = (*cmp.GAMES, cmp.DSN)
+    """The comparison's games."""
+    compare_dsn_episodes: int = cmp.DSN_EPISODES
+    """The comparison's DSN learning episodes."""
 
 
 PRESETS = {
@@ -451,6 +460,7 @@ PRESETS = {
         dsn_eval_episodes=10_000,
         tournament_rounds=4,
         tournament_episodes=20_000,
+        compare_runs=10,
     ),
     "paper": Preset(rep.PAPER_RUNS, dsn_exp.PAPER_RUNS, dsn_exp.PAPER_EVAL_EPISODES, deep=True),
 }
@@ -460,10 +470,11 @@ def _reproduced_learners(
     preset: Preset, doc: dict[str, Any], as_json: bool
 ) -> tuple[LearnerConfig, ...]:
     """The DSN rows of a preset; VDN and QMIX are skipped, with a note, without torch."""
-    tabular = tuple(c for name, c in registry.LEARNERS.items() if not registry.needs_torch(name))
+    paper = [registry.LEARNERS[name] for name in registry.PAPER_LEARNERS]
+    tabular = tuple(c for c in paper if not registry.needs_torch(c.name))
     if not preset.deep:
         return tabular
-    deep = tuple(c for name, c in registry.LEARNERS.items() if registry.needs_torch(name))
+    deep = tuple(c for c in paper if registry.needs_torch(c.name))
     if _has_torch():
         return (*tabular, *deep)
     doc["skipped"] = _needs_torch(c.display_name for c in deep) + " (their rows are left out)"
@@ -509,9 +520,18 @@ def reproduce(
     store: StoreOption = DEFAULT_STORE,
     figures: FiguresOption = DEFAULT_FIGURES,
     progress: ProgressOption = True,
+    with_comparison: Annotated[
+        bool,
+        typer.Option(
+            "--compare/--no-compare",
+            help="Also the comparison with the classic independent learners (beyond the "
+            "paper; cmarl-cd compare, 10 runs per cell in the quick preset, 50 in the paper's).",
+        ),
+    ] = True,
 ) -> None:
     """Reproduce the paper: Tables 1-7, Figs. 4, 6 and 7, and the Theorem 1 check, as
-    one resumable sweep with one progress view and an overall ETA."""
+    one resumable sweep with one progress view and an overall ETA; and, beyond the
+    paper, the comparison with the classic independent learners."""
     require(preset in PRESETS, "preset", f"must be one of {', '.join(PRESETS)} (got {preset!r})")
     require(seed >= 0, "seed", f"must be >= 0 (got {seed})")
     run = Execution(store, figures, workers, progress, backend, address)
@@ -519,6 +539,8 @@ def reproduce(
     chosen, console = PRESETS[preset], _console(as_json)
     doc: dict[str, Any] = {"preset": preset}
     plan = _reproduction_plan(chosen, seed, doc, as_json)
+    if with_comparison:
+        plan[COMPARISON] = _comparison(chosen, seed).specs()
     section_of = {spec.key: name for name, specs in plan.items() for spec in specs}
     everything = [spec for specs in plan.values() for spec in specs]
     records, done = _sweep(
@@ -537,11 +559,28 @@ def reproduce(
     doc["dsn"] = report.dsn_report(dsn_exp.DSN_GAME, part["Tables 3-7"], run.figures, console)
     doc["tournament"] = report.tournament_report(part["Figs. 6-7"], run.figures, console)
     doc["theorem1"] = _theorem_documents(part["Theorem 1"], run.figures, console)
+    if COMPARISON in part:
+        doc["compare"] = compare_report(part[COMPARISON], run.figures, console)
     doc.update(_run_counts(done, run.store, console))
     if console is None:
         print(json.dumps(doc, indent=2))
         return
     _where(run.store, run.figures, console)
+
+
+COMPARISON = "Comparison"
+
+
+def _comparison(chosen: Preset, seed: int) -> cmp.Comparison:
+    """Every repeated-game learner on every game of the comparison."""
+    learners = tuple(registry.REPEATED_LEARNERS.values())
+    return cmp.Comparison(
+        learners,
+        chosen.compare_games,
+        chosen.compare_runs,
+        seed,
+        dsn_episodes=chosen.compare_dsn_episodes,
+    )
 
 
 def _paper_sweeps(chosen: Preset, seed: int) -> list[rep.RepeatedSweep]:
@@ -679,7 +718,15 @@ def _report_groups(
         for kind, render, experiment, key in kinds:
             for records in _groups(db.records(experiment), key).values():
                 found.append((kind, render, records))
+        dsn_runs = [r for r in db.records(dsn_exp.EXPERIMENT) if cmp.is_comparison_dsn_run(r)]
+        for seed_, records in _groups(db.records(cmp.EXPERIMENT), _seed_key).items():
+            ours = [r for r in dsn_runs if r.key.root_seed == seed_]
+            found.append(("compare", compare_report, records + ours))
     return [g for g in found if seed in (None, g[2][0].key.root_seed)]
+
+
+def _seed_key(rec: RunRecord) -> int:
+    return rec.key.root_seed
 
 
 def _theorem_key(rec: RunRecord) -> tuple[str, int]:
@@ -721,7 +768,14 @@ def _document(
 
     from cmarlcd import document
 
-    sections, docs = [], {"repeated": [], "dsn": [], "tournament": [], "theorem1": []}
+    sections: list = []
+    docs: dict[str, list] = {
+        "repeated": [],
+        "dsn": [],
+        "tournament": [],
+        "theorem1": [],
+        "compare": [],
+    }
     for kind, render, records in groups:
         recorder = document.Recorder()
         doc = render(records, figures, recorder)
@@ -735,11 +789,10 @@ def _document(
                 recorder.blocks,
             )
         )
-    every = Counter()
-    for section in sections:
-        every.update(section.versions)
+    unique = {rec.key: rec for _, _, records in groups for rec in records}  # a run may
+    every = Counter(rec.version for rec in unique.values())  # be in two sections
     preamble = [
-        f"Results store: {store} ({sum(s.runs for s in sections)} runs in "
+        f"Results store: {store} ({len(unique)} runs in "
         f"{len(sections)} groups); rendered by cmarl-cd {__version__}.",
         "Our numbers come first; the paper's, where it reports them for the same "
         "settings, follow in brackets.",

@@ -27,6 +27,9 @@ from cmarlcd.compare_report import compare_report
 from cmarlcd.experiments import compare as cmp
 from cmarlcd.store import DEFAULT_STORE
 
+#: Every game of the comparison, the DSN last.
+GAMES = (*cmp.GAMES, cmp.DSN)
+
 
 def comparison(learners: str, games: str, runs: int, seed: int) -> cmp.Comparison:
     """The comparison the options ask for (each learner with its paper's defaults)."""
@@ -48,8 +51,8 @@ def run_comparison(
     if skipped and console is not None:
         pairs = ", ".join(f"{s['learner']} on {s['game']}" for s in skipped)
         console.print(
-            f"not played (joint action space over {cmp.joint_action.MAX_JOINT_ACTIONS:,} "
-            f"at some sizes): {pairs}",
+            f"not played: {pairs} (FMQ and JAL are defined for repeated games only; JAL "
+            f"plays at most {cmp.joint_action.MAX_JOINT_ACTIONS:,} joint actions)",
             soft_wrap=True,
         )
     return {**doc, "skipped": skipped, **_run_counts(done, run.store, console)}
@@ -61,8 +64,8 @@ def compare(
     learners: Annotated[
         str, typer.Option(help=f"Comma list of {registry.repeated_learner_names()}.")
     ] = ",".join(registry.REPEATED_LEARNERS),
-    games: Annotated[str, typer.Option(help=f"Comma list of {', '.join(cmp.GAMES)}.")] = ",".join(
-        cmp.GAMES
+    games: Annotated[str, typer.Option(help=f"Comma list of {', '.join(GAMES)}.")] = ",".join(
+        GAMES
     ),
     runs: Annotated[
         int, typer.Option(help="Runs per learner and game (random games: per size).")

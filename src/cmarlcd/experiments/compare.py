@@ -1,5 +1,5 @@
-"""Beyond the paper: CMARL-CD against the classic independent learners on the repeated
-games that made their names.
+"""Beyond the paper: CMARL-CD against the classic independent learners on the games that
+made their names, and on the DSN.
 
 Each run plays one learner on one game for a budget of games and records whether the
 greedy joint action it ends on is optimal (by expected payoff, for stochastic payoffs)
@@ -7,7 +7,10 @@ and when that greedy joint action last changed (*settled*). The games are the cl
 game, the penalty game for several ``k``, the partially and fully stochastic climbing
 games (Kapetanakis & Kudenko 2002), and the random games of Tables 1-2 at their sizes
 (a fresh game per run; every learner meets the same games: runs' seeds do not depend on
-the learner).
+the learner). On the DSN (a stochastic game) the learners that have a stochastic form
+(CMARL-CD's Algorithm 2, IQL, distributed Q, hysteretic, lenient; FMQ and JAL are defined
+for repeated games only) run the DSN protocol of :mod:`cmarlcd.experiments.sensor_network`
+at :data:`DSN_EPISODES` learning episodes; its column is the greedy policy's success rate.
 
 [choice] Every learner gets the same budget, ``max(MIN_GAMES, GAMES_PER_JOINT_ACTION ·
 |A|)`` games for ``|A|`` joint actions; CMARL-CD stops earlier when its strategies are
@@ -30,7 +33,9 @@ import numpy as np
 from cmarlcd import registry
 from cmarlcd.compiled import specialise
 from cmarlcd.errors import require
+from cmarlcd.experiments import episodic
 from cmarlcd.experiments.repeated import PAPER_ACTIONS, PAPER_AGENTS
+from cmarlcd.experiments.sensor_network import DSN_GAME, DsnSweep
 from cmarlcd.games.matrix import MatrixGame, climbing_game, penalty_game, random_game
 from cmarlcd.games.matrix.stochastic import (
     StochasticMatrixGame,
@@ -48,6 +53,11 @@ MIN_GAMES = 5_000
 #: ... and this many per joint action of the game.
 GAMES_PER_JOINT_ACTION = 10
 DEFAULT_RUNS = 50
+#: [choice] The DSN column: learning episodes L and greedy evaluation episodes per run.
+DSN_EPISODES = 100_000
+DSN_EVAL_EPISODES = 10_000
+#: The name of the DSN column.
+DSN = "dsn"
 
 Game = MatrixGame | StochasticMatrixGame
 Size = tuple[int, int]
@@ -137,14 +147,17 @@ class Comparison:
     games: tuple[str, ...]
     runs: int = DEFAULT_RUNS
     seed: int = 0
+    dsn_episodes: int = DSN_EPISODES
+    dsn_eval_episodes: int = DSN_EVAL_EPISODES
 
     def __post_init__(self) -> None:
         require(len(self.learners) > 0, "learners", "needs at least one learner")
         names = [config.name for config in self.learners]
         require(len(set(names)) == len(names), "learners", f"each at most once (got {names})")
         require(len(self.games) > 0, "games", "needs at least one game")
+        known = (*GAMES, DSN)
         for name in self.games:
-            require(name in GAMES, "games", f"unknown {name!r}; available: {', '.join(GAMES)}")
+            require(name in known, "games", f"unknown {name!r}; available: {', '.join(known)}")
         require(len(set(self.games)) == len(self.games), "games", "each at most once")
         require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
         require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
@@ -153,6 +166,8 @@ class Comparison:
         """(learner, config) of every cell the learner plays."""
         out = []
         for name in self.games:
+            if name == DSN:
+                continue
             game = GAMES[name]
             for size in game.sizes or (None,):
                 joint_actions = game.joint_actions(size)
@@ -171,16 +186,44 @@ class Comparison:
         return out
 
     def specs(self) -> list[RunSpec]:
-        return [
+        """Every run: the repeated games' and the DSN's (experiment ``dsn``)."""
+        repeated = [
             RunSpec.make(EXPERIMENT, learner.name, config, self.seed, r)
             for learner, config in self.cells()
             for r in range(self.runs)
         ]
+        sweep = self.dsn_sweep()
+        return repeated + (sweep.specs() if sweep is not None else [])
+
+    def dsn_learners(self) -> tuple[Any, ...]:
+        """The chosen learners that have a stochastic form, with their DSN settings."""
+        return tuple(
+            registry.LEARNERS[c.name] for c in self.learners if c.name in registry.LEARNERS
+        )
+
+    def dsn_sweep(self) -> DsnSweep | None:
+        """The DSN runs of the comparison, if the DSN is one of its games."""
+        learners = self.dsn_learners()
+        if DSN not in self.games or not learners:
+            return None
+        return DsnSweep(
+            learners=learners,
+            episodes=(self.dsn_episodes,),
+            runs=self.runs,
+            eval_episodes=self.dsn_eval_episodes,
+            seed=self.seed,
+            curve_points=0,
+        )
 
     def skipped(self) -> list[tuple[str, str]]:
-        """(learner, game) pairs with sizes the learner does not play."""
+        """(learner, game) pairs the learner does not play, or not at every size."""
         out = []
+        if DSN in self.games:
+            stochastic = {c.name for c in self.dsn_learners()}
+            out += [(c.name, DSN) for c in self.learners if c.name not in stochastic]
         for name in self.games:
+            if name == DSN:
+                continue
             game = GAMES[name]
             for learner in self.learners:
                 if not all(
@@ -188,6 +231,13 @@ class Comparison:
                 ):
                     out.append((learner.name, name))
         return out
+
+
+def is_comparison_dsn_run(record: RunRecord) -> bool:
+    """Whether a stored DSN run is one of a comparison's: one L and no learning curve
+    (the paper's protocol draws one)."""
+    config = record.config
+    return len(config["checkpoints"]) == 1 and config["curve_points"] == 0
 
 
 def learner_of(config: Mapping[str, Any]) -> Any:
@@ -274,20 +324,29 @@ class CompareCell:
     game: str
     runs: int
     optimal_rate: float
-    median_games: float
-    """Median over runs of the games after which the greedy joint action never changed."""
+    median_games: float | None
+    """Median over runs of the games after which the greedy joint action never changed
+    (None on the DSN)."""
     sizes: dict[str, dict[str, float]]
     """Random games: ``"n=…,m=…"`` -> runs and optimal rate of that size."""
+    dsn: dict[str, float] | None = None
+    """On the DSN: ``optimal_rate`` is the greedy policy's success rate (mean over runs),
+    and this holds the DSN's other metrics (L, mean return and steps)."""
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
 
 def summarize(records: Iterable[RunRecord]) -> list[CompareCell]:
-    """One cell per (learner, game), in the registry's and :data:`GAMES`' order."""
+    """One cell per (learner, game), in the registry's and :data:`GAMES`' order (the DSN
+    last); ``records`` may hold the comparison's DSN runs too."""
     groups: dict[tuple[str, str], list[RunRecord]] = defaultdict(list)
+    dsn_records = []
     for rec in records:
-        groups[(rec.key.algorithm, rec.config["game"])].append(rec)
+        if rec.key.experiment == EXPERIMENT:
+            groups[(rec.key.algorithm, rec.config["game"])].append(rec)
+        else:
+            dsn_records.append(rec)
     learner_order = {name: i for i, name in enumerate(registry.REPEATED_LEARNERS)}
     game_order = {name: i for i, name in enumerate(GAMES)}
     cells = []
@@ -295,7 +354,28 @@ def summarize(records: Iterable[RunRecord]) -> list[CompareCell]:
         groups.items(), key=lambda kv: (learner_order.get(kv[0][0], 99), game_order[kv[0][1]])
     ):
         cells.append(_cell(learner, game, recs))
-    return cells
+    return cells + _dsn_cells(dsn_records)
+
+
+def _dsn_cells(records: Sequence[RunRecord]) -> list[CompareCell]:
+    """The DSN column, one cell per learner, from the DSN rows at the comparison's L."""
+    rows = episodic.summarize(DSN_GAME, records)
+    return [
+        CompareCell(
+            learner=row.algorithm,
+            game=DSN,
+            runs=row.runs,
+            optimal_rate=row.success_rate,
+            median_games=None,
+            sizes={},
+            dsn={
+                "episodes": row.episodes,
+                "mean_return": row.mean_return,
+                "mean_steps": row.mean_steps,
+            },
+        )
+        for row in rows
+    ]
 
 
 def _cell(learner: str, game: str, records: Sequence[RunRecord]) -> CompareCell:

@@ -30,11 +30,11 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from cmarlcd.compiled import kernel
+from cmarlcd.compiled import shared_kernel
 from cmarlcd.errors import require
 
 
-@kernel
+@shared_kernel
 def no_features(env, team: int, out) -> None:
     """``features`` of a game that has none (its states are indices only)."""
 

@@ -8,6 +8,8 @@ its policy only when that best improves:
   term is absent);
 * ``π_i ← a_i`` only when the update raised ``max_a q_i(a)``.
 
+In stochastic games the target is ``r + γ max_a q_i(s', a)``, per state.
+
 In a deterministic game this finds an optimal joint action once it has been played;
 with stochastic payoffs its optimism is fooled by a lucky draw.
 
@@ -25,8 +27,20 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from cmarlcd.compiled import kernel
-from cmarlcd.learners.independent import ClassicLearner, check_unit, no_stopping_rule, real_actions
-from cmarlcd.learners.tabular import RepeatedKernels
+from cmarlcd.learners.independent import (
+    ClassicLearner,
+    best_value,
+    check_unit,
+    no_stopping_rule,
+    real_actions,
+)
+from cmarlcd.learners.policy import greedy_action, uniform_legal_action
+from cmarlcd.learners.tabular import (
+    RepeatedKernels,
+    TabularConfig,
+    TabularKernels,
+    no_episode_update,
+)
 
 
 class OptimisticTables(NamedTuple):
@@ -106,3 +120,104 @@ class DistributedQConfig(ClassicLearner):
         legal = real_actions(counts)
         values = np.full(legal.shape, -np.inf)
         return OptimisticTables(values, legal, np.full(counts.shape[0], -1, dtype=np.int64))
+
+
+# ------------------------------------------------------------ stochastic games
+
+
+class StateOptimisticTables(NamedTuple):
+    values: np.ndarray
+    """``q_i(s, a)``, shape (n_states, n_agents, width); -inf until a target reaches it."""
+    legal: np.ndarray
+    """Legal actions of each state, as first seen, same shape."""
+    policy: np.ndarray
+    """``π_i(s)``, shape (n_states, n_agents); -1 before the first update."""
+
+
+class StateDistributedQParams(NamedTuple):
+    epsilon: float
+    gamma: float
+
+
+@kernel
+def distributed_init(tables, params, s, legal, counts) -> None:
+    """A state before any update: ``q = −∞`` and no policy."""
+    for i in range(counts.shape[0]):
+        tables.policy[s, i] = -1
+        for a in range(legal.shape[1]):
+            tables.legal[s, i, a] = legal[i, a]
+            tables.values[s, i, a] = -np.inf
+
+
+@kernel
+def distributed_state_act(tables, params, s, counts, rng, joint) -> None:
+    """ε-greedy around ``π_i(s)``, uniform over the legal actions while it is unset."""
+    for i in range(counts.shape[0]):
+        explore = rng.random() < params.epsilon
+        if explore or tables.policy[s, i] < 0:
+            joint[i] = uniform_legal_action(tables.legal[s, i], counts[i], rng.random())
+        else:
+            joint[i] = tables.policy[s, i]
+
+
+@kernel
+def distributed_observe(tables, params, states, joints, rewards, t, next_s, terminal) -> None:
+    """``q_i(s, a_i) ← max(q_i(s, a_i), r + γ max_a q_i(s', a))``; ``π_i(s) ← a_i`` when
+    that raised ``max_a q_i(s, a)``."""
+    s = states[t]
+    width = tables.legal.shape[2]
+    for i in range(joints.shape[1]):
+        a = joints[t, i]
+        target = rewards[t]
+        if not terminal:
+            later = best_value(tables.values[next_s, i], tables.legal[next_s, i], width)
+            target += params.gamma * later
+        if target > tables.values[s, i, a]:
+            best = best_value(tables.values[s, i], tables.legal[s, i], width)
+            tables.values[s, i, a] = target
+            if target > best:
+                tables.policy[s, i] = a
+
+
+@kernel
+def distributed_state_greedy(tables, s, counts, joint) -> None:
+    """Execution: ``π_i(s)`` (the lowest legal action before any update)."""
+    for i in range(counts.shape[0]):
+        chosen = tables.policy[s, i]
+        if chosen < 0:
+            chosen = greedy_action(tables.values[s, i], tables.legal[s, i], counts[i])
+        joint[i] = chosen
+
+
+@dataclass(frozen=True)
+class DistributedQStochasticConfig(TabularConfig):
+    """Distributed Q-learners in stochastic games (Lauer & Riedmiller, 2000), whose
+    optimality the paper proves for deterministic games only. [choice] ε-greedy, as in
+    repeated games; ``γ = 0.9`` as the paper's DSN settings."""
+
+    name: ClassVar[str] = "distributed-q"
+    display_name: ClassVar[str] = "Distributed Q"
+    citation: ClassVar[str] = DistributedQConfig.citation
+    kernels: ClassVar[TabularKernels] = TabularKernels(
+        distributed_init, distributed_state_act, distributed_state_greedy,
+        distributed_observe, no_episode_update,
+    )  # fmt: skip
+
+    epsilon: float = 0.1
+    """[choice] Probability of a uniform action, in (0, 1]."""
+    gamma: float = 0.9
+    """Discount, in (0, 1]."""
+
+    def __post_init__(self) -> None:
+        check_unit(epsilon=self.epsilon, gamma=self.gamma)
+
+    def params(self) -> StateDistributedQParams:
+        return StateDistributedQParams(self.epsilon, self.gamma)
+
+    def new_tables(self, n_states: int, counts: np.ndarray) -> StateOptimisticTables:
+        shape = (n_states, counts.shape[0], int(counts.max()))
+        return StateOptimisticTables(
+            np.full(shape, -np.inf),
+            np.zeros(shape, dtype=np.bool_),
+            np.full(shape[:2], -1, dtype=np.int64),
+        )

@@ -3,7 +3,8 @@ Q-learners that learn fast from good news and slowly from bad news.
 
 Repeated games: ``δ = r − Q_i(a_i)``, then ``Q_i(a_i) ← Q_i(a_i) + α δ`` if ``δ ≥ 0``,
 else ``Q_i(a_i) + β δ``, with ``β < α``: a teammate's exploration, which lowers the
-reward, is forgiven more than it is learned.
+reward, is forgiven more than it is learned. Stochastic games: the same with
+``δ = r + γ max_a Q_i(s', a) − Q_i(s, a_i)``.
 
 Defaults ``α = 0.1``, ``β = 0.01`` are the paper's matrix-game settings (with ``γ = 0``
 in a repeated game). [choice] The paper explores by softmax without a schedule we could
@@ -25,15 +26,26 @@ from cmarlcd.learners.independent import (
     KK_DECAY,
     KK_MAX_TEMPERATURE,
     ClassicLearner,
+    StateValueTables,
     ValueTables,
+    boltzmann_state_act,
     check_positive,
     check_unit,
+    greedy_state_values,
     greedy_values,
+    init_state_values,
     no_stopping_rule,
+    state_value_tables,
+    td_target,
     value_tables,
 )
 from cmarlcd.learners.q_learning import boltzmann_act
-from cmarlcd.learners.tabular import RepeatedKernels
+from cmarlcd.learners.tabular import (
+    RepeatedKernels,
+    TabularConfig,
+    TabularKernels,
+    no_episode_update,
+)
 
 
 class HystereticParams(NamedTuple):
@@ -97,3 +109,65 @@ class HystereticConfig(ClassicLearner):
 
     def new_tables(self, counts: np.ndarray) -> ValueTables:
         return value_tables(counts)
+
+
+# ------------------------------------------------------------ stochastic games
+
+
+class StateHystereticParams(NamedTuple):
+    alpha: float
+    beta: float
+    gamma: float
+    max_temperature: float
+    decay: float
+    initial_value: float
+
+
+@kernel
+def hysteretic_observe(tables, params, states, joints, rewards, t, next_s, terminal) -> None:
+    """Every agent's hysteretic step towards ``r + γ max_a Q_i(s', a)``."""
+    s = states[t]
+    for i in range(joints.shape[1]):
+        a = joints[t, i]
+        target = td_target(tables, params, i, rewards[t], next_s, terminal, tables.legal.shape[2])
+        tables.values[s, i, a] = hysteretic_update(
+            tables.values[s, i, a], target, params.alpha, params.beta
+        )
+
+
+@dataclass(frozen=True)
+class HystereticStochasticConfig(TabularConfig):
+    """Hysteretic Q-learners in stochastic games (Matignon, Laurent & Le Fort-Piat,
+    2007). [choice] Exploration: the repeated-game Boltzmann schedule counted in visits
+    of each state; ``γ = 0.9`` as the paper's DSN settings."""
+
+    name: ClassVar[str] = "hysteretic"
+    display_name: ClassVar[str] = "Hysteretic"
+    citation: ClassVar[str] = HystereticConfig.citation
+    kernels: ClassVar[TabularKernels] = TabularKernels(
+        init_state_values, boltzmann_state_act, greedy_state_values, hysteretic_observe,
+        no_episode_update,
+    )  # fmt: skip
+
+    alpha: float = 0.1
+    """Rate of increases, in (0, 1]."""
+    beta: float = 0.01
+    """Rate of decreases, in (0, alpha]."""
+    gamma: float = 0.9
+    """Discount, in (0, 1]."""
+    max_temperature: float = KK_MAX_TEMPERATURE
+    """Boltzmann schedule, per state visit (see :class:`IQLStochasticConfig`)."""
+    decay: float = KK_DECAY
+    """See ``max_temperature``."""
+
+    def __post_init__(self) -> None:
+        HystereticConfig(self.alpha, self.beta, self.max_temperature, self.decay)
+        check_unit(gamma=self.gamma)
+
+    def params(self) -> StateHystereticParams:
+        return StateHystereticParams(
+            self.alpha, self.beta, self.gamma, self.max_temperature, self.decay, 0.0
+        )
+
+    def new_tables(self, n_states: int, counts: np.ndarray) -> StateValueTables:
+        return state_value_tables(n_states, counts)

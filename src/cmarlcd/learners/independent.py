@@ -159,3 +159,86 @@ class ClassicLearner:
     citation: ClassVar[str]
     """The paper the rule comes from."""
     kernels: ClassVar[RepeatedKernels]
+
+
+# ------------------------------------------------------------ stochastic games
+
+
+class StateValueTables(NamedTuple):
+    """The tables of a value-based independent learner in a stochastic game, per state
+    index ``s`` (leading axis) and agent ``i``."""
+
+    values: np.ndarray
+    """``Q_i(s, a)``, shape (n_states, n_agents, width)."""
+    legal: np.ndarray
+    """Legal actions of each state, as first seen, same shape."""
+    probs: np.ndarray
+    """Scratch: the Boltzmann probabilities of the last draw in each state, same shape."""
+    visits: np.ndarray
+    """How often each state was acted in, shape (n_states,)."""
+
+
+def state_value_tables(n_states: int, counts: np.ndarray) -> StateValueTables:
+    shape = (n_states, counts.shape[0], int(counts.max()))
+    return StateValueTables(
+        np.zeros(shape),
+        np.zeros(shape, dtype=np.bool_),
+        np.zeros(shape),
+        np.zeros(n_states, dtype=np.int64),
+    )
+
+
+@njit(cache=True)
+def copy_legal(tables, s: int, legal, counts) -> None:
+    """Record state ``s``'s legal actions; no visit yet."""
+    for i in range(counts.shape[0]):
+        for a in range(legal.shape[1]):
+            tables.legal[s, i, a] = legal[i, a]
+    tables.visits[s] = 0
+
+
+@kernel
+def init_state_values(tables, params, s, legal, counts) -> None:
+    """Protocol ``init_state``: ``Q = params.initial_value`` over the legal actions."""
+    copy_legal(tables, s, legal, counts)
+    for i in range(counts.shape[0]):
+        for a in range(legal.shape[1]):
+            tables.values[s, i, a] = params.initial_value if legal[i, a] else 0.0
+
+
+@kernel
+def greedy_state_values(tables, s, counts, joint) -> None:
+    """Protocol ``greedy``: each agent's legal action of largest ``Q_i(s, ·)``."""
+    for i in range(counts.shape[0]):
+        joint[i] = greedy_action(tables.values[s, i], tables.legal[s, i], counts[i])
+
+
+@kernel
+def boltzmann_state_act(tables, params, s, counts, rng, joint) -> None:
+    """Protocol ``act``: Boltzmann over ``Q_i(s, ·)`` at Kapetanakis & Kudenko's
+    temperature of the state's visits so far (the repeated-game schedule, per state)."""
+    temperature = kk_temperature(tables.visits[s], params.max_temperature, params.decay)
+    tables.visits[s] += 1
+    boltzmann_joint(
+        tables.values[s], tables.legal[s], tables.probs[s], counts, temperature, rng, joint
+    )
+
+
+@njit(cache=True)
+def best_value(values_row, legal_row, count: int) -> float:
+    """``max_a Q(s', a)`` over the legal actions."""
+    best = -np.inf
+    for a in range(count):
+        if legal_row[a]:
+            best = max(best, values_row[a])
+    return best
+
+
+@njit(cache=True)
+def td_target(tables, params, i: int, reward: float, next_s: int, terminal: bool, count) -> float:
+    """``r + γ max_a Q_i(s', a)``, or ``r`` when ``s'`` is terminal."""
+    if terminal:
+        return reward
+    return reward + params.gamma * best_value(
+        tables.values[next_s, i], tables.legal[next_s, i], count
+    )

@@ -10,6 +10,11 @@ at ``max_temperature``). After a game with reward ``r``:
   news (most likely a teammate exploring) is mostly ignored;
 * ``Q_i(a_i) ← Q_i(a_i) + α δ`` if made; then ``T_i(a_i) ← decay · T_i(a_i)``.
 
+In stochastic games (LMRL2) the target is ``r + γ max_a Q_i(s', a)``, and the played
+action cools towards the next state's mean temperature,
+``T_i(s, a) ← decay · ((1 − τ) T_i(s, a) + τ T̄_i(s'))`` (``decay · T_i(s, a)`` when the
+episode ends).
+
 Acting: with ``T̄_i`` the mean temperature of the agent's actions, greedily once
 ``T̄_i < min_temperature``, otherwise Boltzmann over ``Q_i / (ω T̄_i)``.
 
@@ -35,13 +40,20 @@ from cmarlcd.learners.independent import (
     ClassicLearner,
     check_positive,
     check_unit,
+    greedy_state_values,
     greedy_values,
     no_stopping_rule,
     real_actions,
+    td_target,
 )
 from cmarlcd.learners.policy import greedy_action, sample_action, softmax_strategy
 from cmarlcd.learners.q_learning import q_update
-from cmarlcd.learners.tabular import RepeatedKernels
+from cmarlcd.learners.tabular import (
+    RepeatedKernels,
+    TabularConfig,
+    TabularKernels,
+    no_episode_update,
+)
 
 
 class LenientTables(NamedTuple):
@@ -160,4 +172,152 @@ class LenientConfig(ClassicLearner):
             np.zeros(legal.shape),
             np.where(legal, self.max_temperature, 0.0),
             np.zeros(counts.shape[0]),
+        )
+
+
+# ------------------------------------------------------------ stochastic games
+
+
+class StateLenientTables(NamedTuple):
+    values: np.ndarray
+    """``Q_i(s, a)``, shape (n_states, n_agents, width)."""
+    legal: np.ndarray
+    probs: np.ndarray
+    temperatures: np.ndarray
+    """``T_i(s, a)``, same shape."""
+    draws: np.ndarray
+    """Each agent's lenience draw for its last action in each state, (n_states, n_agents)."""
+
+
+class StateLenientParams(NamedTuple):
+    alpha: float
+    decay: float
+    min_temperature: float
+    action_moderation: float
+    lenience_moderation: float
+    gamma: float
+    diffusion: float
+    max_temperature: float
+
+
+@njit(cache=True)
+def mean_temperature(temperatures_row, legal_row, count: int) -> float:
+    """The mean temperature of the legal actions."""
+    total, legal = 0.0, 0
+    for a in range(count):
+        if legal_row[a]:
+            total += temperatures_row[a]
+            legal += 1
+    return total / legal
+
+
+@kernel
+def lenient_init(tables, params, s, legal, counts) -> None:
+    """A state before any update: ``Q = 0``, every legal action at ``max_temperature``."""
+    for i in range(counts.shape[0]):
+        for a in range(legal.shape[1]):
+            tables.legal[s, i, a] = legal[i, a]
+            tables.values[s, i, a] = 0.0
+            tables.temperatures[s, i, a] = params.max_temperature if legal[i, a] else 0.0
+
+
+@kernel
+def lenient_state_act(tables, params, s, counts, rng, joint) -> None:
+    """As in repeated games, with the state's temperatures; one lenience draw per agent."""
+    for i in range(counts.shape[0]):
+        legal = tables.legal[s, i]
+        mean = mean_temperature(tables.temperatures[s, i], legal, counts[i])
+        if mean < params.min_temperature:
+            joint[i] = greedy_action(tables.values[s, i], legal, counts[i])
+        else:
+            temperature = params.action_moderation * mean
+            softmax_strategy(tables.values[s, i], legal, counts[i], temperature, tables.probs[s, i])
+            joint[i] = sample_action(tables.probs[s, i], counts[i], rng.random())
+    for i in range(counts.shape[0]):
+        tables.draws[s, i] = rng.random()
+
+
+@kernel
+def lenient_observe(tables, params, states, joints, rewards, t, next_s, terminal) -> None:
+    """LMRL2's step: the lenient Q step towards ``r + γ max_a Q_i(s', a)``, then the
+    action cools, ``T ← decay · ((1 − τ) T + τ T̄(s'))`` (``decay · T`` at the end)."""
+    s = states[t]
+    width = tables.legal.shape[2]
+    for i in range(joints.shape[1]):
+        a = joints[t, i]
+        value, temperature = tables.values[s, i, a], tables.temperatures[s, i, a]
+        target = td_target(tables, params, i, rewards[t], next_s, terminal, width)
+        forgiven = is_lenient(
+            target - value, temperature, params.lenience_moderation, tables.draws[s, i]
+        )
+        if not forgiven:
+            tables.values[s, i, a] = q_update(value, target, params.alpha)
+        if not terminal:
+            later = mean_temperature(tables.temperatures[next_s, i], tables.legal[next_s, i], width)
+            temperature = (1.0 - params.diffusion) * temperature + params.diffusion * later
+        tables.temperatures[s, i, a] = params.decay * temperature
+
+
+@dataclass(frozen=True)
+class LenientStochasticConfig(TabularConfig):
+    """Lenient learners in stochastic games: LMRL2 (Wei & Luke, 2016), after Panait,
+    Sullivan & Luke (2006). Defaults as :class:`LenientConfig`, with LMRL2's ``γ = 0.9``
+    and temperature diffusion ``τ = 0.1``."""
+
+    name: ClassVar[str] = "lenient"
+    display_name: ClassVar[str] = "Lenient"
+    citation: ClassVar[str] = LenientConfig.citation
+    kernels: ClassVar[TabularKernels] = TabularKernels(
+        lenient_init, lenient_state_act, greedy_state_values, lenient_observe,
+        no_episode_update,
+    )  # fmt: skip
+
+    alpha: float = 0.1
+    """Learning rate, in (0, 1]."""
+    decay: float = 0.995
+    """Cooling factor of an action's temperature when it is played, in (0, 1]."""
+    max_temperature: float = 50.0
+    """Every action's temperature at the start, > 0."""
+    min_temperature: float = 2.0
+    """Below this mean temperature an agent acts greedily, >= 0."""
+    action_moderation: float = 1.0
+    """``ω``, > 0."""
+    lenience_moderation: float = 1.0
+    """``θ``, > 0."""
+    gamma: float = 0.9
+    """Discount, in (0, 1]."""
+    diffusion: float = 0.1
+    """``τ``: how much of the next state's mean temperature flows back, in (0, 1]."""
+
+    def __post_init__(self) -> None:
+        LenientConfig(
+            self.alpha,
+            self.decay,
+            self.max_temperature,
+            self.min_temperature,
+            self.action_moderation,
+            self.lenience_moderation,
+        )
+        check_unit(gamma=self.gamma, diffusion=self.diffusion)
+
+    def params(self) -> StateLenientParams:
+        return StateLenientParams(
+            self.alpha,
+            self.decay,
+            self.min_temperature,
+            self.action_moderation,
+            self.lenience_moderation,
+            self.gamma,
+            self.diffusion,
+            self.max_temperature,
+        )
+
+    def new_tables(self, n_states: int, counts: np.ndarray) -> StateLenientTables:
+        shape = (n_states, counts.shape[0], int(counts.max()))
+        return StateLenientTables(
+            np.zeros(shape),
+            np.zeros(shape, dtype=np.bool_),
+            np.zeros(shape),
+            np.zeros(shape),
+            np.zeros(shape[:2]),
         )

@@ -2,7 +2,8 @@
 own actions from the global reward, as if the others were part of the environment.
 
 Repeated games: ``Q_i(a_i) ← Q_i(a_i) + α (r − Q_i(a_i))`` after every game, and each
-agent explores by Boltzmann over ``Q_i / T``.
+agent explores by Boltzmann over ``Q_i / T``. Stochastic games: Watkins' Q-learning per
+agent, ``Q_i(s, a_i) ← Q_i(s, a_i) + α (r + γ max_a Q_i(s', a) − Q_i(s, a_i))``.
 
 [choice] Claus & Boutilier's temperature schedule is not stated in a form we could
 check; the schedule is Kapetanakis & Kudenko's (2002) ``T(t) = 500 e^(-0.006 t) + 1``,
@@ -23,16 +24,27 @@ from cmarlcd.learners.independent import (
     KK_DECAY,
     KK_MAX_TEMPERATURE,
     ClassicLearner,
+    StateValueTables,
     ValueTables,
     boltzmann_joint,
+    boltzmann_state_act,
     check_positive,
     check_unit,
+    greedy_state_values,
     greedy_values,
+    init_state_values,
     kk_temperature,
     no_stopping_rule,
+    state_value_tables,
+    td_target,
     value_tables,
 )
-from cmarlcd.learners.tabular import RepeatedKernels
+from cmarlcd.learners.tabular import (
+    RepeatedKernels,
+    TabularConfig,
+    TabularKernels,
+    no_episode_update,
+)
 
 
 class BoltzmannQParams(NamedTuple):
@@ -96,3 +108,60 @@ class IQLConfig(ClassicLearner):
 
     def new_tables(self, counts: np.ndarray) -> ValueTables:
         return value_tables(counts)
+
+
+# ------------------------------------------------------------ stochastic games
+
+
+class StateQParams(NamedTuple):
+    alpha: float
+    gamma: float
+    max_temperature: float
+    decay: float
+    initial_value: float
+
+
+@kernel
+def iql_observe(tables, params, states, joints, rewards, t, next_s, terminal) -> None:
+    """Every agent: ``Q_i(s, a_i) ← Q_i(s, a_i) + α (r + γ max_a Q_i(s', a) − Q_i(s, a_i))``."""
+    s = states[t]
+    for i in range(joints.shape[1]):
+        a = joints[t, i]
+        count = tables.legal.shape[2]
+        target = td_target(tables, params, i, rewards[t], next_s, terminal, count)
+        tables.values[s, i, a] = q_update(tables.values[s, i, a], target, params.alpha)
+
+
+@dataclass(frozen=True)
+class IQLStochasticConfig(TabularConfig):
+    """Independent Q-learners in stochastic games (Claus & Boutilier, 1998; Watkins'
+    Q-learning per agent). [choice] Exploration: the repeated-game Boltzmann schedule,
+    counted in visits of each state; ``γ = 0.9`` as the paper's DSN settings."""
+
+    name: ClassVar[str] = "iql"
+    display_name: ClassVar[str] = "IQL"
+    citation: ClassVar[str] = IQLConfig.citation
+    kernels: ClassVar[TabularKernels] = TabularKernels(
+        init_state_values, boltzmann_state_act, greedy_state_values, iql_observe,
+        no_episode_update,
+    )  # fmt: skip
+
+    alpha: float = 0.1
+    """[choice] Learning rate, in (0, 1]."""
+    gamma: float = 0.9
+    """Discount, in (0, 1]."""
+    max_temperature: float = KK_MAX_TEMPERATURE
+    """Boltzmann schedule ``T(n) = max_temperature · e^(-decay n) + 1`` after ``n``
+    visits of the state."""
+    decay: float = KK_DECAY
+    """See ``max_temperature``."""
+
+    def __post_init__(self) -> None:
+        check_unit(alpha=self.alpha, gamma=self.gamma)
+        check_positive(max_temperature=self.max_temperature, decay=self.decay)
+
+    def params(self) -> StateQParams:
+        return StateQParams(self.alpha, self.gamma, self.max_temperature, self.decay, 0.0)
+
+    def new_tables(self, n_states: int, counts: np.ndarray) -> StateValueTables:
+        return state_value_tables(n_states, counts)

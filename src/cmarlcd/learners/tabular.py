@@ -39,7 +39,7 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from cmarlcd.compiled import Unbound, kernel, specialise
+from cmarlcd.compiled import Unbound, shared_kernel, specialise
 from cmarlcd.errors import require
 
 
@@ -88,12 +88,12 @@ class TabularConfig:
         raise NotImplementedError
 
 
-@kernel
+@shared_kernel
 def no_step_update(tables, params, states, joints, rewards, t, next_s, terminal) -> None:
     """``observe`` of a learner that learns from whole episodes only."""
 
 
-@kernel
+@shared_kernel
 def no_episode_update(tables, params, states, joints, rewards, length, counts) -> None:
     """``end_episode`` of a learner that learns from single steps only."""
 
