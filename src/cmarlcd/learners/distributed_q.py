@@ -190,31 +190,27 @@ def distributed_state_greedy(tables, s, counts, joint) -> None:
 
 
 @dataclass(frozen=True)
-class DistributedQStochasticConfig(TabularConfig):
+class DistributedQStochasticConfig(DistributedQConfig, TabularConfig):
     """Distributed Q-learners in stochastic games (Lauer & Riedmiller, 2000), whose
     optimality the paper proves for deterministic games only. [choice] ε-greedy, as in
     repeated games; ``γ = 0.9`` as the paper's DSN settings."""
 
-    name: ClassVar[str] = "distributed-q"
-    display_name: ClassVar[str] = "Distributed Q"
-    citation: ClassVar[str] = DistributedQConfig.citation
-    kernels: ClassVar[TabularKernels] = TabularKernels(
+    kernels: ClassVar[TabularKernels] = TabularKernels(  # type: ignore[assignment]
         distributed_init, distributed_state_act, distributed_state_greedy,
         distributed_observe, no_episode_update,
     )  # fmt: skip
 
-    epsilon: float = 0.1
-    """[choice] Probability of a uniform action, in (0, 1]."""
     gamma: float = 0.9
     """Discount, in (0, 1]."""
 
     def __post_init__(self) -> None:
-        check_unit(epsilon=self.epsilon, gamma=self.gamma)
+        super().__post_init__()
+        check_unit(gamma=self.gamma)
 
-    def params(self) -> StateDistributedQParams:
+    def params(self) -> StateDistributedQParams:  # type: ignore[override]
         return StateDistributedQParams(self.epsilon, self.gamma)
 
-    def new_tables(self, n_states: int, counts: np.ndarray) -> StateOptimisticTables:
+    def new_tables(self, n_states: int, counts: np.ndarray) -> StateOptimisticTables:  # type: ignore[override]
         shape = (n_states, counts.shape[0], int(counts.max()))
         return StateOptimisticTables(
             np.full(shape, -np.inf),

@@ -23,8 +23,7 @@ import numpy as np
 
 from cmarlcd.compiled import kernel
 from cmarlcd.learners.independent import (
-    KK_DECAY,
-    KK_MAX_TEMPERATURE,
+    BoltzmannSchedule,
     ClassicLearner,
     check_positive,
     check_unit,
@@ -79,7 +78,7 @@ def fmq_learn(tables, params, counts, joint, reward: float) -> bool:
 
 
 @dataclass(frozen=True)
-class FMQConfig(ClassicLearner):
+class FMQConfig(BoltzmannSchedule, ClassicLearner):
     """FMQ learners in repeated games (Kapetanakis & Kudenko, 2002)."""
 
     name: ClassVar[str] = "fmq"
@@ -96,14 +95,11 @@ class FMQConfig(ClassicLearner):
     """[choice] Learning rate of ``Q``, in (0, 1]."""
     weight: float = 10.0
     """``c``: the weight of the heuristic, > 0."""
-    max_temperature: float = KK_MAX_TEMPERATURE
-    """Boltzmann schedule ``T(t) = max_temperature · e^(-decay t) + 1``."""
-    decay: float = KK_DECAY
-    """See ``max_temperature``."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         check_unit(alpha=self.alpha)
-        check_positive(weight=self.weight, max_temperature=self.max_temperature, decay=self.decay)
+        check_positive(weight=self.weight)
 
     def params(self) -> FMQParams:
         return FMQParams(self.alpha, self.weight, self.max_temperature, self.decay)

@@ -23,13 +23,11 @@ from numba import njit
 from cmarlcd.compiled import kernel
 from cmarlcd.errors import require
 from cmarlcd.learners.independent import (
-    KK_DECAY,
-    KK_MAX_TEMPERATURE,
+    BoltzmannSchedule,
     ClassicLearner,
     StateValueTables,
     ValueTables,
     boltzmann_state_act,
-    check_positive,
     check_unit,
     greedy_state_values,
     greedy_values,
@@ -75,7 +73,7 @@ def hysteretic_learn(tables, params, counts, joint, reward: float) -> bool:
 
 
 @dataclass(frozen=True)
-class HystereticConfig(ClassicLearner):
+class HystereticConfig(BoltzmannSchedule, ClassicLearner):
     """Hysteretic Q-learners in repeated games (Matignon, Laurent & Le Fort-Piat, 2007)."""
 
     name: ClassVar[str] = "hysteretic"
@@ -92,17 +90,13 @@ class HystereticConfig(ClassicLearner):
     """Rate of increases (``δ ≥ 0``), in (0, 1]."""
     beta: float = 0.01
     """Rate of decreases (``δ < 0``), in (0, alpha]."""
-    max_temperature: float = KK_MAX_TEMPERATURE
-    """Boltzmann schedule ``T(t) = max_temperature · e^(-decay t) + 1``."""
-    decay: float = KK_DECAY
-    """See ``max_temperature``."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         check_unit(alpha=self.alpha, beta=self.beta)
         require(
             self.beta <= self.alpha, "beta", f"must be <= alpha = {self.alpha} (got {self.beta})"
         )
-        check_positive(max_temperature=self.max_temperature, decay=self.decay)
 
     def params(self) -> HystereticParams:
         return HystereticParams(self.alpha, self.beta, self.max_temperature, self.decay)
@@ -136,38 +130,27 @@ def hysteretic_observe(tables, params, states, joints, rewards, t, next_s, termi
 
 
 @dataclass(frozen=True)
-class HystereticStochasticConfig(TabularConfig):
+class HystereticStochasticConfig(HystereticConfig, TabularConfig):
     """Hysteretic Q-learners in stochastic games (Matignon, Laurent & Le Fort-Piat,
     2007). [choice] Exploration: the repeated-game Boltzmann schedule counted in visits
     of each state; ``γ = 0.9`` as the paper's DSN settings."""
 
-    name: ClassVar[str] = "hysteretic"
-    display_name: ClassVar[str] = "Hysteretic"
-    citation: ClassVar[str] = HystereticConfig.citation
-    kernels: ClassVar[TabularKernels] = TabularKernels(
+    kernels: ClassVar[TabularKernels] = TabularKernels(  # type: ignore[assignment]
         init_state_values, boltzmann_state_act, greedy_state_values, hysteretic_observe,
         no_episode_update,
     )  # fmt: skip
 
-    alpha: float = 0.1
-    """Rate of increases, in (0, 1]."""
-    beta: float = 0.01
-    """Rate of decreases, in (0, alpha]."""
     gamma: float = 0.9
     """Discount, in (0, 1]."""
-    max_temperature: float = KK_MAX_TEMPERATURE
-    """Boltzmann schedule, per state visit (see :class:`IQLStochasticConfig`)."""
-    decay: float = KK_DECAY
-    """See ``max_temperature``."""
 
     def __post_init__(self) -> None:
-        HystereticConfig(self.alpha, self.beta, self.max_temperature, self.decay)
+        super().__post_init__()
         check_unit(gamma=self.gamma)
 
-    def params(self) -> StateHystereticParams:
+    def params(self) -> StateHystereticParams:  # type: ignore[override]
         return StateHystereticParams(
             self.alpha, self.beta, self.gamma, self.max_temperature, self.decay, 0.0
         )
 
-    def new_tables(self, n_states: int, counts: np.ndarray) -> StateValueTables:
+    def new_tables(self, n_states: int, counts: np.ndarray) -> StateValueTables:  # type: ignore[override]
         return state_value_tables(n_states, counts)

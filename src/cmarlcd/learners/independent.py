@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
@@ -149,6 +150,21 @@ class RepeatedLearner:
         joint = np.zeros(self.n_agents, dtype=np.int64)
         self.kernels.greedy(self.tables, self.counts, joint)
         return tuple(int(a) for a in joint)
+
+
+@dataclass(frozen=True)
+class BoltzmannSchedule:
+    """The settings of Kapetanakis & Kudenko's Boltzmann schedule,
+    ``T(t) = max_temperature · e^(-decay t) + 1`` after ``t`` plays (in stochastic games,
+    visits of the state)."""
+
+    max_temperature: float = KK_MAX_TEMPERATURE
+    """See the class docstring, > 0."""
+    decay: float = KK_DECAY
+    """See the class docstring, > 0."""
+
+    def __post_init__(self) -> None:
+        check_positive(max_temperature=self.max_temperature, decay=self.decay)
 
 
 class ClassicLearner:

@@ -29,10 +29,8 @@ from numba import njit
 from cmarlcd.compiled import kernel
 from cmarlcd.errors import require
 from cmarlcd.learners.independent import (
-    KK_DECAY,
-    KK_MAX_TEMPERATURE,
+    BoltzmannSchedule,
     ClassicLearner,
-    check_positive,
     check_unit,
     greedy_values,
     no_stopping_rule,
@@ -105,7 +103,7 @@ def jal_learn_and_evaluate(tables, params, counts, joint, reward: float) -> bool
 
 
 @dataclass(frozen=True)
-class JointActionConfig(ClassicLearner):
+class JointActionConfig(BoltzmannSchedule, ClassicLearner):
     """Joint-action learners in repeated games (Claus & Boutilier, 1998)."""
 
     name: ClassVar[str] = "jal"
@@ -120,14 +118,10 @@ class JointActionConfig(ClassicLearner):
 
     alpha: float = 0.1
     """[choice] Learning rate of ``Q``, in (0, 1]."""
-    max_temperature: float = KK_MAX_TEMPERATURE
-    """Boltzmann schedule ``T(t) = max_temperature · e^(-decay t) + 1``."""
-    decay: float = KK_DECAY
-    """See ``max_temperature``."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         check_unit(alpha=self.alpha)
-        check_positive(max_temperature=self.max_temperature, decay=self.decay)
 
     def params(self) -> BoltzmannQParams:
         return BoltzmannQParams(self.alpha, self.max_temperature, self.decay)

@@ -259,48 +259,26 @@ def lenient_observe(tables, params, states, joints, rewards, t, next_s, terminal
 
 
 @dataclass(frozen=True)
-class LenientStochasticConfig(TabularConfig):
+class LenientStochasticConfig(LenientConfig, TabularConfig):
     """Lenient learners in stochastic games: LMRL2 (Wei & Luke, 2016), after Panait,
     Sullivan & Luke (2006). Defaults as :class:`LenientConfig`, with LMRL2's ``γ = 0.9``
     and temperature diffusion ``τ = 0.1``."""
 
-    name: ClassVar[str] = "lenient"
-    display_name: ClassVar[str] = "Lenient"
-    citation: ClassVar[str] = LenientConfig.citation
-    kernels: ClassVar[TabularKernels] = TabularKernels(
+    kernels: ClassVar[TabularKernels] = TabularKernels(  # type: ignore[assignment]
         lenient_init, lenient_state_act, greedy_state_values, lenient_observe,
         no_episode_update,
     )  # fmt: skip
 
-    alpha: float = 0.1
-    """Learning rate, in (0, 1]."""
-    decay: float = 0.995
-    """Cooling factor of an action's temperature when it is played, in (0, 1]."""
-    max_temperature: float = 50.0
-    """Every action's temperature at the start, > 0."""
-    min_temperature: float = 2.0
-    """Below this mean temperature an agent acts greedily, >= 0."""
-    action_moderation: float = 1.0
-    """``ω``, > 0."""
-    lenience_moderation: float = 1.0
-    """``θ``, > 0."""
     gamma: float = 0.9
     """Discount, in (0, 1]."""
     diffusion: float = 0.1
     """``τ``: how much of the next state's mean temperature flows back, in (0, 1]."""
 
     def __post_init__(self) -> None:
-        LenientConfig(
-            self.alpha,
-            self.decay,
-            self.max_temperature,
-            self.min_temperature,
-            self.action_moderation,
-            self.lenience_moderation,
-        )
+        super().__post_init__()
         check_unit(gamma=self.gamma, diffusion=self.diffusion)
 
-    def params(self) -> StateLenientParams:
+    def params(self) -> StateLenientParams:  # type: ignore[override]
         return StateLenientParams(
             self.alpha,
             self.decay,
@@ -312,7 +290,7 @@ class LenientStochasticConfig(TabularConfig):
             self.max_temperature,
         )
 
-    def new_tables(self, n_states: int, counts: np.ndarray) -> StateLenientTables:
+    def new_tables(self, n_states: int, counts: np.ndarray) -> StateLenientTables:  # type: ignore[override]
         shape = (n_states, counts.shape[0], int(counts.max()))
         return StateLenientTables(
             np.zeros(shape),

@@ -21,14 +21,12 @@ from numba import njit
 
 from cmarlcd.compiled import kernel
 from cmarlcd.learners.independent import (
-    KK_DECAY,
-    KK_MAX_TEMPERATURE,
+    BoltzmannSchedule,
     ClassicLearner,
     StateValueTables,
     ValueTables,
     boltzmann_joint,
     boltzmann_state_act,
-    check_positive,
     check_unit,
     greedy_state_values,
     greedy_values,
@@ -79,7 +77,7 @@ def iql_learn(tables, params, counts, joint, reward: float) -> bool:
 
 
 @dataclass(frozen=True)
-class IQLConfig(ClassicLearner):
+class IQLConfig(BoltzmannSchedule, ClassicLearner):
     """Independent Q-learners in repeated games (Claus & Boutilier, 1998)."""
 
     name: ClassVar[str] = "iql"
@@ -94,14 +92,10 @@ class IQLConfig(ClassicLearner):
 
     alpha: float = 0.1
     """[choice] Learning rate, in (0, 1]."""
-    max_temperature: float = KK_MAX_TEMPERATURE
-    """Boltzmann schedule ``T(t) = max_temperature · e^(-decay t) + 1``."""
-    decay: float = KK_DECAY
-    """See ``max_temperature``."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         check_unit(alpha=self.alpha)
-        check_positive(max_temperature=self.max_temperature, decay=self.decay)
 
     def params(self) -> BoltzmannQParams:
         return BoltzmannQParams(self.alpha, self.max_temperature, self.decay)
@@ -133,35 +127,25 @@ def iql_observe(tables, params, states, joints, rewards, t, next_s, terminal) ->
 
 
 @dataclass(frozen=True)
-class IQLStochasticConfig(TabularConfig):
+class IQLStochasticConfig(IQLConfig, TabularConfig):
     """Independent Q-learners in stochastic games (Claus & Boutilier, 1998; Watkins'
     Q-learning per agent). [choice] Exploration: the repeated-game Boltzmann schedule,
     counted in visits of each state; ``γ = 0.9`` as the paper's DSN settings."""
 
-    name: ClassVar[str] = "iql"
-    display_name: ClassVar[str] = "IQL"
-    citation: ClassVar[str] = IQLConfig.citation
-    kernels: ClassVar[TabularKernels] = TabularKernels(
+    kernels: ClassVar[TabularKernels] = TabularKernels(  # type: ignore[assignment]
         init_state_values, boltzmann_state_act, greedy_state_values, iql_observe,
         no_episode_update,
     )  # fmt: skip
 
-    alpha: float = 0.1
-    """[choice] Learning rate, in (0, 1]."""
     gamma: float = 0.9
     """Discount, in (0, 1]."""
-    max_temperature: float = KK_MAX_TEMPERATURE
-    """Boltzmann schedule ``T(n) = max_temperature · e^(-decay n) + 1`` after ``n``
-    visits of the state."""
-    decay: float = KK_DECAY
-    """See ``max_temperature``."""
 
     def __post_init__(self) -> None:
-        check_unit(alpha=self.alpha, gamma=self.gamma)
-        check_positive(max_temperature=self.max_temperature, decay=self.decay)
+        super().__post_init__()
+        check_unit(gamma=self.gamma)
 
-    def params(self) -> StateQParams:
+    def params(self) -> StateQParams:  # type: ignore[override]
         return StateQParams(self.alpha, self.gamma, self.max_temperature, self.decay, 0.0)
 
-    def new_tables(self, n_states: int, counts: np.ndarray) -> StateValueTables:
+    def new_tables(self, n_states: int, counts: np.ndarray) -> StateValueTables:  # type: ignore[override]
         return state_value_tables(n_states, counts)
