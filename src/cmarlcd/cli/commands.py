@@ -715,10 +715,12 @@ def _report_groups(
             ("tournament", report.tournament_report, tour.EXPERIMENT, tour.protocol_key),
             ("theorem1", _theorem_report, theorem.EXPERIMENT, _theorem_key),
         )
-        for kind, render, experiment, key in kinds:
-            for records in _groups(db.records(experiment), key).values():
-                found.append((kind, render, records))
         dsn_runs = [r for r in db.records(dsn_exp.EXPERIMENT) if cmp.is_comparison_dsn_run(r)]
+        compared = {r.key for r in dsn_runs}  # reported with the comparison
+        for kind, render, experiment, key in kinds:
+            stored = (r for r in db.records(experiment) if r.key not in compared)
+            for records in _groups(stored, key).values():
+                found.append((kind, render, records))
         for seed_, records in _groups(db.records(cmp.EXPERIMENT), _seed_key).items():
             ours = [r for r in dsn_runs if r.key.root_seed == seed_]
             found.append(("compare", compare_report, records + ours))
