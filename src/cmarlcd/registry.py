@@ -23,7 +23,7 @@ from cmarlcd.learners.deep_config import DeepConfig
 from cmarlcd.learners.distributed_q import DistributedQConfig, DistributedQStochasticConfig
 from cmarlcd.learners.fmq import FMQConfig
 from cmarlcd.learners.hysteretic import HystereticConfig, HystereticStochasticConfig
-from cmarlcd.learners.joint_action import JointActionConfig
+from cmarlcd.learners.joint_action import CentralQConfig, JointActionConfig
 from cmarlcd.learners.lenient import LenientConfig, LenientStochasticConfig
 from cmarlcd.learners.q_learning import IQLConfig, IQLStochasticConfig
 from cmarlcd.learners.tabular import TabularConfig
@@ -57,6 +57,7 @@ RepeatedLearnerConfig = (
     | FMQConfig
     | LenientConfig
     | JointActionConfig
+    | CentralQConfig
 )
 
 #: Learners for repeated games, by name, with their papers' settings: CMARL-CD
@@ -71,6 +72,7 @@ REPEATED_LEARNERS: dict[str, RepeatedLearnerConfig] = {
         FMQConfig(),
         LenientConfig(),
         JointActionConfig(),
+        CentralQConfig(),
     )
 }
 

@@ -21,7 +21,7 @@ from cmarlcd.learners.distributed_q import DistributedQConfig
 from cmarlcd.learners.fmq import FMQConfig
 from cmarlcd.learners.hysteretic import HystereticConfig
 from cmarlcd.learners.independent import RepeatedLearner, kk_temperature
-from cmarlcd.learners.joint_action import JointActionConfig
+from cmarlcd.learners.joint_action import CentralQConfig, JointActionConfig
 from cmarlcd.learners.lenient import LenientConfig
 from cmarlcd.learners.q_learning import IQLConfig
 from cmarlcd.registry import REPEATED_LEARNERS
@@ -192,3 +192,25 @@ def test_independent_learners_miss_the_climbing_games_optimum() -> None:
     """Claus & Boutilier (1998): independent learners end on a suboptimal equilibrium of
     the climbing game (the -30 penalties around the optimum drag its value down)."""
     assert optimal_share(IQLConfig(), climbing_game(), 5_000, runs=20) <= 0.3
+
+
+def test_central_q_learns_the_joint_action_played_and_acts_as_one() -> None:
+    learner = RepeatedLearner(CentralQConfig(alpha=0.5), [2, 3], seed=0)
+    learner.update((1, 2), reward=8.0)  # flat index 1 · 3 + 2 = 5: Q = 0 + 0.5 · 8
+    learner.update((0, 1), reward=-2.0)  # flat index 1: Q = -1
+    assert learner.tables.values.tolist() == [0.0, -1.0, 0.0, 0.0, 0.0, 4.0]
+    assert learner.greedy_joint_action() == (1, 2)
+    learner.tables.plays[0] = 100_000  # cold: T = 1; e^-30 of the mass elsewhere
+    learner.tables.values[5] = 30.0
+    assert {learner.act() for _ in range(20)} == {(1, 2)}
+
+
+def test_central_q_is_the_coordinated_reference_even_with_random_payoffs() -> None:
+    """Averaging over the joint action, it learns expected payoffs: optimal on every
+    climbing game, where every independent learner here fails somewhere."""
+    for game in (
+        climbing_game(),
+        partially_stochastic_climbing_game(),
+        fully_stochastic_climbing_game(),
+    ):
+        assert optimal_share(CentralQConfig(), game, 5_000, runs=20) >= 0.9

@@ -51,8 +51,8 @@ def run_comparison(
     if skipped and console is not None:
         pairs = ", ".join(f"{s['learner']} on {s['game']}" for s in skipped)
         console.print(
-            f"not played: {pairs} (FMQ and JAL are defined for repeated games only; JAL "
-            f"plays at most {cmp.joint_action.MAX_JOINT_ACTIONS:,} joint actions)",
+            f"not played: {pairs} (FMQ, JAL and central Q are repeated-game learners; JAL "
+            f"and central Q play at most {cmp.joint_action.MAX_JOINT_ACTIONS:,} joint actions)",
             soft_wrap=True,
         )
     return {**doc, "skipped": skipped, **_run_counts(done, run.store, console)}

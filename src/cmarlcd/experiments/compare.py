@@ -132,11 +132,13 @@ def budget(joint_actions: int) -> int:
     return max(MIN_GAMES, GAMES_PER_JOINT_ACTION * joint_actions)
 
 
+#: The learners whose tables span the joint actions: they play small games only.
+JOINT_LEARNERS = (joint_action.JointActionConfig.name, joint_action.CentralQConfig.name)
+
+
 def plays(learner: str, joint_actions: int) -> bool:
-    """Whether ``learner`` plays a game that size (JAL only small ones)."""
-    return learner != joint_action.JointActionConfig.name or (
-        joint_actions <= joint_action.MAX_JOINT_ACTIONS
-    )
+    """Whether ``learner`` plays a game that size (JAL and central Q only small ones)."""
+    return learner not in JOINT_LEARNERS or joint_actions <= joint_action.MAX_JOINT_ACTIONS
 
 
 @dataclass(frozen=True)
@@ -305,7 +307,7 @@ def _cost(config: Mapping[str, Any]) -> float:
     joint_actions = size[1] ** size[0]
     learner = config["learner"]
     per_game = SECONDS_PER_GAME_ACTION.get(learner, 2e-8) * size[0] * size[1]
-    if learner == joint_action.JointActionConfig.name:
+    if learner in JOINT_LEARNERS:
         per_game = JAL_SECONDS_PER_JOINT_ACTION * joint_actions * size[0]
     return 0.001 + per_game * config["budget"]
 

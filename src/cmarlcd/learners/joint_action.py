@@ -1,5 +1,5 @@
-"""Joint-action learners, JAL (Claus & Boutilier, 1998): the coordinated reference where
-the joint action space is small.
+"""Joint-action learners, JAL (Claus & Boutilier, 1998), and the centralised reference
+:class:`CentralQConfig`, for games whose joint action space is small.
 
 Every agent observes the joint action and learns its value, ``Q(a) ← Q(a) + α (r − Q(a))``
 for the joint action ``a`` played, and counts how often each other agent played each of
@@ -33,6 +33,7 @@ from cmarlcd.learners.independent import (
     ClassicLearner,
     check_unit,
     greedy_values,
+    kk_temperature,
     no_stopping_rule,
     real_actions,
 )
@@ -42,6 +43,17 @@ from cmarlcd.learners.tabular import RepeatedKernels
 #: [choice] The largest joint action space a JAL plays (the Q table and every game's
 #: expected values scale with it).
 MAX_JOINT_ACTIONS = 1_024
+
+
+def joint_action_count(counts: np.ndarray, learner: str) -> int:
+    """``|A|``, refused above :data:`MAX_JOINT_ACTIONS`."""
+    size = math.prod(int(k) for k in counts)
+    require(
+        size <= MAX_JOINT_ACTIONS,
+        "agents",
+        f"{learner} plays games of at most {MAX_JOINT_ACTIONS:,} joint actions (got {size:,})",
+    )
+    return size
 
 
 class JointActionTables(NamedTuple):
@@ -127,12 +139,7 @@ class JointActionConfig(BoltzmannSchedule, ClassicLearner):
         return BoltzmannQParams(self.alpha, self.max_temperature, self.decay)
 
     def new_tables(self, counts: np.ndarray) -> JointActionTables:
-        size = math.prod(int(k) for k in counts)
-        require(
-            size <= MAX_JOINT_ACTIONS,
-            "agents",
-            f"JAL plays games of at most {MAX_JOINT_ACTIONS:,} joint actions (got {size:,})",
-        )
+        size = joint_action_count(counts, "JAL")
         legal = real_actions(counts)
         strides = np.array(
             [math.prod(int(k) for k in counts[i + 1 :]) for i in range(counts.shape[0])],
@@ -145,3 +152,106 @@ class JointActionConfig(BoltzmannSchedule, ClassicLearner):
         return JointActionTables(
             values, legal, np.zeros(legal.shape), np.zeros(1, dtype=np.int64), q, seen, strides
         )
+
+
+# ------------------------------------------------- the centralised reference
+
+
+class CentralTables(NamedTuple):
+    values: np.ndarray
+    """``Q(a)`` per joint action, flattened in C order, shape (|A|,)."""
+    probs: np.ndarray
+    """Scratch: the Boltzmann probabilities of the last draw, same shape."""
+    plays: np.ndarray
+    """One element: the games played so far."""
+
+
+@kernel
+def central_act(tables, params, counts, rng, joint) -> None:
+    """One Boltzmann draw over the joint actions, ``softmax(Q / T(t))``, decoded into
+    every agent's action (the agents act as one)."""
+    temperature = kk_temperature(tables.plays[0], params.max_temperature, params.decay)
+    q, p = tables.values, tables.probs
+    top = q[largest(q)]
+    total = 0.0
+    for flat in range(q.shape[0]):
+        p[flat] = math.exp((q[flat] - top) / temperature)
+        total += p[flat]
+    u, flat = rng.random() * total, q.shape[0] - 1
+    for k in range(q.shape[0]):
+        u -= p[k]
+        if u < 0.0:
+            flat = k
+            break
+    decode(flat, counts, joint)
+
+
+@njit(cache=True)
+def largest(values) -> int:
+    """The position of the largest value (the first on ties)."""
+    best = 0
+    for k in range(1, values.shape[0]):
+        if values[k] > values[best]:
+            best = k
+    return best
+
+
+@njit(cache=True)
+def decode(flat: int, counts, joint) -> None:
+    """The joint action at position ``flat`` of the C-order flattening."""
+    for i in range(counts.shape[0] - 1, -1, -1):
+        joint[i] = flat % counts[i]
+        flat //= counts[i]
+
+
+@kernel
+def central_learn(tables, params, counts, joint, reward: float) -> bool:
+    """``Q(a) ← Q(a) + α (r − Q(a))`` for the joint action played."""
+    tables.plays[0] += 1
+    flat = 0
+    for i in range(counts.shape[0]):
+        flat = flat * counts[i] + joint[i]
+    tables.values[flat] = q_update(tables.values[flat], reward, params.alpha)
+    return True
+
+
+@kernel
+def central_greedy(tables, counts, joint) -> None:
+    """The joint action of largest ``Q`` (the first in C order on ties)."""
+    decode(largest(tables.values), counts, joint)
+
+
+@dataclass(frozen=True)
+class CentralQConfig(BoltzmannSchedule, ClassicLearner):
+    """One Q-learner over the joint actions, whose choice every agent plays: the
+    coordinated reference (what independent learners could reach if they acted as one).
+
+    [choice] Not from a paper of its own: Q-learning over joint actions (as JAL's values,
+    Claus & Boutilier 1998) with the agents' choice made centrally, ``α = 0.1``,
+    Kapetanakis & Kudenko's Boltzmann schedule over the joint actions. Its tables and
+    every game scale with ``|A|``: at most :data:`MAX_JOINT_ACTIONS`.
+    """
+
+    name: ClassVar[str] = "central-q"
+    display_name: ClassVar[str] = "Central Q"
+    citation: ClassVar[str] = (
+        "Q-learning over joint actions, acting as one (the coordinated reference; cf. "
+        "Claus & Boutilier 1998)"
+    )
+    kernels: ClassVar[RepeatedKernels] = RepeatedKernels(
+        central_act, central_learn, no_stopping_rule, central_greedy
+    )
+
+    alpha: float = 0.1
+    """[choice] Learning rate, in (0, 1]."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_unit(alpha=self.alpha)
+
+    def params(self) -> BoltzmannQParams:
+        return BoltzmannQParams(self.alpha, self.max_temperature, self.decay)
+
+    def new_tables(self, counts: np.ndarray) -> CentralTables:
+        size = joint_action_count(counts, "Central Q")
+        return CentralTables(np.zeros(size), np.zeros(size), np.zeros(1, dtype=np.int64))
