@@ -29,15 +29,13 @@ from numba import njit
 from cmarlcd.compiled import kernel
 from cmarlcd.errors import require
 from cmarlcd.learners.independent import (
-    BoltzmannSchedule,
     ClassicLearner,
-    check_unit,
     greedy_values,
     kk_temperature,
     no_stopping_rule,
     real_actions,
 )
-from cmarlcd.learners.q_learning import BoltzmannQParams, boltzmann_act, q_update
+from cmarlcd.learners.q_learning import BoltzmannQSettings, boltzmann_act, q_update
 from cmarlcd.learners.tabular import RepeatedKernels
 
 #: [choice] The largest joint action space a JAL plays (the Q table and every game's
@@ -115,7 +113,7 @@ def jal_learn_and_evaluate(tables, params, counts, joint, reward: float) -> bool
 
 
 @dataclass(frozen=True)
-class JointActionConfig(BoltzmannSchedule, ClassicLearner):
+class JointActionConfig(BoltzmannQSettings, ClassicLearner):
     """Joint-action learners in repeated games (Claus & Boutilier, 1998)."""
 
     name: ClassVar[str] = "jal"
@@ -127,16 +125,6 @@ class JointActionConfig(BoltzmannSchedule, ClassicLearner):
     kernels: ClassVar[RepeatedKernels] = RepeatedKernels(
         boltzmann_act, jal_learn_and_evaluate, no_stopping_rule, greedy_values
     )
-
-    alpha: float = 0.1
-    """[choice] Learning rate of ``Q``, in (0, 1]."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_unit(alpha=self.alpha)
-
-    def params(self) -> BoltzmannQParams:
-        return BoltzmannQParams(self.alpha, self.max_temperature, self.decay)
 
     def new_tables(self, counts: np.ndarray) -> JointActionTables:
         size = joint_action_count(counts, "JAL")
@@ -222,7 +210,7 @@ def central_greedy(tables, counts, joint) -> None:
 
 
 @dataclass(frozen=True)
-class CentralQConfig(BoltzmannSchedule, ClassicLearner):
+class CentralQConfig(BoltzmannQSettings, ClassicLearner):
     """One Q-learner over the joint actions, whose choice every agent plays: the
     coordinated reference (what independent learners could reach if they acted as one).
 
@@ -241,16 +229,6 @@ class CentralQConfig(BoltzmannSchedule, ClassicLearner):
     kernels: ClassVar[RepeatedKernels] = RepeatedKernels(
         central_act, central_learn, no_stopping_rule, central_greedy
     )
-
-    alpha: float = 0.1
-    """[choice] Learning rate, in (0, 1]."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_unit(alpha=self.alpha)
-
-    def params(self) -> BoltzmannQParams:
-        return BoltzmannQParams(self.alpha, self.max_temperature, self.decay)
 
     def new_tables(self, counts: np.ndarray) -> CentralTables:
         size = joint_action_count(counts, "Central Q")

@@ -75,25 +75,40 @@ class LenientParams(NamedTuple):
     lenience_moderation: float
 
 
-@kernel
-def lenient_act(tables, params, counts, rng, joint) -> None:
-    """Greedy once the agent's mean temperature is below ``min_temperature``, else
-    Boltzmann over ``Q / (ω T̄)``; then one lenience draw per agent."""
+@njit(cache=True)
+def mean_temperature(temperatures_row, legal_row, count: int) -> float:
+    """The mean temperature of the legal actions."""
+    total, legal = 0.0, 0
+    for a in range(count):
+        if legal_row[a]:
+            total += temperatures_row[a]
+            legal += 1
+    return total / legal
+
+
+@njit(cache=True)
+def lenient_choice(values, temperatures, legal, probs, counts, params, rng, joint, draws) -> None:
+    """Every agent: greedy once its mean temperature is below ``min_temperature``, else
+    Boltzmann over ``Q / (ω T̄)``; then one lenience draw per agent (rows of one state)."""
     for i in range(counts.shape[0]):
-        mean = 0.0
-        for a in range(counts[i]):
-            mean += tables.temperatures[i, a]
-        mean /= counts[i]
+        mean = mean_temperature(temperatures[i], legal[i], counts[i])
         if mean < params.min_temperature:
-            joint[i] = greedy_action(tables.values[i], tables.legal[i], counts[i])
+            joint[i] = greedy_action(values[i], legal[i], counts[i])
         else:
             temperature = params.action_moderation * mean
-            softmax_strategy(
-                tables.values[i], tables.legal[i], counts[i], temperature, tables.probs[i]
-            )
-            joint[i] = sample_action(tables.probs[i], counts[i], rng.random())
+            softmax_strategy(values[i], legal[i], counts[i], temperature, probs[i])
+            joint[i] = sample_action(probs[i], counts[i], rng.random())
     for i in range(counts.shape[0]):
-        tables.draws[i] = rng.random()
+        draws[i] = rng.random()
+
+
+@kernel
+def lenient_act(tables, params, counts, rng, joint) -> None:
+    """:func:`lenient_choice` on the agents' rows."""
+    lenient_choice(
+        tables.values, tables.temperatures, tables.legal, tables.probs, counts, params, rng,
+        joint, tables.draws,
+    )  # fmt: skip
 
 
 @njit(cache=True)
@@ -200,17 +215,6 @@ class StateLenientParams(NamedTuple):
     max_temperature: float
 
 
-@njit(cache=True)
-def mean_temperature(temperatures_row, legal_row, count: int) -> float:
-    """The mean temperature of the legal actions."""
-    total, legal = 0.0, 0
-    for a in range(count):
-        if legal_row[a]:
-            total += temperatures_row[a]
-            legal += 1
-    return total / legal
-
-
 @kernel
 def lenient_init(tables, params, s, legal, counts) -> None:
     """A state before any update: ``Q = 0``, every legal action at ``max_temperature``."""
@@ -223,18 +227,11 @@ def lenient_init(tables, params, s, legal, counts) -> None:
 
 @kernel
 def lenient_state_act(tables, params, s, counts, rng, joint) -> None:
-    """As in repeated games, with the state's temperatures; one lenience draw per agent."""
-    for i in range(counts.shape[0]):
-        legal = tables.legal[s, i]
-        mean = mean_temperature(tables.temperatures[s, i], legal, counts[i])
-        if mean < params.min_temperature:
-            joint[i] = greedy_action(tables.values[s, i], legal, counts[i])
-        else:
-            temperature = params.action_moderation * mean
-            softmax_strategy(tables.values[s, i], legal, counts[i], temperature, tables.probs[s, i])
-            joint[i] = sample_action(tables.probs[s, i], counts[i], rng.random())
-    for i in range(counts.shape[0]):
-        tables.draws[s, i] = rng.random()
+    """:func:`lenient_choice` on the rows of state ``s``."""
+    lenient_choice(
+        tables.values[s], tables.temperatures[s], tables.legal[s], tables.probs[s], counts,
+        params, rng, joint, tables.draws[s],
+    )  # fmt: skip
 
 
 @kernel

@@ -77,7 +77,23 @@ def iql_learn(tables, params, counts, joint, reward: float) -> bool:
 
 
 @dataclass(frozen=True)
-class IQLConfig(BoltzmannSchedule, ClassicLearner):
+class BoltzmannQSettings(BoltzmannSchedule):
+    """A learning rate and Kapetanakis & Kudenko's schedule: the settings of IQL, JAL and
+    central Q."""
+
+    alpha: float = 0.1
+    """[choice] Learning rate, in (0, 1]."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_unit(alpha=self.alpha)
+
+    def params(self) -> BoltzmannQParams:
+        return BoltzmannQParams(self.alpha, self.max_temperature, self.decay)
+
+
+@dataclass(frozen=True)
+class IQLConfig(BoltzmannQSettings, ClassicLearner):
     """Independent Q-learners in repeated games (Claus & Boutilier, 1998)."""
 
     name: ClassVar[str] = "iql"
@@ -89,16 +105,6 @@ class IQLConfig(BoltzmannSchedule, ClassicLearner):
     kernels: ClassVar[RepeatedKernels] = RepeatedKernels(
         boltzmann_act, iql_learn, no_stopping_rule, greedy_values
     )
-
-    alpha: float = 0.1
-    """[choice] Learning rate, in (0, 1]."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_unit(alpha=self.alpha)
-
-    def params(self) -> BoltzmannQParams:
-        return BoltzmannQParams(self.alpha, self.max_temperature, self.decay)
 
     def new_tables(self, counts: np.ndarray) -> ValueTables:
         return value_tables(counts)
