@@ -32,6 +32,7 @@ from cmarlcd.backends import BACKENDS, default_workers, make_backend
 from cmarlcd.claims import CLAIM_TIMEOUT, HEARTBEAT_SECONDS, Owner
 from cmarlcd.errors import require
 from cmarlcd.experiments import get_experiment
+from cmarlcd.limits import check_seed_batch, check_workers
 from cmarlcd.runs import RunSpec
 from cmarlcd.store import ResultStore, RunKey, StoreWriteError
 
@@ -146,8 +147,8 @@ def run_sweep(
     require(address is None or backend == "ray", "address", "needs --backend ray")
     if workers is None and not (backend == "ray" and address):
         workers = default_workers()
-    require(workers is None or workers >= 1, "workers", f"must be >= 1 (got {workers})")
-    require(seed_batch >= 1, "seed_batch", f"must be >= 1 (got {seed_batch})")
+    check_workers(workers)
+    check_seed_batch(seed_batch)
     sweep = _Sweep(
         specs, store, version, observer or SweepObserver(), section or (lambda _: description)
     )

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from cmarlcd.errors import require
+from cmarlcd.limits import MAX_STARTS, check_at_most
 
 #: a start counts as converged once ``1 - max_j D_j`` drops below this (integration stops).
 CONVERGENCE_TOL = 1e-6
@@ -308,6 +309,7 @@ def _validate(n_agents: int, n_optima: int, temperature: float, starts: int, see
     )
     _require_temperature(temperature)
     require(_is_int(starts) and starts >= 1, "starts", f"must be an integer >= 1 (got {starts!r})")
+    check_at_most(starts, MAX_STARTS, "starts")
     require(_is_int(seed) and seed >= 0, "seed", f"must be an integer >= 0 (got {seed!r})")
 
 

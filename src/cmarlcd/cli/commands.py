@@ -30,7 +30,6 @@ from cmarlcd.cli.options import (
     WorkersOption,
     check_backend,
     check_outputs,
-    check_workers,
     fails_cleanly,
     parse_count,
     parse_counts,
@@ -47,6 +46,7 @@ from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games.matrix import MAX_JOINT_ACTIONS
 from cmarlcd.learners.coordination import RepeatedConfig
+from cmarlcd.limits import check_run_count, check_seed, check_seed_batch, check_workers
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runner import SweepResult, run_sweep
 from cmarlcd.runs import RunSpec
@@ -321,7 +321,7 @@ def dsn(
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),
         seed=seed,
     )
-    require(seed_batch >= 1, "seed_batch", f"must be >= 1 (got {seed_batch})")
+    check_seed_batch(seed_batch)
     deep = [name for name in names if registry.needs_torch(name)]
     require(not deep or _has_torch(), "algorithms", _needs_torch(deep))
     run = Execution(store, figures, workers, progress, backend, address)
@@ -404,7 +404,7 @@ def tournament(
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),
         seed=seed,
     )
-    require(seed_batch >= 1, "seed_batch", f"must be >= 1 (got {seed_batch})")
+    check_seed_batch(seed_batch)
     run = Execution(store, figures, workers, progress, backend, address)
     run.check()
     _print_results(as_json, run, lambda console: _run_tournament(contest, run, console, seed_batch))
@@ -533,7 +533,7 @@ def reproduce(
     one resumable sweep with one progress view and an overall ETA; and, beyond the
     paper, the comparison with the classic independent learners."""
     require(preset in PRESETS, "preset", f"must be one of {', '.join(PRESETS)} (got {preset!r})")
-    require(seed >= 0, "seed", f"must be >= 0 (got {seed})")
+    check_seed(seed)
     run = Execution(store, figures, workers, progress, backend, address)
     run.check()
     chosen, console = PRESETS[preset], _console(as_json)
@@ -844,7 +844,8 @@ def play(
 
     config = replace(ALGORITHM, temperature=temperature, delta=delta, max_games=max_games)
     require(runs >= 1, "runs", f"must be >= 1 (got {runs})")
-    require(seed >= 0, "seed", f"must be >= 0 (got {seed})")
+    check_run_count(runs)
+    check_seed(seed)
     game = load_payoffs(payoffs)
     seeds = np.random.SeedSequence(seed).spawn(runs)
     results = [fit(Learner(game.action_counts, config, seed=s), game) for s in seeds]

@@ -93,10 +93,6 @@ def check_outputs(store: Path | None = None, figures: Path | None = None) -> Non
         check_output_directory(figures, "figures")
 
 
-def check_workers(workers: int | None) -> None:
-    require(workers is None or workers >= 1, "workers", f"must be >= 1 (got {workers})")
-
-
 def check_backend(backend: str, address: str | None) -> None:
     """A known backend, an address only for Ray, and Ray installed when chosen (checked
     without importing it)."""

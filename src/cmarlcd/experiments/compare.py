@@ -43,6 +43,7 @@ from cmarlcd.games.matrix.stochastic import (
     partially_stochastic_climbing_game,
 )
 from cmarlcd.learners import joint_action
+from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.store import RunRecord
 from cmarlcd.training.repeated import play_watching_greedy
@@ -162,7 +163,16 @@ class Comparison:
             require(name in known, "games", f"unknown {name!r}; available: {', '.join(known)}")
         require(len(set(self.games)) == len(self.games), "games", "each at most once")
         require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
-        require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
+        check_seed(self.seed)
+        check_episodes(self.dsn_episodes, "dsn_episodes")
+        check_episodes(self.dsn_eval_episodes, "dsn_eval_episodes")
+        check_run_count(self.run_count())
+
+    def run_count(self) -> int:
+        """Runs of the comparison, without listing them (its cells are listed; a cell
+        holds ``runs`` runs)."""
+        dsn = (DSN in self.games) * len(self.dsn_learners())
+        return (len(self.cells()) + dsn) * self.runs
 
     def cells(self) -> list[tuple[Any, dict[str, Any]]]:
         """(learner, config) of every cell the learner plays."""

@@ -27,6 +27,7 @@ from cmarlcd import registry
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.progress import report_progress
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec
@@ -99,17 +100,28 @@ class EpisodicSweep:
         require(len(set(names)) == len(names), "algorithms", f"each at most once (got {names})")
         require(len(self.episodes) > 0, "episodes", "needs at least one budget")
         require(min(self.episodes) >= 1, "episodes", f"must be >= 1 (got {min(self.episodes)})")
+        check_episodes(max(self.episodes), "episodes")
         require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
         require(
             self.eval_episodes >= 1, "eval_episodes", f"must be >= 1 (got {self.eval_episodes})"
         )
-        require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
+        check_episodes(self.eval_episodes, "eval_episodes")
+        check_seed(self.seed)
         require(self.curve_points >= 0, "curve_points", f"must be >= 0 (got {self.curve_points})")
         require(
             self.curve_eval_episodes >= 1,
             "curve_eval_episodes",
             f"must be >= 1 (got {self.curve_eval_episodes})",
         )
+        check_episodes(self.curve_eval_episodes, "curve_eval_episodes")
+        check_run_count(self.run_count())
+
+    def run_count(self) -> int:
+        """Runs of the sweep, without listing them: one per learner and run, times the
+        budgets for a learner that anneals over L."""
+        budgets = len(set(self.episodes))
+        per_learner = [budgets if anneals_over_budget(c) else 1 for c in self.learners]
+        return sum(per_learner) * self.runs
 
     @property
     def algorithms(self) -> tuple[str, ...]:

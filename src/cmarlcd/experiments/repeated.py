@@ -18,6 +18,7 @@ import numpy as np
 from cmarlcd.errors import require
 from cmarlcd.games.matrix import MatrixGame, check_size, climbing_game, random_game
 from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
+from cmarlcd.limits import check_run_count, check_seed
 from cmarlcd.paper import repeated_success
 from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.store import RunRecord
@@ -51,8 +52,13 @@ class RepeatedSweep:
         require(min(self.agents) >= 2, "agents", f"must be >= 2 (got {min(self.agents)})")
         require(min(self.actions) >= 2, "actions", f"must be >= 2 (got {min(self.actions)})")
         require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
-        require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
+        check_seed(self.seed)
         check_size(max(self.agents), max(self.actions))
+        check_run_count(self.run_count())
+
+    def run_count(self) -> int:
+        """Runs of the sweep, without listing them."""
+        return len(self.agents) * len(self.actions) * self.runs
 
     def cells(self) -> list[dict[str, Any]]:
         """One config per (agents, actions), learner settings included."""

@@ -36,6 +36,7 @@ from cmarlcd.games import battlefield
 from cmarlcd.learners.automata import AutomatonConfig
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD
 from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig
+from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.store import RunRecord
@@ -95,7 +96,15 @@ class Tournament:
         require(
             self.eval_episodes >= 1, "eval_episodes", f"must be >= 1 (got {self.eval_episodes})"
         )
-        require(self.seed >= 0, "seed", f"must be >= 0 (got {self.seed})")
+        check_episodes(self.learn_episodes, "learn_episodes")
+        check_episodes(self.eval_episodes, "eval_episodes")
+        check_seed(self.seed)
+        check_run_count(self.run_count(), "rounds")
+
+    def run_count(self) -> int:
+        """Matches of the tournament, without listing them."""
+        n = len(self.learners)
+        return n * (n + 1) // 2 * self.rounds
 
     @property
     def algorithms(self) -> tuple[str, ...]:

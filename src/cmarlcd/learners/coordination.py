@@ -48,6 +48,7 @@ from cmarlcd.learners.tabular import (
     TabularKernels,
     no_step_update,
 )
+from cmarlcd.limits import MAX_GAMES, check_at_most
 
 # --------------------------------------------------------------------------- rules
 
@@ -201,6 +202,7 @@ class RepeatedConfig:
         th = self.purity_threshold
         require(0 < th < 1, "purity_threshold", f"must be in (0, 1) (got {th})")
         require(self.max_games >= 1, "max_games", f"must be >= 1 (got {self.max_games})")
+        check_at_most(self.max_games, MAX_GAMES, "max_games")
         init = self.initial_degree
         require(bool(np.isfinite(init)), "initial_degree", f"must be finite (got {init})")
 
