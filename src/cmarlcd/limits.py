@@ -14,9 +14,9 @@ from __future__ import annotations
 from cmarlcd.errors import require
 
 MAX_RUNS = 200_000
-"""Runs of one sweep. The paper's whole protocol is about 4,000 runs and ``reproduce
---preset paper`` with the learner comparison about 20,000; listing 200,000 runs takes a
-few seconds. Larger studies are split by ``--seed``, each its own sweep on one store."""
+"""Runs of one sweep. The paper's whole protocol is 2,502 runs, ``reproduce --preset
+paper`` with the learner comparison 18,752; listing 200,000 runs takes a few seconds.
+Larger studies are split by ``--seed``, each its own sweep on one store."""
 
 MAX_EPISODES = 100_000_000
 """Learning or evaluation episodes of one run (the paper's largest budget: 500,000). An
