@@ -4,21 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pettingzoo.test import parallel_api_test
 
 from cmarlcd import registry
-from cmarlcd.games.env import KernelParallelEnv
 from cmarlcd.training import TabularRun, evaluate
 from cmarlcd.training.match import Match
 
 TABULAR = [name for name in registry.LEARNERS if not registry.needs_torch(name)]
 ONE_TEAM = [name for name, spec in registry.GAMES.items() if spec().n_teams == 1]
 TWO_TEAMS = [name for name, spec in registry.GAMES.items() if spec().n_teams == 2]
-
-
-@pytest.mark.parametrize("game", list(registry.GAMES))
-def test_every_game_is_a_parallel_env(game: str) -> None:
-    parallel_api_test(KernelParallelEnv(registry.GAMES[game]()), num_cycles=30)
 
 
 @pytest.mark.parametrize("game", ONE_TEAM)

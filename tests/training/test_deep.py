@@ -7,9 +7,11 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
+from cmarlcd.compiled import kernel  # noqa: E402
 from cmarlcd.experiments import episodic  # noqa: E402
 from cmarlcd.experiments import sensor_network as sn  # noqa: E402
 from cmarlcd.games import sensor_network as dsn  # noqa: E402
+from cmarlcd.games.spec import GameKernels, GameSpec  # noqa: E402
 from cmarlcd.learners.deep_agent import DeepAgent  # noqa: E402
 from cmarlcd.learners.deep_config import DeepConfig  # noqa: E402
 from cmarlcd.training.deep import DeepBatch  # noqa: E402
@@ -75,3 +77,63 @@ def test_deep_agent_with_feature_states_and_masks() -> None:
         agent.observe(np.ones(4), joint, 1.0)
     agent.end_episode(np.ones(4), terminated=False)
     assert agent.greedy(np.ones(4), masks)[0] != 1
+
+
+# A two-step game whose second state forbids agent 0's action 1; the game counts the
+# times it is played anyway.
+
+
+@kernel
+def trap_reset(env, rng):
+    env[0][0] = 0
+
+
+@kernel
+def trap_step(env, joint, rng, rewards):
+    rewards[0] = 0.0
+    if env[0][0] == 1 and joint[0] == 1:
+        env[0][1] += 1
+    env[0][0] += 1
+
+
+@kernel
+def trap_state(env, team):
+    return env[0][0]
+
+
+@kernel
+def trap_done(env):
+    return env[0][0] == 2
+
+
+@kernel
+def trap_legal(env, masks):
+    masks[:] = True
+    if env[0][0] == 1:
+        masks[0, 1] = False
+
+
+TRAP = GameSpec(
+    "trap_v0",
+    GameKernels(trap_reset, trap_step, trap_state, trap_done, trap_legal),
+    lambda: (np.zeros(2, dtype=np.int64),),
+    ("agent_0", "agent_1"),
+    np.array([2, 2]),
+    n_states=3,
+    max_steps=5,
+    teams=((0, 1),),
+)
+
+
+def test_a_greedy_action_is_legal_from_the_first_visit_of_a_state() -> None:
+    """The greedy action of a state met for the first time in the middle of a collection
+    call keeps to its masks (it used to be the argmax over every action, read before the
+    masks were)."""
+    greedy = DeepConfig(
+        eps_start=0.0, eps_end=0.0, eps_after=0.0, buffer_size=100, batch_size=10,
+        train_every=4, target_every=8,
+    )  # fmt: skip
+    for seed in range(10):
+        run = DeepBatch(TRAP, greedy, [np.random.SeedSequence(seed)], 20)
+        run.train([], lambda *args: None)
+        assert run.envs[0][0][1] == 0, f"seed {seed}: an illegal action was played"

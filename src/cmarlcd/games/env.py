@@ -76,13 +76,14 @@ class KernelParallelEnv(pettingzoo.ParallelEnv):
             raise ConfigError("agent", f"unknown agent {agent!r}; expected {names}")
         return agent
 
-    def state(self) -> int:
-        """The state index of team 0 (the whole game, for a cooperative game)."""
-        return int(self.spec.kernels.state(self.env, 0))
+    def state(self) -> np.int64:
+        """The state index of team 0 (the whole game, for a cooperative game), of
+        ``state_space``'s dtype."""
+        return np.int64(self.spec.kernels.state(self.env, 0))
 
     def reset(
         self, seed: int | None = None, options: dict | None = None
-    ) -> tuple[dict[str, int], dict[str, dict[str, Any]]]:
+    ) -> tuple[dict[str, np.int64], dict[str, dict[str, Any]]]:
         if seed is not None or self.np_random is None:
             self.np_random = np.random.default_rng(seed)
         self.spec.kernels.reset(self.env, self.np_random)
@@ -114,8 +115,11 @@ class KernelParallelEnv(pettingzoo.ParallelEnv):
         state = self.spec.kernels.state
         return tuple([int(state(self.env, k)) for k in range(self.spec.n_teams)])
 
-    def _observations(self, states: tuple[int, ...]) -> dict[str, int]:
-        return {a: states[k] for a, k in zip(self.agents, self._team, strict=True)}
+    def _observations(self, states: tuple[int, ...]) -> dict[str, np.int64]:
+        """Each agent's observation: its team's state index as a NumPy ``int64``, the
+        dtype of its ``Discrete`` space (what PettingZoo's checks and wrappers expect)."""
+        observed = [np.int64(state) for state in states]
+        return {a: observed[k] for a, k in zip(self.agents, self._team, strict=True)}
 
     def _infos(self, states: tuple[int, ...], stepped: bool = False) -> dict[str, dict[str, Any]]:
         masks = self._masks(states)

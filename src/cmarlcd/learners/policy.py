@@ -109,16 +109,17 @@ def uniform_legal_action(legal_row: np.ndarray, count: int, u: float) -> int:
 
 @njit(cache=True)
 def epsilon_greedy(
-    greedy_row: np.ndarray,
+    values: np.ndarray,
     legal: np.ndarray,
     counts: np.ndarray,
     epsilon: float,
     rng,
     joint: np.ndarray,
 ) -> None:
-    """Each agent independently: with probability ε a uniform legal action, else greedy."""
+    """Each agent independently: with probability ε a uniform legal action, else its
+    greedy legal action (``values[i]``: agent i's action values in the state)."""
     for i in range(counts.shape[0]):
         if rng.random() < epsilon:
             joint[i] = uniform_legal_action(legal[i], counts[i], rng.random())
         else:
-            joint[i] = greedy_row[i]
+            joint[i] = greedy_action(values[i], legal[i], counts[i])

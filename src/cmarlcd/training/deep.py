@@ -42,7 +42,7 @@ game = Unbound("game")
 
 def collect(
     envs,
-    greedy,
+    values,
     legal,
     seen,
     counts,
@@ -58,14 +58,17 @@ def collect(
 ) -> tuple[int, bool]:
     """Template: step each of B game copies ``steps`` steps with ε-greedy actions (eq. 18).
 
-    ``greedy[b, s]`` is seed b's greedy joint action in state s (the networks change only
-    between calls). ``clock[b]`` counts the steps of seed b's current episode and
+    ``values[b, s, i]`` are seed b's agent i's Q-values in state s (the networks change
+    only between calls); an agent's greedy action is the best of its legal actions in
+    ``legal[b, s]``, the masks seed b read from the game when it first met state s (a
+    state reached as the last of an episode included, since its masks bound the TD
+    target). ``clock[b]`` counts the steps of seed b's current episode and
     ``episodes[b]`` its finished episodes; a seed that has finished its
     ``total_episodes`` stops. Transitions go into seed b's ring in ``buffer``.
-    ``env_rngs[b]`` and ``act_rngs[b]`` are seed b's own generators, so the seeds are
-    independent and are stepped one after the other (the order does not matter). Returns
-    the steps taken by all copies together, and whether a state was visited for the first
-    time (its masks are then in ``legal``).
+    ``env_rngs[b]`` and ``act_rngs[b]`` are seed b's own generators, and a seed knows
+    only the masks it has read itself, so the seeds are independent (seed b learns what
+    it learns alone) and are stepped one after the other. Returns the steps taken by all
+    copies together, and whether a seed met a state for the first time.
     """
     joint = np.zeros(counts.shape[0], dtype=np.int64)
     rewards = np.zeros(1)
@@ -76,16 +79,20 @@ def collect(
             if episodes[b] >= total_episodes:
                 break
             s = game.state(env, 0)
-            if not seen[s]:
-                game.legal(env, legal[s])
-                seen[s] = first_visit = True
+            if not seen[b, s]:
+                game.legal(env, legal[b, s])
+                seen[b, s] = first_visit = True
             eps = annealed_epsilon(episodes[b] + 1, total_episodes, *schedule)
-            epsilon_greedy(greedy[b, s], legal[s], counts, eps, act_rngs[b], joint)
+            epsilon_greedy(values[b, s], legal[b, s], counts, eps, act_rngs[b], joint)
             game.step(env, joint, env_rngs[b], rewards)
             clock[b] += 1
             taken += 1
             terminal = game.done(env)
-            store(buffer, b, s, joint, rewards[0], game.state(env, 0), terminal)
+            next_s = game.state(env, 0)
+            store(buffer, b, s, joint, rewards[0], next_s, terminal)
+            if not seen[b, next_s]:
+                game.legal(env, legal[b, next_s])
+                seen[b, next_s] = first_visit = True
             if terminal or clock[b] >= max_steps:
                 episodes[b] += 1
                 clock[b] = 0
@@ -117,8 +124,12 @@ class DeepBatch:
         self.clock = np.zeros(self.n_seeds, np.int64)
         self.episodes = np.zeros(self.n_seeds, np.int64)
         """Learning episodes finished by each seed."""
-        self.legal = np.repeat(full_legal(self.counts)[None], spec.n_states, axis=0)
-        self.seen = np.zeros(spec.n_states, np.bool_)
+        every = np.repeat(full_legal(self.counts)[None], spec.n_states, axis=0)
+        self.legal = np.repeat(every[None], self.n_seeds, axis=0)
+        """Each seed's masks of each state, (B, n_states, n_agents, width), read from the
+        game when the seed first meets the state (every action legal until then)."""
+        self.seen = np.zeros((self.n_seeds, spec.n_states), np.bool_)
+        """The states each seed has met."""
         self.buffer = new_buffers(
             self.n_seeds, config.buffer_size, spec.n_agents, spec.n_states, spec.width
         )
@@ -131,8 +142,14 @@ class DeepBatch:
         """Environment steps actually taken, all seeds together."""
 
     def greedy_tables(self) -> np.ndarray:
-        """(B, n_states, n_agents): each seed's greedy joint action in every state."""
+        """(B, n_states, n_agents): each seed's greedy joint action in every state, over
+        the masks it has read."""
         return self.model.greedy_table().numpy()
+
+    def value_tables(self) -> np.ndarray:
+        """(B, n_states, n_agents, width): each seed's agents' Q-values in every state."""
+        with torch.no_grad():
+            return self.model.agents.tables().numpy()
 
     def train(self, checkpoints: Sequence[int], evaluate: Evaluator) -> None:
         """Learn until every seed has played ``total_episodes`` episodes, calling
@@ -140,13 +157,13 @@ class DeepBatch:
         policy it had then."""
         cfg = self.config
         points = sorted(set(checkpoints) | {self.total_episodes})
-        table = self.greedy_tables()
+        values = self.value_tables()
         schedule = epsilon_schedule(cfg)
         while (self.episodes < self.total_episodes).any():
             before = self.episodes.copy()
             taken, first_visit = self._collect(
                 self.envs,
-                table,
+                values,
                 self.legal,
                 self.seen,
                 self.counts,
@@ -163,23 +180,27 @@ class DeepBatch:
             self.env_steps += taken
             if first_visit:
                 self.model.set_state_legal(torch.from_numpy(self.legal))
-                table = self.greedy_tables()
             report_progress(float((self.episodes - before).sum()))
-            self._evaluate_crossed(before, points, table, evaluate)
+            self._evaluate_crossed(before, points, evaluate)
             previous, self.steps = self.steps, self.steps + cfg.train_every
             if self.buffer.size.min() >= cfg.batch_size:
                 self.model.td_step(self.sample())
-                table = self.greedy_tables()
+                values = self.value_tables()
             if self.steps // cfg.target_every > previous // cfg.target_every:
                 self.model.sync_target()
 
-    def _evaluate_crossed(
-        self, before: np.ndarray, points: list[int], table: np.ndarray, evaluate: Evaluator
-    ) -> None:
-        for k in range(self.n_seeds):
-            for point in points:
-                if before[k] < point <= self.episodes[k]:
-                    evaluate(k, point, table[k])
+    def _evaluate_crossed(self, before: np.ndarray, points: list[int], evaluate: Evaluator) -> None:
+        """``evaluate`` each seed at each checkpoint it has just crossed."""
+        crossed = [
+            (k, point)
+            for k in range(self.n_seeds)
+            for point in points
+            if before[k] < point <= self.episodes[k]
+        ]
+        if crossed:
+            table = self.greedy_tables()
+            for k, point in crossed:
+                evaluate(k, point, table[k])
 
     def sample(self) -> dict[str, torch.Tensor]:
         """A replay batch per seed, drawn with that seed's own generator (the legal

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
+import numpy as np
+
 from cmarlcd.errors import require
 from cmarlcd.games.battlefield.kernels import (
     N_SIDES,
@@ -37,10 +39,11 @@ class BattlefieldEnv(KernelParallelEnv):
         self.rules = rules
         self._kinds = ["marine"] * rules.marines + ["gunner"] * rules.gunners
 
-    def state(self, side: int = 0) -> int:  # type: ignore[override]
-        """Side ``side``'s state index (PettingZoo's ``state()`` is side 0's)."""
+    def state(self, side: int = 0) -> np.int64:  # type: ignore[override]
+        """Side ``side``'s state index (PettingZoo's ``state()`` is side 0's), of
+        ``state_space``'s dtype."""
         require(side in range(N_SIDES), "side", f"must be 0 or 1 (got {side})")
-        return int(self.spec.kernels.state(self.env, side))
+        return np.int64(self.spec.kernels.state(self.env, side))
 
     @property
     def hp(self):
