@@ -44,8 +44,8 @@ def kernel(function: Callable) -> Any:
 
 
 def shared_kernel(function: Callable) -> Any:
-    """Compile ``function`` as a kernel that plug-ins share (the no-op hooks), *not*
-    cached on disk.
+    """Compile ``function`` as a kernel that plug-ins share (the no-op hooks, and the
+    match loop's helpers that take a side's tables), *not* cached on disk.
 
     Numba keeps every compiled signature of a function in one on-disk index. A kernel
     that a plug-in calls with its own types (its tables, a NamedTuple of its own module)

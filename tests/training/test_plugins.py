@@ -6,6 +6,8 @@ game or the learner, and the learner passes the checks a plug-in author runs.
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from dataclasses import dataclass
 from typing import ClassVar, NamedTuple
 
@@ -133,3 +135,19 @@ def test_vdn_learns_the_chain_through_the_seed_batched_loop() -> None:
         assert finals[k][:3].tolist() == CHAIN_TARGET.tolist()
         stats = evaluate(CHAIN, finals[k], 500, np.random.default_rng(k))
         assert (stats.returns == 12.0).all()
+
+
+def test_a_plug_in_s_types_never_reach_a_shared_on_disk_cache(tmp_path) -> None:
+    """After the plug-in learner played both sides of a match (check_learner above), a
+    process that cannot import this test module still compiles and plays every loop:
+    no kernel cached on disk was compiled for the plug-in's tables."""
+    check_learner(QConfig())
+    script = (
+        "from cmarlcd import registry\n"
+        "from cmarlcd.testing.learners import _check_two_team_play\n"
+        "_check_two_team_play(registry.LEARNERS['cmarl-cd'], 20)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr[-2000:]

@@ -28,7 +28,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from cmarlcd.compiled import Unbound, kernel, specialise
+from cmarlcd.compiled import Unbound, kernel, shared_kernel, specialise
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.progress import report_progress
@@ -115,7 +115,7 @@ def learn_match(env, a, b, episodes, max_steps, env_rng, rng_a, rng_b, clock) ->
         clock[TURNS] += 1
 
 
-@kernel
+@shared_kernel  # takes a plug-in's tables: see cmarlcd.compiled.shared_kernel
 def record_turn(side, t: int, joint, reward: float) -> None:
     """Write turn ``t`` (the side's joint action and reward) into the side's episode."""
     for i in range(joint.shape[0]):

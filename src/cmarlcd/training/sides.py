@@ -19,7 +19,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from cmarlcd.compiled import Unbound, kernel, specialise
+from cmarlcd.compiled import Unbound, shared_kernel, specialise
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.tabular import TabularConfig, grow_tables
 from cmarlcd.training.match import MatchSide, SideKernels
@@ -51,7 +51,7 @@ class TabularData(NamedTuple):
     """... and the side's reward after it."""
 
 
-@kernel
+@shared_kernel  # takes a plug-in's tables: see cmarlcd.compiled.shared_kernel
 def tabular_fits(side, max_steps: int) -> bool:
     """One more episode surely fits: it can visit at most ``max_steps + 1`` new states."""
     return side.used[0] + max_steps + 1 <= side.tables[0].shape[0]
@@ -92,7 +92,7 @@ def tabular_end_episode(side, length) -> None:
     )
 
 
-@kernel
+@shared_kernel  # takes a plug-in's tables: see cmarlcd.compiled.shared_kernel
 def never_pause(side) -> bool:
     """A tabular side learns inside the loop: it never needs to stop it."""
     return False
