@@ -694,7 +694,8 @@ def test_reproduce_is_one_sweep_with_a_section_per_part_of_the_paper(paths, monk
 
     monkeypatch.setattr(progress.RichSweepView, "start", record)
     doc = tiny_reproduction(paths, monkeypatch)
-    assert seen["sections"] == list(SECTIONS) and seen["cost"] > 0
+    # one bar a unit: the comparison's DSN runs count episodes, its others runs
+    assert seen["sections"] == [*SECTIONS, "Comparison: DSN"] and seen["cost"] > 0
     assert doc["runs_computed"] > 0 and doc["runs_reused"] == 0
     again = invoke("reproduce", "--workers", "1", "--json", *paths[2])
     assert json.loads(again.stdout)["runs_computed"] == 0

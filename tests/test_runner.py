@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
@@ -111,16 +112,16 @@ def test_workers_must_be_positive(tmp_path) -> None:
 
 
 def test_worker_progress_is_batched_but_never_lost() -> None:
-    sent: list[float] = []
-    sink = Throttled(sent.append, interval=3600.0)
+    sent: list[tuple[float, float]] = []
+    sink = Throttled(lambda amount, seconds: sent.append((amount, seconds)), interval=3600.0)
     for amount in (200, 200, 150):
-        sink(amount)
+        sink(amount, amount * 1e-3)
     assert sent == []  # held back: one message per interval, not per call
     sink.flush()
-    assert sent == [550]
-    eager = Throttled(sent.append, interval=0.0)
-    eager(7)
-    assert sent == [550, 7]
+    assert sent == [(550, pytest.approx(0.55))]
+    eager = Throttled(lambda amount, seconds: sent.append((amount, seconds)), interval=0.0)
+    eager(7)  # no estimate: the seconds are unknown
+    assert sent[-1][0] == 7 and math.isnan(sent[-1][1])
 
 
 class Recording(SweepObserver):
@@ -134,11 +135,11 @@ class Recording(SweepObserver):
         self.total, self.stored, self.unit = section.work, section.stored_work, section.unit
         self.cost, self.stored_cost = section.cost, section.stored_cost
 
-    def advance(self, section: str, work: float, cost: float) -> None:
+    def advance(self, section: str, work: float, cost: float, kind: str = "") -> None:
         self.done += work
         self.cost_done += cost
 
-    def run_finished(self, section: str) -> None:
+    def run_finished(self, section: str, *measure) -> None:
         self.runs += 1
 
 

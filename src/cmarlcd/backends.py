@@ -6,7 +6,8 @@ each task's outcomes when asked (:meth:`Backend.poll`). A task is a list of *bat
 batch, or several short ones packed together so that each task is worth sending (a
 backend says how long a task should be, :attr:`Backend.task_seconds`). Progress reported
 from inside a run (:func:`cmarlcd.progress.report_progress`) reaches the
-``on_progress(tag, amount)`` callback given to the backend. Only the caller writes to the store.
+``on_progress(tag, amount, seconds)`` callback given to the backend. Only the caller
+writes to the store.
 
 - :class:`InlineBackend`: this process, one batch at a time (``--workers 1``).
 - :class:`ProcessBackend`: a pool of forked local processes. A worker whose parent dies
@@ -39,7 +40,7 @@ from cmarlcd.runs import RunSpec
 Outcome = tuple[RunSpec, dict[str, Any], float]
 Finished = tuple[int, list[Outcome]]
 Task = list[list[RunSpec]]
-ProgressCallback = Callable[[int, float], None]
+ProgressCallback = Callable[[int, float, float], None]
 
 #: The backends ``--backend`` accepts.
 BACKENDS = ("process", "ray")
@@ -72,9 +73,9 @@ def execute_task(task: Task) -> list[Outcome]:
 
 
 def execute_reporting(tag: int, task: Task, put: Callable[[Any], None]) -> list[Outcome]:
-    """:func:`execute_task`, sending ``(tag, amount)`` progress through ``put`` (at most
-    every 0.1 s) and flushing what is left when the task ends."""
-    sink = Throttled(lambda amount: put((tag, amount)))
+    """:func:`execute_task`, sending ``(tag, amount, seconds)`` progress through ``put``
+    (at most every 0.1 s) and flushing what is left when the task ends."""
+    sink = Throttled(lambda amount, seconds: put((tag, amount, seconds)))
     install_sink(sink)
     try:
         return execute_task(task)
@@ -128,7 +129,7 @@ class InlineBackend:
             time.sleep(timeout)
             return []
         tag, task = self.queue.popleft()
-        with progress_sink(lambda amount: self.on_progress(tag, amount)):
+        with progress_sink(lambda amount, seconds: self.on_progress(tag, amount, seconds)):
             return [(tag, execute_task(task))]
 
     def close(self, cancel: bool) -> None:
@@ -204,10 +205,10 @@ class ProcessBackend:
     def _drain(self) -> None:
         while True:
             try:
-                tag, amount = self.queue.get_nowait()
+                tag, amount, seconds = self.queue.get_nowait()
             except Empty:
                 return
-            self.on_progress(tag, amount)
+            self.on_progress(tag, amount, seconds)
 
     def close(self, cancel: bool) -> None:
         # On Ctrl-C the workers got the signal too and end; do not wait for queued runs.

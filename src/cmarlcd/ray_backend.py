@@ -85,12 +85,12 @@ class _Relay:
     """Collects progress from the tasks until the driver takes it."""
 
     def __init__(self) -> None:
-        self.items: list[tuple[int, float]] = []
+        self.items: list[tuple[int, float, float]] = []
 
-    def add(self, tag: int, amount: float) -> None:
-        self.items.append((tag, amount))
+    def add(self, tag: int, amount: float, seconds: float) -> None:
+        self.items.append((tag, amount, seconds))
 
-    def take(self) -> list[tuple[int, float]]:
+    def take(self) -> list[tuple[int, float, float]]:
         items, self.items = self.items, []
         return items
 
@@ -147,8 +147,8 @@ class RayBackend:
                 done, _ = self.ray.wait(pending, num_returns=len(pending), timeout=0)
         else:
             time.sleep(timeout)
-        for tag, amount in self.ray.get(self.relay.take.remote()):
-            self.on_progress(tag, amount)
+        for tag, amount, seconds in self.ray.get(self.relay.take.remote()):
+            self.on_progress(tag, amount, seconds)
         finished = []
         for ref in done:
             del self.pending[ref]

@@ -12,18 +12,23 @@ another live sweep has claimed are waited for, not recomputed; a claim whose own
 is taken over. A heartbeat thread keeps this sweep's claims fresh.
 
 **Progress** is reported to a :class:`SweepObserver` by *section* (a part of the sweep
-the caller names, e.g. one table), in the section's work units and in estimated seconds
-(each experiment's ``cost``), so one view can show every section and an overall ETA.
-Ctrl-C stops the backend and keeps every finished run.
+the caller names, e.g. one table), in the section's one work unit (episodes, or runs for
+an experiment that reports none; a named part whose experiments count in different units
+becomes one section per unit) and in estimated seconds (each experiment's ``cost``), so
+one view can show every section and an overall ETA. A section's reported work reaches its
+total exactly when its last run is stored, and never passes it: what a task reports is
+capped at the task's own work (a task Ray retries reports again), and the rest is added
+when its runs are stored. Ctrl-C stops the backend and keeps every finished run.
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,6 +60,12 @@ class Section:
     cost: float
     """Estimated seconds of every run (``Experiment.cost``)."""
     stored_cost: float
+    todo_costs: Mapping[str, float] = field(default_factory=dict)
+    """Estimated seconds of the runs to compute, by kind (:func:`kind_of`)."""
+    finish_costs: Mapping[str, float] = field(default_factory=dict)
+    """Estimated seconds, by kind, of all the work the sweep hands out (every section's)
+    up to and including this section's last task: the section ends about when that much
+    is done."""
 
 
 class SweepObserver:
@@ -63,11 +74,20 @@ class SweepObserver:
     def start(self, sections: Sequence[Section]) -> None:
         """The sweep has these sections (stored runs count as done)."""
 
-    def advance(self, section: str, work: float, cost: float) -> None:
-        """``work`` more units of ``section`` are done, ``cost`` estimated seconds."""
+    def advance(self, section: str, work: float, cost: float, kind: str = "") -> None:
+        """``work`` more units of ``section`` are done, ``cost`` estimated seconds of runs
+        of ``kind`` (over the sweep, the amounts add up to each section's totals)."""
 
-    def run_finished(self, section: str) -> None:
-        """One more run of ``section`` is stored."""
+    def task_progress(self, section: str, task: int, kind: str, done: float, total: float) -> None:
+        """Task ``task`` (runs of ``section``, handed out together to one worker, first
+        of ``kind``) has done ``done`` of its ``total`` estimated seconds; it is handed
+        out with ``done == 0`` and ends, its runs stored, with ``done == total``."""
+
+    def run_finished(
+        self, section: str, kind: str = "", cost: float = 0.0, seconds: float = math.nan
+    ) -> None:
+        """One more run of ``section`` is stored: a run of ``kind`` estimated at ``cost``
+        seconds that took ``seconds`` to compute (NaN: another sweep computed it)."""
 
     def finish(self) -> None:
         """The sweep has ended (finished or interrupted)."""
@@ -149,15 +169,47 @@ def run_sweep(
         workers = default_workers()
     check_workers(workers)
     check_seed_batch(seed_batch)
+    named = section or (lambda _: description)
     sweep = _Sweep(
-        specs, store, version, observer or SweepObserver(), section or (lambda _: description)
+        specs, store, version, observer or SweepObserver(), one_unit_sections(specs, named)
     )
 
-    def start_backend(progress: Callable[[int, float], None], batches: int) -> Any:
+    def start_backend(progress: Callable[[int, float, float], None], batches: int) -> Any:
         used = workers if workers is None else min(workers, batches)
         return make_backend(backend, used, progress, address)
 
     return sweep.run(seed_batch, claim_timeout, start_backend)
+
+
+def kind_of(spec: RunSpec) -> str:
+    """Runs of one kind (experiment and algorithm) run at about the same pace against
+    their estimated cost: a progress view calibrates each kind's estimates on its
+    finished runs."""
+    return f"{spec.experiment}:{spec.algorithm}"
+
+
+def unit_of(spec: RunSpec) -> str:
+    """What a run's progress counts: its experiment's unit, or runs if it reports none."""
+    return get_experiment(spec.experiment).work_unit if reports_work(spec) else "runs"
+
+
+def one_unit_sections(
+    specs: Sequence[RunSpec], section: Callable[[RunSpec], str]
+) -> Callable[[RunSpec], str]:
+    """``section``, with a named part whose runs count in several units split into one
+    section per unit (``"compare (episodes)"``), so that every bar has one unit."""
+    units: dict[str, set[str]] = {}
+    for spec in specs:
+        units.setdefault(section(spec), set()).add(unit_of(spec))
+    mixed = {name for name, found in units.items() if len(found) > 1}
+    if not mixed:
+        return section
+
+    def split(spec: RunSpec) -> str:
+        name = section(spec)
+        return f"{name} ({unit_of(spec)})" if name in mixed else name
+
+    return split
 
 
 class _Sweep:
@@ -174,6 +226,7 @@ class _Sweep:
         self.specs, self.store, self.version = list(specs), store, version
         self.observer, self.section = observer, section
         self.owner = Owner.current()
+        self.next_tag = 0
         self.inflight: dict[int, list[RunSpec]] = {}
         self.waiting: dict[RunKey, RunSpec] = {}
 
@@ -211,9 +264,20 @@ class _Sweep:
         grouped: dict[str, list[RunSpec]] = {}
         for spec in self.specs:
             grouped.setdefault(self.section(spec), []).append(spec)
+        finish: dict[str, dict[str, float]] = {}
+        queued: dict[str, float] = {}
+        for batch in self.batches:  # in the order they are handed out
+            for spec in batch:
+                kind = kind_of(spec)
+                queued[kind] = queued.get(kind, 0.0) + cost_of(spec)
+            finish[self.section(batch[0])] = dict(queued)
         sections = []
         for name, specs in grouped.items():
             stored = [s for s in specs if s.key not in missing]
+            todo: dict[str, float] = {}
+            for spec in specs:
+                if spec.key in missing:
+                    todo[kind_of(spec)] = todo.get(kind_of(spec), 0.0) + cost_of(spec)
             sections.append(
                 Section(
                     name,
@@ -224,6 +288,8 @@ class _Sweep:
                     get_experiment(specs[0].experiment).work_unit,
                     sum(map(cost_of, specs)),
                     sum(map(cost_of, stored)),
+                    todo,
+                    finish.get(name, {}),
                 )
             )
         return sections
@@ -231,7 +297,7 @@ class _Sweep:
     # ------------------------------------------------------------------ the loop
 
     def _loop(self, backend: Any) -> None:
-        self.tags: dict[int, tuple[str, float]] = {}  # batch tag -> (section, cost per unit)
+        self.tags: dict[int, _Tag] = {}
         next_poll = 0.0
         while self.queue or self.inflight or self.waiting:
             while self.queue and len(self.inflight) < backend.capacity:
@@ -240,6 +306,7 @@ class _Sweep:
                 del self.inflight[tag]
                 for outcome in outcomes:
                     self._commit(*outcome)
+                self._settle(tag)
             if self.waiting and time.monotonic() >= next_poll:
                 self._check_waiting()
                 next_poll = time.monotonic() + WAIT_POLL_SECONDS
@@ -277,9 +344,12 @@ class _Sweep:
         kept = [[s for s in batch if s.key in claimed] for batch in task]
         kept = [batch for batch in kept if batch]
         if kept:
-            tag, first = len(self.tags), kept[0][0]
-            self.tags[tag] = (self.section(first), cost_of(first) / work_of(first))
-            self.inflight[tag] = [spec for batch in kept for spec in batch]
+            tag = self.next_tag
+            self.next_tag += 1
+            runs = [spec for batch in kept for spec in batch]
+            task = self.tags[tag] = _Tag(self.section(runs[0]), runs)
+            self.inflight[tag] = runs
+            self.observer.task_progress(task.section, tag, task.kind, 0.0, task.cost)
             backend.submit(tag, kept)
 
     def _check_waiting(self) -> None:
@@ -296,27 +366,65 @@ class _Sweep:
             else:
                 self._stored_elsewhere(spec)
 
-    def _progress(self, tag: int, amount: float) -> None:
-        name, cost_per_unit = self.tags[tag]
-        self.observer.advance(name, amount, amount * cost_per_unit)
+    def _progress(self, tag: int, amount: float, seconds: float = math.nan) -> None:
+        """Work a running task reports, with its estimated seconds (NaN: the task's cost
+        spread evenly over its units), each up to the task's own total (a retried task
+        reports its work again)."""
+        task = self.tags.get(tag)
+        if task is None:  # settled already: a late report
+            return
+        if math.isnan(seconds):
+            seconds = amount * task.cost / task.work
+        amount = min(amount, task.work - task.reported)
+        seconds = min(seconds, task.cost - task.cost_reported)
+        if amount > 0 or seconds > 0:
+            task.reported += max(amount, 0.0)
+            task.cost_reported += max(seconds, 0.0)
+            self.observer.advance(task.section, max(amount, 0.0), max(seconds, 0.0), task.kind)
+            self.observer.task_progress(task.section, tag, task.kind, task.cost_reported, task.cost)
+
+    def _settle(self, tag: int) -> None:
+        """A finished task's runs are stored: its work and cost not yet reported are
+        done too (all of them, run by run, for runs that report none)."""
+        task = self.tags.pop(tag)
+        if task.reported == 0 and task.cost_reported == 0:
+            for spec in task.runs:
+                self.observer.advance(task.section, work_of(spec), cost_of(spec), kind_of(spec))
+        else:
+            rest, cost = task.work - task.reported, task.cost - task.cost_reported
+            if rest > 0 or cost > 0:
+                self.observer.advance(task.section, max(rest, 0.0), max(cost, 0.0), task.kind)
+        self.observer.task_progress(task.section, tag, task.kind, task.cost, task.cost)
 
     def _commit(self, spec: RunSpec, metrics: dict[str, Any], seconds: float) -> None:
         if not self.store.put(spec.key, metrics, seconds, self.version):
             self.result.duplicates += 1
         self.result.computed += 1
         self.result.run_seconds.append(seconds)
-        if not reports_work(spec):
-            self.observer.advance(self.section(spec), 1.0, cost_of(spec))
-        self.observer.run_finished(self.section(spec))
+        self.observer.run_finished(self.section(spec), kind_of(spec), cost_of(spec), seconds)
 
     def _stored_elsewhere(self, spec: RunSpec) -> None:
         self.result.shared += 1
-        self.observer.advance(self.section(spec), work_of(spec), cost_of(spec))
-        self.observer.run_finished(self.section(spec))
+        kind = kind_of(spec)
+        self.observer.advance(self.section(spec), work_of(spec), cost_of(spec), kind)
+        self.observer.run_finished(self.section(spec), kind, cost_of(spec))
+
+
+class _Tag:
+    """A task handed out: its section, its work and estimated cost, and the work it has
+    reported so far."""
+
+    def __init__(self, section: str, runs: list[RunSpec]) -> None:
+        self.section, self.runs, self.kind = section, runs, kind_of(runs[0])
+        self.work = sum(map(work_of, runs))
+        self.cost = sum(map(cost_of, runs))
+        self.reported = self.cost_reported = 0.0
 
 
 def _batches(todo: list[RunSpec], seed_batch: int) -> list[list[RunSpec]]:
-    """Group runs of one batchable config into batches of up to ``seed_batch``."""
+    """Group runs of one batchable config into batches of up to ``seed_batch``, the
+    batch of largest estimated cost (all its runs together) first, so that no long batch
+    starts last and keeps one worker busy while the others idle."""
     groups: dict[tuple[str, str], list[RunSpec]] = {}
     for spec in todo:
         groups.setdefault((spec.experiment, spec.config_json), []).append(spec)
@@ -325,7 +433,7 @@ def _batches(todo: list[RunSpec], seed_batch: int) -> list[list[RunSpec]]:
         batchable = get_experiment(specs[0].experiment).batchable(specs[0].config)
         limit = seed_batch if batchable else 1
         batches += [specs[i : i + limit] for i in range(0, len(specs), limit)]
-    return sorted(batches, key=lambda batch: -cost_of(batch[0]))
+    return sorted(batches, key=lambda batch: -sum(map(cost_of, batch)))
 
 
 class _Heartbeat:

@@ -51,7 +51,9 @@ class Experiment:
         run: computes one run's metrics from its config and seed sequence.
         warm_up: compiles the kernels once in the parent before workers fork.
         cost: the estimated seconds of one run of a config on one core (rough, fitted to
-            measured runs): expensive runs start first, and a sweep of several
+            measured runs, benchmarks/fit_costs.py; a run that reports progress says what
+            each unit costs, :func:`cmarlcd.progress.unit_cost`, so that its reports add
+            up to this): expensive batches start first, and a sweep of several
             experiments weighs their progress by it for one overall ETA.
         run_batch: optional; computes several runs of one config together (e.g. seeds
             stacked in one model). It must give each run the metrics ``run`` would.

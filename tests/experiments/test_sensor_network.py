@@ -36,15 +36,19 @@ def test_paper_protocol_specs() -> None:
 
 @pytest.mark.parametrize("learner", [StochasticConfig(), DeepConfig(batch_size=20, train_every=10)])
 def test_a_run_reports_exactly_its_work(learner) -> None:
-    """The progress bar's total is the episodes every run reports, learning and evaluation."""
+    """The progress bar's total is the episodes every run reports, learning and evaluation,
+    and the estimated seconds it reports with them add up to its estimated cost."""
     sweep = sn.DsnSweep(
         learners=(learner,), episodes=(30, 60), eval_episodes=40, curve_points=4, runs=1
     )
-    reported: list[float] = []
+    reported: list[tuple[float, float]] = []
     for spec in sweep.specs():
-        with progress_sink(reported.append):
+        with progress_sink(lambda amount, seconds: reported.append((amount, seconds))):
             episodic.run(sn.DSN_GAME, spec.config, spec.seed_sequence())
-    assert sum(reported) == sum(episodic.run_work(s.config) for s in sweep.specs())
+    units, seconds = (sum(column) for column in zip(*reported, strict=True))
+    assert units == sum(episodic.run_work(s.config) for s in sweep.specs())
+    expected = sum(sn.DSN.cost(s.config) for s in sweep.specs())
+    assert seconds == pytest.approx(expected, rel=1e-9)
 
 
 def test_a_checkpoint_does_not_depend_on_the_other_checkpoints() -> None:

@@ -541,7 +541,7 @@ def reproduce(
     plan = _reproduction_plan(chosen, seed, doc, as_json)
     if with_comparison:
         plan[COMPARISON] = _comparison(chosen, seed).specs()
-    section_of = {spec.key: name for name, specs in plan.items() for spec in specs}
+    section_of = {spec.key: bar_name(name, spec) for name, specs in plan.items() for spec in specs}
     everything = [spec for specs in plan.values() for spec in specs]
     records, done = _sweep(
         everything,
@@ -569,6 +569,13 @@ def reproduce(
 
 
 COMPARISON = "Comparison"
+
+
+def bar_name(part: str, spec: RunSpec) -> str:
+    """The progress bar of a run of ``part``: the comparison's DSN runs count episodes,
+    its matrix-game runs count runs, so they have a bar each (one unit a bar)."""
+    counts_episodes = spec.experiment == dsn_exp.EXPERIMENT and part != "Tables 3-7"
+    return f"{part}: DSN" if counts_episodes else part
 
 
 def _comparison(chosen: Preset, seed: int) -> cmp.Comparison:

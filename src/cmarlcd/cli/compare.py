@@ -9,7 +9,14 @@ import typer
 from rich.console import Console
 
 from cmarlcd import registry
-from cmarlcd.cli.commands import Execution, _print_results, _run_counts, _sweep, app
+from cmarlcd.cli.commands import (
+    Execution,
+    _print_results,
+    _run_counts,
+    _sweep,
+    app,
+    bar_name,
+)
 from cmarlcd.cli.options import (
     DEFAULT_FIGURES,
     AddressOption,
@@ -45,7 +52,9 @@ def run_comparison(
     sweep: cmp.Comparison, run: Execution, console: Console | None
 ) -> dict[str, Any]:
     """Run (or resume) a comparison and report it; return its JSON document."""
-    records, done = _sweep(sweep.specs(), run, "compare")
+    records, done = _sweep(
+        sweep.specs(), run, "compare", section=lambda spec: bar_name("compare", spec)
+    )
     doc = compare_report(records, run.figures, console)
     skipped = [{"learner": learner, "game": game} for learner, game in sweep.skipped()]
     if skipped and console is not None:

@@ -297,18 +297,19 @@ def _warm_up() -> None:
             run_compare(config, np.random.SeedSequence(0))
 
 
-#: Estimated seconds per game and agent-action of each learner (measured on this
-#: project's 2-core machine; CMARL-CD usually stops long before its budget), and JAL's
-#: per game, agent and joint action (it sums over the joint actions every game).
+#: Estimated seconds per game and agent-action of each learner (CMARL-CD usually stops
+#: long before its budget), and the joint-action learners' per game, agent and joint
+#: action (they sum over the joint actions every game): fitted to the quick preset's
+#: measured runs on the project's 2-core machine (benchmarks/fit_costs.py).
 SECONDS_PER_GAME_ACTION = {
-    "cmarl-cd": 1e-9,
-    "iql": 2e-8,
-    "hysteretic": 2e-8,
-    "fmq": 2.2e-8,
-    "lenient": 5e-9,
-    "distributed-q": 2e-9,
+    "cmarl-cd": 6e-10,
+    "iql": 2.9e-8,
+    "hysteretic": 2.6e-8,
+    "fmq": 3.8e-8,
+    "lenient": 1e-8,
+    "distributed-q": 2.5e-9,
 }
-JAL_SECONDS_PER_JOINT_ACTION = 2e-9
+SECONDS_PER_JOINT_ACTION = {"jal": 1e-8, "central-q": 2e-9}
 
 
 def _cost(config: Mapping[str, Any]) -> float:
@@ -318,7 +319,7 @@ def _cost(config: Mapping[str, Any]) -> float:
     learner = config["learner"]
     per_game = SECONDS_PER_GAME_ACTION.get(learner, 2e-8) * size[0] * size[1]
     if learner in JOINT_LEARNERS:
-        per_game = JAL_SECONDS_PER_JOINT_ACTION * joint_actions * size[0]
+        per_game = SECONDS_PER_JOINT_ACTION.get(learner, 1e-8) * joint_actions * size[0]
     return 0.001 + per_game * config["budget"]
 
 

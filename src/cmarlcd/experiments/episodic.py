@@ -28,7 +28,7 @@ from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep_config import DeepConfig
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
-from cmarlcd.progress import report_progress
+from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.store import RunRecord
@@ -218,7 +218,8 @@ class Recorder:
 
     def _evaluate(self, policy: np.ndarray, episodes: int, rng) -> dict[str, float]:
         stats = evaluate(self.game.spec, policy, episodes, rng)
-        report_progress(episodes)
+        with unit_cost(SECONDS_PER_EPISODE):
+            report_progress(episodes)
         return {
             "success_rate": int(self.game.success(stats.returns, stats.lengths).sum()) / episodes,
             "mean_return": float(stats.returns.sum()) / episodes,
@@ -246,7 +247,8 @@ def run(game: EpisodicGame, config: dict[str, Any], seed: np.random.SeedSequence
     record, trained = Recorder(game, config, eval_seed), 0
     for budget in schedule(config):
         training.train(budget - trained)
-        report_progress(budget - trained)
+        with unit_cost(learn_seconds(learner)):
+            report_progress(budget - trained)
         trained = budget
         record(budget, training.greedy_policy())
     return record.metrics()
@@ -260,8 +262,10 @@ def run_batch(
 
     train_seeds, eval_seeds = zip(*(s.spawn(2) for s in seeds), strict=True)
     records = [Recorder(game, config, e) for e in eval_seeds]
-    batch = DeepBatch(game.spec, learner_of(config), train_seeds, max(config["checkpoints"]))
-    batch.train(schedule(config), lambda k, budget, table: records[k](budget, table))
+    learner = learner_of(config)
+    batch = DeepBatch(game.spec, learner, train_seeds, max(config["checkpoints"]))
+    with unit_cost(learn_seconds(learner)):  # the evaluations inside say their own
+        batch.train(schedule(config), lambda k, budget, table: records[k](budget, table))
     return [r.metrics() for r in records]
 
 
@@ -275,17 +279,35 @@ def warm_up(game: EpisodicGame) -> None:
             evaluate(game.spec, training.greedy_policy(), 2, np.random.default_rng(2))
 
 
-#: Estimated seconds per episode of a tabular learner on the DSN, and how many times
-#: more a deep learner's learning episode costs (fitted to the paper protocol's stored
-#: wall times on a 2-core machine: 0.8-1.8 µs tabular, 36-106 µs VDN to QMIX).
+#: Estimated seconds of a greedy evaluation episode on the DSN, and of a learning episode
+#: by learner (a deep learner's with its share of gradient steps): fitted to measured
+#: runs on the project's 2-core machine (the paper protocol's for VDN and QMIX, the quick
+#: preset's for the others, benchmarks/fit_costs.py). A learner not listed is taken at
+#: the slowest tabular learner's cost.
 SECONDS_PER_EPISODE = 1e-6
-DEEP_EPISODE_FACTOR = 100.0
+LEARN_SECONDS_PER_EPISODE = {
+    "cmarl-cd": 3e-6,
+    "la-oca": 1.2e-6,
+    "iql": 7.3e-6,
+    "hysteretic": 5.9e-6,
+    "lenient": 7.1e-6,
+    "distributed-q": 4.7e-6,
+    "vdn": 36e-6,
+    "qmix": 106e-6,
+}
+
+
+def learn_seconds(learner: LearnerConfig) -> float:
+    """Estimated seconds of one learning episode of ``learner``."""
+    return LEARN_SECONDS_PER_EPISODE.get(learner.name, 7.3e-6)
 
 
 def _cost(config: Mapping[str, Any]) -> float:
-    """Estimated seconds of one run."""
-    scale = DEEP_EPISODE_FACTOR if anneals_over_budget(learner_of(config)) else 1.0
-    return SECONDS_PER_EPISODE * (scale * max(config["checkpoints"]) + config["eval_episodes"])
+    """Estimated seconds of one run: its learning episodes and its evaluation episodes
+    (what the run reports as it goes, :func:`cmarlcd.progress.unit_cost`)."""
+    learned = max(config["checkpoints"])
+    evaluated = run_work(config) - learned
+    return learn_seconds(learner_of(config)) * learned + SECONDS_PER_EPISODE * evaluated
 
 
 def experiment(game: EpisodicGame) -> Experiment:

@@ -211,11 +211,12 @@ def _work(config: Mapping[str, Any]) -> float:
 
 
 def _cost(config: Mapping[str, Any]) -> float:
-    """Estimated seconds of one match: about 6 µs per episode, and a deep side costs
-    about 20 tabular ones (fitted to the 6 x 500k tournament's stored wall times, see
-    benchmarks/bench_battlefield.py): matches with deep sides start first."""
+    """Estimated seconds of one match: about 14 µs per episode of two tabular sides, and
+    a deep side adds about 8 times that (fitted to the quick preset's measured matches
+    on the project's 2-core machine, benchmarks/fit_costs.py): matches with deep sides
+    start first."""
     deep = sum(name not in TABULAR for name in config["algorithms"])
-    return 6e-6 * _work(config) * (1 + 20 * deep)
+    return 14e-6 * _work(config) * (1 + 8 * deep)
 
 
 def round_of(seed: np.random.SeedSequence) -> int:
