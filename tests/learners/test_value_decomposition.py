@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -142,3 +144,114 @@ def test_integer_state_fast_path_trains_like_the_one_hot_product(mixer: str) -> 
             fast.sync_target(), dense.sync_target()
     for (name, a), (_, b) in zip(fast.named_parameters(), dense.named_parameters(), strict=True):
         assert torch.allclose(a, b, atol=1e-5), name
+
+
+# ----------------------------------------------------- hand-computed oracles
+
+#: Q-values (state, agent, action) of the online and the target networks in the TD test.
+ONLINE = [[[1.0, 2.0], [0.5, -1.0]], [[0.0, 3.0], [2.0, 1.0]], [[4.0, 0.0], [0.0, 0.0]]]
+TARGET = [[[10.0, 20.0], [1.0, 1.0]], [[5.0, 7.0], [2.0, 8.0]], [[3.0, 9.0], [6.0, 4.0]]]
+
+
+def set_q_tables(agents, q: list) -> None:
+    """Make the agent networks compute ``q[s][i][a]`` exactly: the first layer copies the
+    one-hot state through (hidden = n_states, ReLU of 0/1), the second holds the table."""
+    table = torch.tensor(q).permute(1, 0, 2)  # (agent, state, action)
+    with torch.no_grad():
+        agents.first.weight.copy_(torch.eye(len(q)).expand_as(agents.first.weight))
+        agents.first.bias.zero_()
+        agents.second.weight.copy_(table)
+        agents.second.bias.zero_()
+
+
+def td_model() -> ValueDecomposition:
+    model = ValueDecomposition([2, 2], 3, DeepConfig(hidden=3, gamma=0.5), seeds(1))
+    set_q_tables(model.agents, ONLINE)
+    set_q_tables(model.target_agents, TARGET)
+    return model
+
+
+def td_batch(next_legal: bool) -> dict:
+    """Three transitions: (s=0, a=(1,0), r=1, s'=1); (s=1, a=(1,1), r=2, terminal);
+    (s=2, a=(0,0), r=0, s'=2 where agent 0 may not play action 1)."""
+    legal = torch.ones(1, 3, 2, 2, dtype=torch.bool)
+    legal[0, 2, 0, 1] = False
+    batch = {
+        "state": torch.tensor([[0, 1, 2]]),
+        "actions": torch.tensor([[[1, 0], [1, 1], [0, 0]]]),
+        "reward": torch.tensor([[1.0, 2.0, 0.0]]),
+        "next_state": torch.tensor([[1, 2, 2]]),
+        "terminal": torch.tensor([[False, True, False]]),
+    }
+    if next_legal:
+        batch["next_legal"] = legal
+    return batch
+
+
+@pytest.mark.parametrize("masks", ["in the batch", "per state"])
+def test_one_td_step_against_a_hand_computed_batch(masks: str) -> None:
+    """Targets r + γ Σ_i max_{a legal} Q_i^target(s', a), r alone at a terminal state:
+      1. Q_tot = 2 + 0.5 = 2.5; target 1 + 0.5 (7 + 8) = 8.5          -> error -6
+      2. Q_tot = 3 + 1 = 4;     target 2 (terminal)                  -> error  2
+      3. Q_tot = 4 + 0 = 4;     target 0 + 0.5 (3 + 6) = 4.5 (9 is illegal) -> error -0.5
+    loss = (36 + 4 + 0.25) / 3; dloss/dQ_i(s, a) = 2 · error / 3 at each played (s, a)."""
+    model = td_model()
+    if masks == "per state":
+        legal = torch.ones(3, 2, 2, dtype=torch.bool)
+        legal[2, 0, 1] = False
+        model.set_state_legal(legal)
+    model.optimizer.step = lambda: None  # keep the gradients to look at them
+    loss = model.td_step(td_batch(next_legal=masks == "in the batch"))
+    assert loss == pytest.approx(40.25 / 3)
+    grad = model.agents.second.weight.grad  # (agent, hidden = state, action)
+    assert grad[0, 0, 1] == pytest.approx(2 * -6 / 3) and grad[1, 0, 0] == pytest.approx(-4)
+    assert grad[0, 1, 1] == pytest.approx(2 * 2 / 3) and grad[1, 1, 1] == pytest.approx(4 / 3)
+    assert grad[0, 2, 0] == pytest.approx(2 * -0.5 / 3) and grad[1, 2, 0] == pytest.approx(-1 / 3)
+    unplayed = torch.ones_like(grad, dtype=torch.bool)
+    for agent, state, action in [(0, 0, 1), (1, 0, 0), (0, 1, 1), (1, 1, 1), (0, 2, 0), (1, 2, 0)]:
+        unplayed[agent, state, action] = False
+    assert (grad[unplayed] == 0).all()
+    assert all(p.grad is None for p in model.target_agents.parameters())
+
+
+def test_a_target_copy_makes_the_target_the_online_network() -> None:
+    model = td_model()
+    model.sync_target()
+    model.optimizer.step = lambda: None
+    # now s' = 1 bootstraps from the online values: 1 + 0.5 (3 + 2) = 3.5, and so on
+    loss = model.td_step(td_batch(next_legal=True))
+    errors = [2.5 - 3.5, 4 - 2, 4 - 0.5 * (4 + 0)]
+    assert loss == pytest.approx(sum(e * e for e in errors) / 3)
+
+
+def set_table(layer, rows: list) -> None:
+    """A group layer whose output for one-hot state ``s`` is ``rows[s]`` (bias 0)."""
+    with torch.no_grad():
+        layer.weight.copy_(torch.tensor(rows)[None])
+        layer.bias.zero_()
+
+
+def test_qmix_mixes_a_hand_chosen_input() -> None:
+    """Two agents, two hidden units, two states that differ only in V(s). For q = (1, -2):
+    |W1| = [[1, 2], [0.5, 1]], b1 = [0.5, -1]: pre-activations [0.5, -1],
+    ELU: [0.5, e^-1 - 1]; |w2| = [3, 2]: 1.5 + 2 (e^-1 - 1);
+    V(0) = 2 · relu(1) + 5 · relu(-1) + 0.25 = 2.25; V(1) = 5 · relu(0.5) + 0.25 = 2.75."""
+    gens = [[torch.Generator().manual_seed(k) for k in range(3)]]
+    mixer = QMixer(seeds=1, n_agents=2, in_dim=2, hidden=2, generators=gens)
+    w1 = [1.0, -2.0, 0.5, 1.0]  # agent 0's two weights, then agent 1's (signs: abs)
+    set_table(mixer.hyper_w1, [w1, w1])
+    set_table(mixer.hyper_b1, [[0.5, -1.0], [0.5, -1.0]])
+    set_table(mixer.hyper_w2, [[-3.0, 2.0], [-3.0, 2.0]])
+    set_table(mixer.value_1, [[1.0, -1.0], [0.0, 0.5]])
+    with torch.no_grad():
+        mixer.value_2.weight.copy_(torch.tensor([[[2.0], [5.0]]]))
+        mixer.value_2.bias.fill_(0.25)
+    q = torch.tensor([[[1.0, -2.0], [1.0, -2.0]]])
+    mixed = 1.5 + 2 * (math.exp(-1) - 1)
+    expected = torch.tensor([[mixed + 2.25, mixed + 2.75]])
+    states = torch.tensor([[0, 1]])
+    assert torch.allclose(mixer(q, states), expected)
+    one_hot = torch.nn.functional.one_hot(states, 2).float()
+    assert torch.allclose(mixer(q, one_hot), expected)  # the dense path too
+    higher = mixer(q + torch.tensor([0.1, 0.0]), states)
+    assert (higher > expected).all()  # monotone in each agent's value

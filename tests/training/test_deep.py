@@ -137,3 +137,14 @@ def test_a_greedy_action_is_legal_from_the_first_visit_of_a_state() -> None:
         run = DeepBatch(TRAP, greedy, [np.random.SeedSequence(seed)], 20)
         run.train([], lambda *args: None)
         assert run.envs[0][0][1] == 0, f"seed {seed}: an illegal action was played"
+
+
+def test_exploration_draws_only_legal_actions() -> None:
+    """ε = 1: every action a uniform draw over the state's legal actions."""
+    explore = DeepConfig(
+        eps_start=1.0, eps_end=1.0, eps_after=1.0, buffer_size=100, batch_size=10,
+        train_every=4, target_every=8,
+    )  # fmt: skip
+    run = DeepBatch(TRAP, explore, [np.random.SeedSequence(3)], 200)
+    run.train([], lambda *args: None)
+    assert run.envs[0][0][1] == 0, "an illegal action was explored"

@@ -139,3 +139,53 @@ def test_matches_learning_in_a_batch_play_what_they_play_alone(pairing) -> None:
         assert alone.turns == batch.matches[m].turns
         rng = np.random.default_rng(7)
         assert alone.evaluate(100, rng) == batch.matches[m].evaluate(100, np.random.default_rng(7))
+
+
+def test_a_turn_goes_into_the_replay_ring_as_a_hand_built_transition() -> None:
+    """Turn t's features, joint action and reward, and turn t + 1's features and masks
+    as its successor; a terminal turn's successor is zeros with every action legal (never
+    bootstrapped from, but its maximum must stay finite)."""
+    from cmarlcd.testing import DUEL
+
+    config = DeepConfig(buffer_size=4, batch_size=2, train_every=2, target_every=4)
+    side = new_match_on(DUEL, (config, AutomatonConfig()), 5).sides[0].data
+    side.obs[:3] = [[0.0, 0.0], [0.5, 0.0], [1.0, 0.25]]  # exact in float32
+    side.legal[:3] = True
+    side.legal[1, 1, 2] = False  # turn 1: agent 1 may not play action 2
+    side.joints[:2] = [[0, 0], [2, 1]]
+    side.rewards[:2] = [0.0, 5.0]
+    start = int(side.counters[deep_side.POSITION])
+    deep_side.deep_observe(side, 0, 1, False)
+    deep_side.deep_observe(side, 1, 2, True)
+    ring = side.replay
+    first, second = start, (start + 1) % 4
+    assert ring.obs[first].tolist() == [0.0, 0.0] and ring.next_obs[first].tolist() == [0.5, 0.0]
+    assert ring.actions[first].tolist() == [0, 0] and ring.reward[first] == 0.0
+    assert not ring.terminal[first]
+    assert ring.next_legal[first].tolist() == [[True, True, True], [True, True, False]]
+    assert ring.obs[second].tolist() == [0.5, 0.0] and ring.next_obs[second].tolist() == [0, 0]
+    assert ring.actions[second].tolist() == [2, 1] and ring.reward[second] == 5.0
+    assert ring.terminal[second] and ring.next_legal[second].all()
+
+
+def new_match_on(spec, configs, episodes: int) -> Match:
+    env, a, b = (np.random.default_rng(k) for k in range(3))
+    return Match(spec, configs, env, (a, b), episodes)
+
+
+def test_a_deep_side_explores_only_legal_actions() -> None:
+    """ε = 1: every action is a uniform draw over the legal ones, never a masked one."""
+    from cmarlcd.testing import DUEL
+
+    random = DeepConfig(eps_start=1.0, eps_end=1.0, eps_after=1.0, **SMALL)
+    side = new_match_on(DUEL, (random, AutomatonConfig()), 5).sides[0].data
+    side.obs[0] = [0.5, 0.0]
+    side.legal[0] = True
+    side.legal[0, 1, 2] = False
+    joint = np.zeros(2, dtype=np.int64)
+    rng = np.random.default_rng(0)
+    seen = set()
+    for _ in range(300):
+        deep_side.deep_act(side, 0, rng, joint)
+        seen.add(int(joint[1]))
+    assert seen == {0, 1}
