@@ -76,6 +76,8 @@ def test_distributed_q_keeps_the_best_reward_and_moves_its_policy_only_on_a_new_
     q = learner.tables.values
     assert q[0].tolist() == [11.0, 7.0, -np.inf]
     assert q[1].tolist() == [11.0, 7.0, 6.0]
+    assert not learner.update((2, 1), 11.0)  # equal to the best: no new policy
+    assert learner.greedy_joint_action() == (0, 0)
 
 
 def test_fmq_adds_the_weighted_frequency_of_the_max_reward_to_q() -> None:
@@ -108,6 +110,16 @@ def test_lenient_ignores_bad_news_while_hot_and_cools_each_played_action() -> No
     learner.tables.draws[:] = [0.99, 0.99]
     learner.update((0, 0), 6.0)  # good news is always learned: 0 + 3, -4 + 5
     assert learner.tables.values[:, 0].tolist() == [3.0, 1.0]
+
+
+def test_lenience_forgives_a_decrease_with_probability_exp_of_minus_one_over_theta_t() -> None:
+    """P(forgive) = exp(-1 / (θ T)): at T = 2, θ = 2 it is e^-0.25 = 0.7788, so a draw
+    of 0.3 (>= 1 - 0.7788) forgives; at θ = 1 it is e^-0.5 = 0.6065 and 0.3 does not."""
+    from cmarlcd.learners.lenient import is_lenient
+
+    assert is_lenient(-1.0, 2.0, 2.0, 0.3) and not is_lenient(-1.0, 2.0, 1.0, 0.3)
+    assert is_lenient(-1.0, 2.0, 2.0, 1 - math.exp(-0.25))  # the boundary draw forgives
+    assert not is_lenient(+1.0, 2.0, 2.0, 0.99)  # good news is never ignored
 
 
 def test_lenient_acts_greedily_once_cool() -> None:

@@ -250,6 +250,8 @@ def test_tie_takes_the_small_step_and_below_changes_nothing() -> None:
     assert learner.tables.degrees[0, 0].tolist() == pytest.approx([1.95, 1.05, 0.95])
     episode(learner, [(0, (2,), 5.0 + 1e-12)])  # within the 1e-9 tolerance: a tie
     assert learner.tables.degrees[0, 0].tolist() == pytest.approx([1.9, 1.0, 1.0])
+    episode(learner, [(0, (2,), 5.0 - 1e-12)])  # a hair below, within it: a tie too
+    assert learner.tables.degrees[0, 0].tolist() == pytest.approx([1.85, 0.95, 1.05])
     assert learner.max_return(0) == 5.0
 
 
