@@ -1,13 +1,15 @@
 """A sweep of slow toy runs on a given store, for tests that start several sweeps at once.
 
 Usage: python tests/sleepy_sweep.py STORE RUNS SECONDS GO_FILE
-Waits until GO_FILE exists (so sweeps started together begin together), runs the sweep
-in this process and prints its tally as JSON.
+Says it is ready (GO_FILE.ready.PID), waits until GO_FILE exists (so sweeps started
+together begin together, however long their imports took), runs the sweep in this
+process and prints its tally as JSON.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -34,6 +36,7 @@ def specs(runs: int, seconds: float) -> list[RunSpec]:
 
 def main() -> None:
     store, runs, seconds, go = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+    Path(f"{go}.ready.{os.getpid()}").touch()
     while not Path(go).exists():
         time.sleep(0.01)
     with ResultStore(store) as db:

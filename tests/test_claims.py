@@ -61,7 +61,9 @@ def test_concurrent_sweeps_split_the_work_and_store_each_run_once(tmp_path) -> N
     ResultStore(store).close()
     command = [sys.executable, str(SCRIPT), str(store), str(runs), "0.15", str(go)]
     sweeps = [subprocess.Popen(command, stdout=subprocess.PIPE, text=True) for _ in range(2)]
-    time.sleep(1.0)  # both have imported and wait
+    deadline = time.monotonic() + 120  # however loaded the machine: both ready, then go
+    while len(list(tmp_path.glob("go.ready.*"))) < 2 and time.monotonic() < deadline:
+        time.sleep(0.05)
     go.touch()
     tallies = [json.loads(p.communicate(timeout=120)[0]) for p in sweeps]
     assert all(p.returncode == 0 for p in sweeps)

@@ -20,6 +20,9 @@ from cmarlcd.store import ResultStore
 from tests.helpers import STORE_PROBLEMS, not_a_store
 
 runner = CliRunner()
+#: Seconds that tell a hang from a refusal: a refusal takes milliseconds, what it guards
+#: against minutes; the bound is loose so that a loaded machine never fails the test.
+HANG = 20
 
 
 def invoke(*args: str):
@@ -226,6 +229,7 @@ def test_console_script_runs_a_sweep_over_worker_processes(tmp_path) -> None:
     assert doc["runs_computed"] == 8 and len(doc["cells"]) == 2
 
 
+@pytest.mark.slow
 def test_dsn_json_tables_figures_and_resume(paths) -> None:
     _, figures, where = paths
     args = [
@@ -308,6 +312,7 @@ def tiny_reproduction(paths, monkeypatch):
     return json.loads(result.stdout)
 
 
+@pytest.mark.slow
 def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
     _, figures, where = paths
     doc = tiny_reproduction(paths, monkeypatch)
@@ -325,6 +330,7 @@ def test_reproduce_runs_every_table_and_the_theorem(paths, monkeypatch) -> None:
     assert bad.exit_code == 2 and bad.stderr.startswith("error: --preset:")
 
 
+@pytest.mark.slow
 def test_dsn_deep_baselines_from_the_cli(paths) -> None:
     pytest.importorskip("torch")
     _, _, where = paths
@@ -380,6 +386,7 @@ def tiny_paper_preset(monkeypatch) -> None:
     monkeypatch.setitem(cli.PRESETS, "paper", tiny)
 
 
+@pytest.mark.slow
 def test_reproduce_paper_preset_has_the_deep_rows(paths, monkeypatch) -> None:
     pytest.importorskip("torch")
     tiny_paper_preset(monkeypatch)
@@ -392,6 +399,7 @@ def test_reproduce_paper_preset_has_the_deep_rows(paths, monkeypatch) -> None:
     assert {r["algorithm"] for r in rows} == {"cmarl-cd", "la-oca", "vdn", "qmix"}
 
 
+@pytest.mark.slow
 def test_reproduce_paper_preset_without_torch_says_what_it_left_out(paths, monkeypatch) -> None:
     without_torch(monkeypatch)
     tiny_paper_preset(monkeypatch)
@@ -469,6 +477,7 @@ def test_settings_other_than_the_paper_s_are_not_shown_beside_the_paper(paths) -
     assert other.strip().splitlines()[-1].startswith("results: runs in ")
 
 
+@pytest.mark.slow
 def test_dsn_tables_state_their_runs_and_mark_other_settings(paths) -> None:
     _, _, where = paths
     base = ["dsn", "--algorithms", "cmarl-cd", "--episodes", "50", "--runs", "2", "--workers", "1"]
@@ -498,7 +507,7 @@ def test_absurd_or_empty_values_fail_at_once(paths, args, option, words) -> None
     store, figures, where = paths
     start = time.perf_counter()
     result = invoke(*args, *where) if args[0] != "theory" else invoke(*args)
-    assert time.perf_counter() - start < 5
+    assert time.perf_counter() - start < HANG  # milliseconds; an expanded range: minutes
     assert_rejected_cleanly(result, option, store, figures)
     assert words in result.stderr
 
@@ -518,7 +527,7 @@ def test_payoff_files_that_cannot_be_games_say_why(tmp_path) -> None:
     for path, words in cases:
         start = time.perf_counter()
         result = invoke("play", "--payoffs", str(path))
-        assert time.perf_counter() - start < 5
+        assert time.perf_counter() - start < HANG  # reading 80 GB would take minutes
         assert result.exit_code == 2 and result.stderr.startswith("error: --payoffs:")
         assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
@@ -681,6 +690,7 @@ def test_a_full_disk_while_drawing_a_figure_is_one_line(paths, monkeypatch) -> N
 SECTIONS = ("Table 1", "Table 2", "Tables 3-7", "Figs. 6-7", "Theorem 1", "Comparison")
 
 
+@pytest.mark.slow
 def test_reproduce_is_one_sweep_with_a_section_per_part_of_the_paper(paths, monkeypatch) -> None:
     from cmarlcd.cli import progress
 
@@ -701,6 +711,7 @@ def test_reproduce_is_one_sweep_with_a_section_per_part_of_the_paper(paths, monk
     assert json.loads(again.stdout)["runs_computed"] == 0
 
 
+@pytest.mark.slow
 def test_report_renders_every_section_in_every_format(paths, monkeypatch, tmp_path) -> None:
     store, _, where = paths
     tiny_reproduction(paths, monkeypatch)
@@ -724,6 +735,7 @@ def test_report_renders_every_section_in_every_format(paths, monkeypatch, tmp_pa
     assert doc["versions"] == {__version__: sum(1 for _ in ResultStore(store).records())}
 
 
+@pytest.mark.slow
 def test_the_html_report_opens_with_no_other_file(paths, monkeypatch, tmp_path) -> None:
     import re
 

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # kills and resumes real sweeps
+
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "crash_test.py"
 
 

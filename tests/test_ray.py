@@ -16,6 +16,7 @@ from cmarlcd.runner import run_sweep
 from cmarlcd.store import ResultStore
 
 ray = pytest.importorskip("ray")
+pytestmark = pytest.mark.slow  # Ray starts in seconds, sweeps run in tens
 DEEP = importlib.util.find_spec("torch") is not None
 
 

@@ -25,6 +25,7 @@ def test_every_tabular_learner_trains_and_plays_every_game(game: str, learner: s
     assert stats.lengths.min() >= 1 and stats.lengths.max() <= spec.max_steps
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("game", TWO_TEAMS)
 @pytest.mark.parametrize("learner", TABULAR)
 def test_every_tabular_learner_plays_both_sides_of_every_two_team_game(

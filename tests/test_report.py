@@ -76,6 +76,7 @@ def titled(found: dict[str, list[list[str]]], start: str) -> list[list[str]]:
     return found[title]
 
 
+@pytest.mark.slow
 def test_tables_1_and_2_print_the_json(reports) -> None:
     markdown, document = reports
     found = tables(markdown)
@@ -100,6 +101,7 @@ DSN_TABLES = {
 }
 
 
+@pytest.mark.slow
 def test_tables_3_to_7_print_the_json(reports) -> None:
     markdown, document = reports
     found = tables(markdown)
@@ -114,6 +116,7 @@ def test_tables_3_to_7_print_the_json(reports) -> None:
                 check_cell(paper, [scale * row["paper"][name] for name, scale in fields])
 
 
+@pytest.mark.slow
 def test_figs_6_and_7_print_the_json(reports) -> None:
     markdown, document = reports
     found = tables(markdown)

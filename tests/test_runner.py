@@ -213,7 +213,7 @@ def test_workers_exit_when_the_sweep_s_parent_is_killed(tmp_path) -> None:
         time.sleep(1.0)  # the workers are now deep in compiled training loops
         os.kill(parent.pid, signal.SIGKILL)
         parent.wait()
-        deadline = time.monotonic() + 5
+        deadline = time.monotonic() + 30  # at once as a rule; the bound allows a busy machine
         while any(alive(w) for w in workers) and time.monotonic() < deadline:
             time.sleep(0.1)
         assert not any(alive(w) for w in workers)

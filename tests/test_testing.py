@@ -76,6 +76,7 @@ def test_every_repeated_game_learner_passes_every_check(name: str) -> None:
     check_learner(registry.REPEATED_LEARNERS[name])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "name", [n for n in registry.LEARNERS if HAS_TORCH or not registry.needs_torch(n)]
 )

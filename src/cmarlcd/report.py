@@ -422,7 +422,7 @@ def tournament_report(
     if console is not None:
         for table in tournament_tables(cells, names, settings):
             show(console, table)
-        say(console, "The paper's claims (SPEC §6) against these matches:")
+        say(console, "The paper's claims (Section V-B) against these matches:")
         for claim in claims:
             say(console, f"  {claim.claim}: {claim.verdict.upper()} — {claim.evidence}")
         for key, path in paths.items():

@@ -17,6 +17,7 @@ from cmarlcd.store import RunRecord
 from cmarlcd.training.repeated import fit
 
 
+@pytest.mark.slow
 def test_cmarlcd_through_the_comparison_plays_as_algorithm_1() -> None:
     """The watching loop consumes the learner's stream as fit does (deterministic games
     draw nothing): same games, same greedy joint action."""

@@ -34,6 +34,7 @@ def test_paper_protocol_specs() -> None:
     ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("learner", [StochasticConfig(), DeepConfig(batch_size=20, train_every=10)])
 def test_a_run_reports_exactly_its_work(learner) -> None:
     """The progress bar's total is the episodes every run reports, learning and evaluation,
@@ -99,6 +100,7 @@ def test_non_default_settings_are_marked_and_have_no_paper_values() -> None:
     assert row.label == "CMARL-CD *" and set(row.paper.values()) == {None}
 
 
+@pytest.mark.slow
 def test_small_sweep_through_the_runner(tmp_path) -> None:
     sweep = sn.DsnSweep(episodes=(200, 400), eval_episodes=100, curve_points=2, runs=2)
     with ResultStore(tmp_path / "s.sqlite") as store:

@@ -46,6 +46,7 @@ def test_bad_settings_are_rejected(field, value) -> None:
         tour.Tournament(learners, **{field: value})
 
 
+@pytest.mark.slow
 def test_sides_alternate_over_rounds_and_are_recorded() -> None:
     config = tour.Tournament(
         (tour.battlefield_learners()["cmarl-cd"], tour.battlefield_learners()["la-oca"]),
@@ -145,6 +146,7 @@ def test_claims_say_supported_contradicted_or_not_checked() -> None:
     assert claims["CMARL-CD needs the fewest win steps"].verdict == "contradicted"
 
 
+@pytest.mark.slow
 def test_rounds_learning_together_store_what_they_store_alone() -> None:
     pytest.importorskip("torch")
     learners = (tour.battlefield_learners()["vdn"], tour.battlefield_learners()["cmarl-cd"])

@@ -94,6 +94,7 @@ class QConfig(TabularConfig):
 # ------------------------------------------------------------------------- tests
 
 
+@pytest.mark.slow
 def test_a_plug_in_learner_passes_the_conformance_checks() -> None:
     check_learner(QConfig())
 
@@ -137,6 +138,7 @@ def test_vdn_learns_the_chain_through_the_seed_batched_loop() -> None:
         assert (stats.returns == 12.0).all()
 
 
+@pytest.mark.slow
 def test_a_plug_in_s_types_never_reach_a_shared_on_disk_cache(tmp_path) -> None:
     """After the plug-in learner played both sides of a match (check_learner above), a
     process that cannot import this test module still compiles and plays every loop:
