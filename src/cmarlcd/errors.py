@@ -1,8 +1,9 @@
-"""Errors raised for bad input.
+"""Errors raised for bad input, and for a compute backend that is gone.
 
 Every validation failure in the package raises :class:`ConfigError`, which names the
 offending parameter and its allowed range in one line, so the command line can print it
-as is and exit with status 2.
+as is and exit with status 2. A cluster that cannot be reached, or that goes away in the
+middle of a sweep, raises :class:`BackendLost`, also one line.
 """
 
 from __future__ import annotations
@@ -26,3 +27,11 @@ def require(condition: bool, parameter: str, message: str) -> None:
     """Raise :class:`ConfigError` for ``parameter`` unless ``condition`` holds."""
     if not condition:
         raise ConfigError(parameter, message)
+
+
+class BackendLost(RuntimeError):
+    """The backend cannot be reached, or stopped answering: a one-line message saying
+    where, for how long, and what is kept. Whatever the backend left running (Ray's
+    threads waiting on a dead cluster) may never end, so a command that catches this
+    error exits at once (``os._exit``) after saying it; the runs stored before are safe
+    in the store, committed one transaction each."""

@@ -13,6 +13,17 @@ and stopped at the end. With ``--address``, the sweep joins that cluster; every 
 needs the same cmarl-cd version installed (checked: a task on a node with another
 version fails with a message saying so).
 
+**Bounded waits.** A cluster that does not answer ends the sweep in one line
+(:class:`cmarlcd.errors.BackendLost`) within a bounded time, keeping every run stored
+before: its head must accept a connection within :data:`REACH_SECONDS` and Ray's
+handshake finish within :data:`CONNECT_SECONDS`; during the sweep the head is asked every
+:data:`HEAD_CHECK_SECONDS` and a head silent for :data:`LOST_SECONDS` ends it. A worker
+node that dies is not an end: Ray reruns its tasks elsewhere (:data:`TASK_RETRIES`). A
+cluster whose nodes listen on loopback only (``127.0.0.1``, as ``ray start
+--node-ip-address=127.0.0.1`` or ``ray.cluster_utils.Cluster`` make them) is joined at
+that address: Ray's own client would rewrite a loopback address to the machine's outside
+address, where such a cluster answers nothing.
+
 Ray is imported only here, and this module only when the backend is chosen.
 """
 
@@ -20,19 +31,36 @@ from __future__ import annotations
 
 import contextlib
 import importlib.util
+import ipaddress
 import logging
 import os
+import socket
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 from cmarlcd import __version__
 from cmarlcd.backends import Finished, ProgressCallback, Task, execute_reporting
-from cmarlcd.errors import ConfigError, require
+from cmarlcd.errors import BackendLost, ConfigError, require
 
 #: How many times Ray reruns a task whose worker process or node died.
 TASK_RETRIES = 3
+#: [choice] Seconds for a cluster's head to accept a TCP connection before the sweep
+#: ends (a wrong host or port, a firewall, a head that is down).
+REACH_SECONDS = 10.0
+#: [choice] Seconds for Ray's handshake with a reachable cluster (Ray itself would wait
+#: minutes for a node it cannot find, printing nothing).
+CONNECT_SECONDS = 60.0
+#: [choice] During a sweep: how often the head is asked whether it is there, and how long
+#: it may be silent before the sweep ends (well within Ray's own 60 s, after which Ray
+#: kills the driver with a stack trace).
+HEAD_CHECK_SECONDS = 2.0
+LOST_SECONDS = 20.0
+#: Ray reads this switch when it is imported: off, its client keeps a loopback address.
+KEEP_LOOPBACK_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
 #: [choice] Memory for Ray's object store when this sweep starts a local Ray: results are
 #: small (a few kB a run), so the smallest store Ray accepts is plenty.
 LOCAL_OBJECT_STORE_BYTES = 80 * 1024**2
@@ -48,6 +76,104 @@ def ray_module() -> Any:
     import ray
 
     return ray
+
+
+def head_of(address: str) -> tuple[str, int]:
+    """``(host, port)`` of ``address`` (``host:port`` or ``ray://host:port``), or a
+    one-line error."""
+    where = address.removeprefix("ray://")
+    host, sep, port = where.rpartition(":")
+    require(
+        bool(sep and host and port.isdigit()),
+        "address",
+        f"expected HOST:PORT or ray://HOST:PORT (got {address!r})",
+    )
+    return host.strip("[]"), int(port)
+
+
+def answers(host: str, port: int, seconds: float) -> str | None:
+    """None when ``host:port`` accepts a TCP connection within ``seconds``, else why not."""
+    try:
+        with socket.create_connection((host, port), timeout=seconds):
+            return None
+    except OSError as exc:
+        return exc.strerror or type(exc).__name__
+
+
+def is_loopback(host: str) -> bool:
+    try:
+        return ipaddress.ip_address(socket.gethostbyname(host)).is_loopback
+    except (OSError, ValueError):
+        return False
+
+
+def outside_address() -> str | None:
+    """The address other machines reach this one at (the interface of the default route,
+    found as Ray finds it: a UDP socket "connected" to a public address sends nothing)."""
+    with contextlib.suppress(OSError), socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp:
+        udp.connect(("8.8.8.8", 80))
+        return udp.getsockname()[0]
+    return None
+
+
+def keep_loopback(ray: Any | None) -> None:
+    """Make Ray's client keep a loopback address instead of rewriting it."""
+    os.environ[KEEP_LOOPBACK_ENV] = "0"
+    if ray is not None:  # imported before the switch was read: set what it read
+        with contextlib.suppress(ImportError, AttributeError):
+            ray._private.ray_constants.ENABLE_RAY_CLUSTER = False
+
+
+def reach(address: str) -> tuple[str, int]:
+    """The head of the cluster at ``address``, once it accepts a connection within
+    :data:`REACH_SECONDS`; a loopback-only cluster is joined at its loopback address."""
+    host, port = head_of(address)
+    why = answers(host, port, REACH_SECONDS)
+    if why is not None:
+        raise BackendLost(
+            f"--address: cannot reach the Ray cluster at {address} ({why}); start "
+            "its head with `ray start --head` and give the address it prints"
+        )
+    if not address.startswith("ray://") and is_loopback(host):
+        loopback_only = listens_on_loopback_only(port)
+        if loopback_only is None:  # no /proc to look in: ask the outside address
+            outside = outside_address()
+            loopback_only = outside is None or answers(outside, port, 2.0) is not None
+        if loopback_only:
+            keep_loopback(sys.modules.get("ray"))
+    return host, port
+
+
+def listens_on_loopback_only(port: int) -> bool | None:
+    """Whether this machine listens on ``port`` at loopback addresses only (read from
+    Linux's /proc/net/tcp{,6}, without opening a connection), or None where there is no
+    such table or nothing listens on it."""
+    addresses = []
+    for table, width in (("/proc/net/tcp", 8), ("/proc/net/tcp6", 32)):
+        try:
+            lines = Path(table).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            fields = line.split()
+            local, state = fields[1], fields[3]
+            host, _, hex_port = local.partition(":")
+            if state == "0A" and int(hex_port, 16) == port and len(host) == width:
+                addresses.append(_proc_address(host))
+    if not addresses:
+        return None
+    return all(_is_loopback_ip(a) for a in addresses)
+
+
+def _proc_address(text: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address:
+    """An address as /proc/net/tcp{,6} writes it: 32-bit words in host (little) order."""
+    raw = b"".join(bytes.fromhex(text[i : i + 8])[::-1] for i in range(0, len(text), 8))
+    return ipaddress.ip_address(raw)
+
+
+def _is_loopback_ip(address: ipaddress.IPv4Address | ipaddress.IPv6Address) -> bool:
+    mapped = getattr(address, "ipv4_mapped", None)
+    return address.is_loopback or (mapped is not None and mapped.is_loopback)
 
 
 def _compute(tag: int, task: Task, relay: Any, version: str) -> Finished:
@@ -95,6 +221,69 @@ class _Relay:
         return items
 
 
+#: Called with the one-line message when the head has been silent for LOST_SECONDS and
+#: the sweep has not ended itself within GRACE_SECONDS more (its main thread blocked in a
+#: Ray call on the dead cluster). The command line sets it to print the line and leave;
+#: a library caller may set its own (by default the watch only marks the backend lost).
+on_lost: Callable[[str], None] | None = None
+#: Seconds the sweep's own thread has to end the sweep once the head is lost.
+GRACE_SECONDS = 5.0
+
+
+class HeadWatch:
+    """A thread that asks the cluster's head every :data:`HEAD_CHECK_SECONDS` whether it
+    is there (a TCP connection to its port), and once it has been silent for
+    :data:`LOST_SECONDS` sets :attr:`lost` to the message that ends the sweep."""
+
+    def __init__(self, head: tuple[str, int] | None, address: str) -> None:
+        self.head, self.address = head, address
+        self.lost: str | None = None
+        self.stop = threading.Event()
+        if head is not None:
+            threading.Thread(target=self._watch, name="ray-head-watch", daemon=True).start()
+
+    def _watch(self) -> None:
+        heard = time.monotonic()
+        while not self.stop.wait(HEAD_CHECK_SECONDS):
+            if answers(*self.head, HEAD_CHECK_SECONDS) is None:
+                heard = time.monotonic()
+            elif time.monotonic() - heard > LOST_SECONDS:
+                self.lost = (
+                    f"--backend: the Ray cluster at {self.address} stopped answering (no "
+                    f"reply from its head for {LOST_SECONDS:.0f} s); the runs stored before "
+                    "are kept: run the same command again to resume"
+                )
+                if not self.stop.wait(GRACE_SECONDS) and on_lost is not None:
+                    on_lost(self.lost)
+                return
+
+
+def quiet_cluster_messages() -> None:
+    """Keep the cluster's own notices (a task retried after its node died...) off the
+    terminal: Ray prints them to stdout from a thread of its own, where they would break
+    a ``--json`` document; they go to the ``cmarlcd.ray`` logger instead. (Ray offers no
+    switch for it: its module-level printer is replaced; should Ray rename it, nothing
+    changes but the notices.)"""
+    with contextlib.suppress(ImportError, AttributeError):
+        from ray._private import worker
+
+        log = logging.getLogger("cmarlcd.ray")
+
+        def to_log(data: dict, ignore_prefix: bool = False) -> None:
+            for line in data.get("lines", []):
+                log.info("%s: %s", data.get("pid", "ray"), line)
+
+        if worker.print_to_stdstream is not to_log:
+            worker.print_to_stdstream = to_log
+
+
+def gcs_head(ray: Any) -> tuple[str, int] | None:
+    """``(host, port)`` of the cluster's head this process joined (None if unknown)."""
+    with contextlib.suppress(Exception):
+        return head_of(ray.get_runtime_context().gcs_address)
+    return None
+
+
 class RayBackend:
     """Tasks on a Ray cluster: the one at ``address``, or a local one of ``workers``
     CPUs."""
@@ -106,11 +295,16 @@ class RayBackend:
     def __init__(
         self, workers: int | None, on_progress: ProgressCallback, address: str | None = None
     ) -> None:
+        head = reach(address) if address is not None else None
         self.ray = ray = ray_module()
         self.on_progress = on_progress
+        self.address = address or "a local Ray"
+        self.lost = False
         self.started_here = not ray.is_initialized()
         if self.started_here:
             self._connect(address, workers)
+        self.head = head or gcs_head(ray)
+        self.watch = HeadWatch(self.head, self.address)
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.capacity = 2 * (workers or cpus)
         self.task: Callable[..., Any] = ray.remote(num_cpus=1, max_retries=TASK_RETRIES)(_compute)
@@ -118,6 +312,8 @@ class RayBackend:
         self.pending: dict[Any, int] = {}
 
     def _connect(self, address: str | None, workers: int | None) -> None:
+        """``ray.init``, given :data:`CONNECT_SECONDS` to finish (in a thread of its own:
+        Ray offers no timeout for it)."""
         options: dict[str, Any] = {
             "include_dashboard": False,
             "log_to_driver": False,
@@ -125,20 +321,45 @@ class RayBackend:
         }
         if address is None:
             options.update(num_cpus=workers, object_store_memory=LOCAL_OBJECT_STORE_BYTES)
-        try:
-            with _silenced_stderr():  # Ray's C++ core logs each retry of a bad address
+        failure: list[BaseException] = []
+        os.environ.setdefault("RAY_BACKEND_LOG_LEVEL", "fatal")  # the core's C++ logs
+
+        def init() -> None:
+            try:
                 self.ray.init(address=address, **options)
-        except (ConnectionError, RuntimeError, ValueError) as exc:
-            where = f"the Ray cluster at {address}" if address else "a local Ray"
+            except BaseException as exc:  # handed to the caller
+                failure.append(exc)
+
+        with _silenced_stderr():  # Ray's C++ core logs each retry of a bad address
+            thread = threading.Thread(target=init, name="ray-init", daemon=True)
+            thread.start()
+            thread.join(CONNECT_SECONDS)
+        where = f"the Ray cluster at {address}" if address else "a local Ray"
+        if thread.is_alive():
+            self.lost = True
+            raise BackendLost(
+                f"--address: {where} accepted a connection but did not let this "
+                f"sweep join within {CONNECT_SECONDS:.0f} s (is this machine one of its "
+                "nodes? from elsewhere use ray://HEAD:10001); nothing was computed"
+            )
+        quiet_cluster_messages()
+        if failure:
+            exc = failure[0]
+            if not isinstance(exc, (ConnectionError, RuntimeError, ValueError)):
+                raise exc
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             parameter = "address" if address else "backend"
-            raise ConfigError(parameter, f"cannot start {where}: {first}") from None
+            verb = "join" if address else "start"
+            raise ConfigError(parameter, f"cannot {verb} {where}: {first}") from None
 
     def submit(self, tag: int, task: Task) -> None:
         ref = self.task.remote(tag, task, self.relay, __version__)
         self.pending[ref] = tag
 
     def poll(self, timeout: float) -> list[Finished]:
+        if self.watch.lost is not None:
+            self.lost = True
+            raise BackendLost(self.watch.lost)
         done: list[Any] = []
         if self.pending:
             done, _ = self.ray.wait(list(self.pending), num_returns=1, timeout=timeout)
@@ -147,15 +368,41 @@ class RayBackend:
                 done, _ = self.ray.wait(pending, num_returns=len(pending), timeout=0)
         else:
             time.sleep(timeout)
-        for tag, amount, seconds in self.ray.get(self.relay.take.remote()):
-            self.on_progress(tag, amount, seconds)
+        self._relay_progress()
         finished = []
         for ref in done:
             del self.pending[ref]
-            finished.append(self.ray.get(ref))
+            try:
+                finished.append(self.ray.get(ref, timeout=LOST_SECONDS))
+            except self.ray.exceptions.RayError as exc:
+                self.lost = True
+                first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+                raise BackendLost(
+                    f"--backend: the Ray cluster at {self.address} lost a task ({first}); "
+                    "the runs stored before are kept: run the same command again to resume"
+                ) from None
         return finished
 
+    def _relay_progress(self) -> None:
+        """Hand on the progress the relay collected; a relay lost with its node is made
+        anew (the tasks' later reports go to the old one: the runner tops up each task's
+        progress when its runs are stored)."""
+        exceptions = self.ray.exceptions
+        try:
+            items = self.ray.get(self.relay.take.remote(), timeout=HEAD_CHECK_SECONDS)
+        except exceptions.GetTimeoutError:
+            return
+        except exceptions.RayActorError:
+            if self.watch.lost is None and answers(*self.head, HEAD_CHECK_SECONDS) is None:
+                self.relay = self.ray.remote(num_cpus=0)(_Relay).remote()  # needs the head
+            return
+        for tag, amount, seconds in items:
+            self.on_progress(tag, amount, seconds)
+
     def close(self, cancel: bool) -> None:
+        self.watch.stop.set()
+        if self.lost or self.watch.lost is not None:  # Ray would wait on the dead cluster
+            return
         if cancel:
             for ref in self.pending:
                 self.ray.cancel(ref, force=True)

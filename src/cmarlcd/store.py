@@ -132,6 +132,19 @@ def check_store(path: Path, create: bool = True) -> None:
         check_output_directory(path.parent, "store")
 
 
+def discard_if_empty(path: Path) -> None:
+    """Remove the store at ``path`` (and SQLite's side files) if it holds no run: what a
+    command created and then could not fill (a cluster it could not reach) goes away."""
+    try:
+        with ResultStore(path, create=False) as store:
+            empty = store.count() == 0
+    except Exception:  # not ours to judge: leave it
+        return
+    if empty:
+        for extra in ("", "-wal", "-shm", "-journal"):
+            path.with_name(path.name + extra).unlink(missing_ok=True)
+
+
 def canonical_json(config: Mapping[str, Any]) -> str:
     """The canonical text of a config: sorted keys, no whitespace."""
     return json.dumps(dict(config), sort_keys=True, separators=(",", ":"))

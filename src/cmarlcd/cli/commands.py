@@ -50,7 +50,7 @@ from cmarlcd.limits import check_run_count, check_seed, check_seed_batch, check_
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runner import SweepResult, run_sweep
 from cmarlcd.runs import RunSpec
-from cmarlcd.store import DEFAULT_STORE, ResultStore, RunRecord
+from cmarlcd.store import DEFAULT_STORE, ResultStore, RunRecord, discard_if_empty
 
 app = typer.Typer(
     help="CMARL-CD: cooperative multi-agent RL by coordination degree; paper reproduction.",
@@ -112,21 +112,28 @@ def _sweep(
     seed_batch: int = 1,
     section: Callable[[RunSpec], str] | None = None,
 ) -> tuple[list[RunRecord], SweepResult]:
-    """Compute what the store lacks of ``specs``; return their records and the tally."""
-    with ResultStore(run.store) as store:
-        done = run_sweep(
-            specs,
-            store,
-            workers=run.workers,
-            version=__version__,
-            observer=RichSweepView(show=run.progress),
-            description=label,
-            seed_batch=seed_batch,
-            backend=run.backend,
-            address=run.address,
-            section=section,
-        )
-        return store.get(s.key for s in specs), done
+    """Compute what the store lacks of ``specs``; return their records and the tally. A
+    store this call created is removed again if the sweep ends with nothing in it."""
+    created = not run.store.exists()
+    try:
+        with ResultStore(run.store) as store:
+            done = run_sweep(
+                specs,
+                store,
+                workers=run.workers,
+                version=__version__,
+                observer=RichSweepView(show=run.progress),
+                description=label,
+                seed_batch=seed_batch,
+                backend=run.backend,
+                address=run.address,
+                section=section,
+            )
+            return store.get(s.key for s in specs), done
+    except BaseException:
+        if created:
+            discard_if_empty(run.store)
+        raise
 
 
 def _run_counts(done: SweepResult, store_path: Path, console: Console | None) -> dict[str, Any]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import errno
 import functools
 import importlib.util
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -17,8 +18,10 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 
+from cmarlcd import ray_backend
 from cmarlcd.backends import BACKENDS
-from cmarlcd.errors import ConfigError, require
+from cmarlcd.errors import BackendLost, ConfigError, require
+from cmarlcd.ray_backend import head_of
 from cmarlcd.runner import SweepInterrupted
 from cmarlcd.store import check_output_directory, check_store
 
@@ -60,6 +63,15 @@ AddressOption = Annotated[
 ]
 
 
+def leave_now(message: str) -> None:
+    """Print ``error: message`` and end the process at once, exit status 2 (a backend
+    that is gone may hold threads that never end; the store's committed runs are safe)."""
+    print(f"error: {message}", file=sys.stderr)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(2)
+
+
 def fails_cleanly(command: F) -> F:
     """Turn bad input into one line on stderr and exit status 2; Ctrl-C into exit 130."""
 
@@ -74,6 +86,8 @@ def fails_cleanly(command: F) -> F:
         except SweepInterrupted as err:
             print(str(err), file=sys.stderr)
             raise typer.Exit(130) from None
+        except BackendLost as err:  # Ray's threads may wait on it forever: leave at once
+            leave_now(str(err))
         except OSError as err:  # a figure, a report or a store on a path that refuses it
             if err.errno not in WRITE_ERRORS and err.filename is None:
                 raise
@@ -101,6 +115,10 @@ def check_backend(backend: str, address: str | None) -> None:
     )
     require(address is None or backend == "ray", "address", "needs --backend ray")
     require(address is None or address.strip() != "", "address", "must not be empty")
+    if address is not None:
+        head_of(address)  # HOST:PORT or ray://HOST:PORT
+    if backend == "ray":  # a lost cluster ends the command, even one blocked in Ray
+        ray_backend.on_lost = leave_now
     if backend == "ray":
         require(
             importlib.util.find_spec("ray") is not None,
