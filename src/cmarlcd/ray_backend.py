@@ -79,8 +79,8 @@ def ray_module() -> Any:
 
 
 def head_of(address: str) -> tuple[str, int]:
-    """``(host, port)`` of ``address`` (``host:port`` or ``ray://host:port``), or a
-    one-line error."""
+    """``(host, port)`` of ``address`` (``host:port`` or ``ray://host:port``; ``auto``,
+    Ray's own search for a cluster on this machine, has none), or a one-line error."""
     where = address.removeprefix("ray://")
     host, sep, port = where.rpartition(":")
     require(
@@ -126,7 +126,8 @@ def keep_loopback(ray: Any | None) -> None:
 
 def reach(address: str) -> tuple[str, int]:
     """The head of the cluster at ``address``, once it accepts a connection within
-    :data:`REACH_SECONDS`; a loopback-only cluster is joined at its loopback address."""
+    :data:`REACH_SECONDS`; a loopback-only cluster is joined at its loopback address (see
+    :func:`join_address` for the others)."""
     host, port = head_of(address)
     why = answers(host, port, REACH_SECONDS)
     if why is not None:
@@ -142,6 +143,22 @@ def reach(address: str) -> tuple[str, int]:
         if loopback_only:
             keep_loopback(sys.modules.get("ray"))
     return host, port
+
+
+def join_address(address: str | None, head: tuple[str, int] | None) -> str | None:
+    """What to hand ``ray.init``: ``address``, or ``auto`` for a loopback address of the
+    cluster Ray last started on this machine. Ray's client takes the node's own address
+    from the node (``auto``) but guesses it for an explicit one, as the machine's outside
+    address: wrong for a node started with ``--node-ip-address 127.0.0.1``."""
+    if address is None or head is None or address.startswith("ray://"):
+        return address
+    if not is_loopback(head[0]) or os.environ.get(KEEP_LOOPBACK_ENV) == "0":
+        return address
+    record = Path(os.environ.get("RAY_TMPDIR", "/tmp")) / "ray" / "ray_current_cluster"
+    with contextlib.suppress(OSError, ValueError):
+        if head_of(record.read_text().strip())[1] == head[1]:
+            return "auto"
+    return address
 
 
 def listens_on_loopback_only(port: int) -> bool | None:
@@ -295,14 +312,15 @@ class RayBackend:
     def __init__(
         self, workers: int | None, on_progress: ProgressCallback, address: str | None = None
     ) -> None:
-        head = reach(address) if address is not None else None
+        head = reach(address) if address not in (None, "auto") else None
+        joined = join_address(address, head)
         self.ray = ray = ray_module()
         self.on_progress = on_progress
         self.address = address or "a local Ray"
         self.lost = False
         self.started_here = not ray.is_initialized()
         if self.started_here:
-            self._connect(address, workers)
+            self._connect(joined, workers)
         self.head = head or gcs_head(ray)
         self.watch = HeadWatch(self.head, self.address)
         cpus = int(ray.cluster_resources().get("CPU", 1))

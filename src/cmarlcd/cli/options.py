@@ -115,7 +115,7 @@ def check_backend(backend: str, address: str | None) -> None:
     )
     require(address is None or backend == "ray", "address", "needs --backend ray")
     require(address is None or address.strip() != "", "address", "must not be empty")
-    if address is not None:
+    if address not in (None, "auto"):
         head_of(address)  # HOST:PORT or ray://HOST:PORT
     if backend == "ray":  # a lost cluster ends the command, even one blocked in Ray
         ray_backend.on_lost = leave_now
