@@ -76,3 +76,17 @@ def test_a_ray_sweep_resumes_from_the_store(local_ray, tmp_path) -> None:
         run_sweep(specs[:3], store, workers=2, backend="ray")
         done = run_sweep(specs, store, workers=2, backend="ray")
     assert (done.reused, done.computed) == (3, len(specs) - 3)
+
+
+def test_a_node_with_another_version_is_one_line(local_ray, tmp_path, monkeypatch) -> None:
+    """The driver says it runs another version: every task refuses, and the sweep ends
+    with a ConfigError naming the backend (one line on the command line)."""
+    from cmarlcd import ray_backend
+    from cmarlcd.errors import ConfigError
+
+    monkeypatch.setattr(ray_backend, "__version__", "0.0.0-elsewhere")
+    specs, _ = tiny_sweeps()["repeated"]
+    with ResultStore(tmp_path / "s.sqlite") as store, pytest.raises(ConfigError) as err:
+        run_sweep(specs, store, workers=2, backend="ray")
+    assert err.value.parameter == "backend"
+    assert "runs cmarl-cd" in err.value.message and "0.0.0-elsewhere" in err.value.message

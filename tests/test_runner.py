@@ -222,3 +222,21 @@ def test_workers_exit_when_the_sweep_s_parent_is_killed(tmp_path) -> None:
         for w in workers:
             if alive(w):
                 os.kill(w, signal.SIGKILL)
+
+
+def test_a_task_packs_runs_of_one_kind_only(tmp_path) -> None:
+    """Short runs are packed into tasks of one experiment, algorithm and section, so a
+    task's progress is counted in one kind's estimated seconds."""
+    from cmarlcd import registry
+    from cmarlcd.experiments import compare
+    from cmarlcd.runner import _batches, _Sweep, kind_of
+
+    learners = tuple(registry.REPEATED_LEARNERS[n] for n in ("cmarl-cd", "iql", "lenient"))
+    specs = compare.Comparison(learners, ("climbing", "penalty-10"), runs=5).specs()
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        sweep = _Sweep(specs, store, "", SweepObserver(), lambda spec: "compare")
+        sweep.batches = _batches(specs, 1)
+        tasks = sweep._tasks(task_seconds=1e9)  # as much packing as one kind allows
+    assert len(tasks) == 3
+    for task in tasks:
+        assert len({kind_of(spec) for batch in task for spec in batch}) == 1

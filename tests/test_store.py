@@ -115,3 +115,23 @@ def test_a_failed_write_is_one_error_and_keeps_what_was_stored(
         assert [(r.key, r.metrics) for r in store.records()] == [(key(0), {"v": 1})]
         store.put(big_key(1), {"v": 2}, 0.1, "x")  # with room again, writes work again
         assert store.count() == 2
+
+
+def test_an_empty_store_is_discarded_only_when_no_one_holds_it(tmp_path) -> None:
+    """What a failed command created and left empty goes; a store another sweep has
+    open, or one that holds a run, stays."""
+    from cmarlcd.store import discard_if_empty
+
+    unused = tmp_path / "unused.sqlite"
+    ResultStore(unused).close()
+    discard_if_empty(unused)
+    assert not unused.exists() and not list(tmp_path.glob("unused.sqlite-*"))
+    shared = tmp_path / "shared.sqlite"
+    with ResultStore(shared):  # another sweep has it open, nothing stored yet
+        discard_if_empty(shared)
+        assert shared.exists()
+    full = tmp_path / "full.sqlite"
+    with ResultStore(full) as store:
+        store.put(RunKey("e", "a", "{}", 0, 0), {"v": 1}, 0.0, "x")
+    discard_if_empty(full)
+    assert full.exists()

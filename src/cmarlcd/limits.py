@@ -35,6 +35,9 @@ MAX_SEED = 2**63 - 1
 MAX_WORKERS = 10_000
 """Worker processes, or CPUs of a Ray cluster, one sweep uses."""
 
+MAX_CURVE_POINTS = 1_000
+"""Points of a learning curve (default: 20): each is an evaluation of its own."""
+
 MAX_STARTS = 100_000
 """Starting points of the Theorem 1 check (default: 100)."""
 

@@ -24,7 +24,7 @@ cluster whose nodes listen on loopback only (``127.0.0.1``, as ``ray start
 that address: Ray's own client would rewrite a loopback address to the machine's outside
 address, where such a cluster answers nothing.
 
-Ray is imported only here, and this module only when the backend is chosen.
+Ray is imported only here, and only when the backend is chosen.
 """
 
 from __future__ import annotations
@@ -59,6 +59,8 @@ CONNECT_SECONDS = 60.0
 #: kills the driver with a stack trace).
 HEAD_CHECK_SECONDS = 2.0
 LOST_SECONDS = 20.0
+#: How a task on a node with another cmarl-cd version starts its error.
+VERSION_MISMATCH = "this Ray node runs cmarl-cd"
 #: Ray reads this switch when it is imported: off, its client keeps a loopback address.
 KEEP_LOOPBACK_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
 #: [choice] Memory for Ray's object store when this sweep starts a local Ray: results are
@@ -98,6 +100,8 @@ def answers(host: str, port: int, seconds: float) -> str | None:
             return None
     except OSError as exc:
         return exc.strerror or type(exc).__name__
+    except ValueError:  # a host name no resolver takes ("a..b", a label over 63 letters)
+        return "not a host name"
 
 
 def is_loopback(host: str) -> bool:
@@ -197,8 +201,8 @@ def _compute(tag: int, task: Task, relay: Any, version: str) -> Finished:
     """One task: its outcomes, its progress sent to ``relay`` on the way."""
     if version != __version__:
         raise RuntimeError(
-            f"this Ray node runs cmarl-cd {__version__}, the sweep {version}: install "
-            "the same version on every node"
+            f"{VERSION_MISMATCH} {__version__}, the sweep {version}: install the same "
+            "version on every node"
         )
     os.environ["OMP_NUM_THREADS"] = "1"
     try:
@@ -318,6 +322,7 @@ class RayBackend:
         self.on_progress = on_progress
         self.address = address or "a local Ray"
         self.lost = False
+        self.failure: BaseException | None = None
         self.started_here = not ray.is_initialized()
         if self.started_here:
             self._connect(joined, workers)
@@ -355,6 +360,11 @@ class RayBackend:
         where = f"the Ray cluster at {address}" if address else "a local Ray"
         if thread.is_alive():
             self.lost = True
+            if address is None:
+                raise BackendLost(
+                    f"--backend: a local Ray did not start within {CONNECT_SECONDS:.0f} s; "
+                    "nothing was computed"
+                )
             raise BackendLost(
                 f"--address: {where} accepted a connection but did not let this "
                 f"sweep join within {CONNECT_SECONDS:.0f} s (is this machine one of its "
@@ -375,6 +385,8 @@ class RayBackend:
         self.pending[ref] = tag
 
     def poll(self, timeout: float) -> list[Finished]:
+        if self.failure is not None:
+            raise self.failure
         if self.watch.lost is not None:
             self.lost = True
             raise BackendLost(self.watch.lost)
@@ -393,13 +405,25 @@ class RayBackend:
             try:
                 finished.append(self.ray.get(ref, timeout=LOST_SECONDS))
             except self.ray.exceptions.RayError as exc:
-                self.lost = True
-                first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-                raise BackendLost(
-                    f"--backend: the Ray cluster at {self.address} lost a task ({first}); "
-                    "the runs stored before are kept: run the same command again to resume"
-                ) from None
+                self.failure = self._failure(exc)
+                break  # the runs finished so far are stored first
         return finished
+
+    def _failure(self, exc: BaseException) -> BaseException:
+        """What a task's failure ends the sweep with: a run's own exception as it is (Ray
+        does not rerun those), another version of cmarl-cd on a node as one line, and a
+        task the cluster lost (its node died, after the retries) as :class:`BackendLost`."""
+        cause = getattr(exc, "cause", None)
+        if isinstance(exc, self.ray.exceptions.RayTaskError) and cause is not None:
+            if str(cause).startswith(VERSION_MISMATCH):
+                return ConfigError("backend", str(cause))
+            return cause
+        self.lost = True
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        return BackendLost(
+            f"--backend: the Ray cluster at {self.address} lost a task ({first}); the runs "
+            "stored before are kept: run the same command again to resume"
+        )
 
     def _relay_progress(self) -> None:
         """Hand on the progress the relay collected; a relay lost with its node is made
@@ -411,7 +435,8 @@ class RayBackend:
         except exceptions.GetTimeoutError:
             return
         except exceptions.RayActorError:
-            if self.watch.lost is None and answers(*self.head, HEAD_CHECK_SECONDS) is None:
+            head_answers = self.head is None or answers(*self.head, HEAD_CHECK_SECONDS) is None
+            if self.watch.lost is None and head_answers:
                 self.relay = self.ray.remote(num_cpus=0)(_Relay).remote()  # needs the head
             return
         for tag, amount, seconds in items:

@@ -327,9 +327,10 @@ class _Sweep:
         return tasks
 
     def _alike(self, one: list[RunSpec], other: list[RunSpec]) -> bool:
-        """Batches of one experiment and section (one task reports to one section)."""
+        """Batches of one kind (experiment and algorithm) and section: a task reports to
+        one section, its progress in one kind's estimated seconds."""
         a, b = one[0], other[0]
-        return a.experiment == b.experiment and self.section(a) == self.section(b)
+        return kind_of(a) == kind_of(b) and self.section(a) == self.section(b)
 
     def _hand_out(self, backend: Any, task: list[list[RunSpec]]) -> None:
         """Claim ``task``'s runs and give the backend those no one else holds."""
@@ -374,7 +375,7 @@ class _Sweep:
         if task is None:  # settled already: a late report
             return
         if math.isnan(seconds):
-            seconds = amount * task.cost / task.work
+            seconds = amount * task.cost / task.work if task.work > 0 else 0.0
         amount = min(amount, task.work - task.reported)
         seconds = min(seconds, task.cost - task.cost_reported)
         if amount > 0 or seconds > 0:

@@ -36,6 +36,11 @@ from pathlib import Path
 from typing import Any
 
 from cmarlcd.claims import CLAIM_TIMEOUT, Owner, is_stale
+
+try:
+    import fcntl
+except ImportError:  # no flock (Windows): stores are never discarded
+    fcntl = None  # type: ignore[assignment]
 from cmarlcd.errors import ConfigError, require
 
 SCHEMA = """
@@ -132,17 +137,48 @@ def check_store(path: Path, create: bool = True) -> None:
         check_output_directory(path.parent, "store")
 
 
+def _hold_shared(path: Path) -> int | None:
+    """A descriptor of ``path`` holding a shared lock on it while a :class:`ResultStore`
+    is open (so that :func:`discard_if_empty` never removes a store in use); None where
+    the system has no ``flock``. The lock is taken again if the file was replaced
+    meanwhile (removed and created anew by another process)."""
+    if fcntl is None:
+        return None
+    while True:
+        flags = os.O_RDONLY if path.exists() else os.O_RDWR | os.O_CREAT
+        fd = os.open(path, flags, 0o644)
+        fcntl.flock(fd, fcntl.LOCK_SH)
+        try:
+            same = os.stat(path).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            return fd
+        os.close(fd)
+
+
 def discard_if_empty(path: Path) -> None:
-    """Remove the store at ``path`` (and SQLite's side files) if it holds no run: what a
-    command created and then could not fill (a cluster it could not reach) goes away."""
-    try:
-        with ResultStore(path, create=False) as store:
-            empty = store.count() == 0
-    except Exception:  # not ours to judge: leave it
+    """Remove the store at ``path`` (and SQLite's side files) if it holds no run and no
+    one else has it open: what a command created and then could not fill (a cluster it
+    could not reach) goes away, and a store another sweep has just opened stays."""
+    if fcntl is None or not path.is_file():
         return
-    if empty:
-        for extra in ("", "-wal", "-shm", "-journal"):
-            path.with_name(path.name + extra).unlink(missing_ok=True)
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # no open store holds it
+        except OSError:
+            return
+        try:
+            with contextlib.closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True)) as conn:
+                empty = conn.execute("SELECT COUNT(*) FROM runs").fetchone()[0] == 0
+        except sqlite3.Error:  # not ours to judge: leave it
+            return
+        if empty:
+            for extra in ("", "-wal", "-shm", "-journal"):
+                path.with_name(path.name + extra).unlink(missing_ok=True)
+    finally:
+        os.close(fd)
 
 
 def canonical_json(config: Mapping[str, Any]) -> str:
@@ -201,9 +237,11 @@ class ResultStore:
 
     def __init__(self, path: str | Path = DEFAULT_STORE, create: bool = True) -> None:
         self.path = Path(path)
+        self._lock: int | None = None
         check_store(self.path, create)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._lock = _hold_shared(self.path) if create or self.path.exists() else None
             # autocommit: each write below is one explicit transaction
             self._conn = sqlite3.connect(self.path, timeout=60.0, isolation_level=None)
             self._conn.execute("PRAGMA journal_mode=WAL")
@@ -218,6 +256,9 @@ class ResultStore:
 
     def close(self) -> None:
         self._conn.close()
+        if self._lock is not None:
+            os.close(self._lock)
+            self._lock = None
 
     def __enter__(self) -> ResultStore:
         return self

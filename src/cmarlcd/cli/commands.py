@@ -16,7 +16,7 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from cmarlcd import __version__, registry, report
+from cmarlcd import __version__, ray_backend, registry, report
 from cmarlcd import theory as theory_module
 from cmarlcd.cli.options import (
     DEFAULT_FIGURES,
@@ -31,6 +31,7 @@ from cmarlcd.cli.options import (
     check_backend,
     check_outputs,
     fails_cleanly,
+    leave_now,
     parse_count,
     parse_counts,
     parse_names,
@@ -46,7 +47,7 @@ from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games.matrix import MAX_JOINT_ACTIONS
 from cmarlcd.learners.coordination import RepeatedConfig
-from cmarlcd.limits import check_run_count, check_seed, check_seed_batch, check_workers
+from cmarlcd.limits import MAX_RUNS, check_at_most, check_seed, check_seed_batch, check_workers
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runner import SweepResult, run_sweep
 from cmarlcd.runs import RunSpec
@@ -115,7 +116,8 @@ def _sweep(
     """Compute what the store lacks of ``specs``; return their records and the tally. A
     store this call created is removed again if the sweep ends with nothing in it."""
     created = not run.store.exists()
-    try:
+    watching, ray_backend.on_lost = ray_backend.on_lost, leave_now  # a lost cluster ends
+    try:  # the command, even one blocked inside Ray
         with ResultStore(run.store) as store:
             done = run_sweep(
                 specs,
@@ -134,6 +136,8 @@ def _sweep(
         if created:
             discard_if_empty(run.store)
         raise
+    finally:
+        ray_backend.on_lost = watching
 
 
 def _run_counts(done: SweepResult, store_path: Path, console: Console | None) -> dict[str, Any]:
@@ -858,7 +862,7 @@ def play(
 
     config = replace(ALGORITHM, temperature=temperature, delta=delta, max_games=max_games)
     require(runs >= 1, "runs", f"must be >= 1 (got {runs})")
-    check_run_count(runs)
+    check_at_most(runs, MAX_RUNS, "runs")
     check_seed(seed)
     game = load_payoffs(payoffs)
     seeds = np.random.SeedSequence(seed).spawn(runs)

@@ -18,7 +18,6 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 
-from cmarlcd import ray_backend
 from cmarlcd.backends import BACKENDS
 from cmarlcd.errors import BackendLost, ConfigError, require
 from cmarlcd.ray_backend import head_of
@@ -117,8 +116,6 @@ def check_backend(backend: str, address: str | None) -> None:
     require(address is None or address.strip() != "", "address", "must not be empty")
     if address not in (None, "auto"):
         head_of(address)  # HOST:PORT or ray://HOST:PORT
-    if backend == "ray":  # a lost cluster ends the command, even one blocked in Ray
-        ray_backend.on_lost = leave_now
     if backend == "ray":
         require(
             importlib.util.find_spec("ray") is not None,

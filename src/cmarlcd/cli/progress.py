@@ -12,8 +12,9 @@ whole sweep. A bar shows 100 % only once every run of its part is stored.
 runner starts the long ones first); each kind of run's estimates are calibrated on its
 finished runs. A section's ETA is the time until the sweep has done all the work handed
 out up to that section's last task (or its own remaining work, if that is more), at the
-sweep's pace. On recorded sweeps (``tests/data/progress-*.jsonl``) it stays within a
-factor of 2 of the time actually left once a tenth of a bar's work is done.
+sweep's pace, and no less than the longest task still running. On recorded sweeps
+(``tests/data/progress-*.jsonl``) it stays within a factor of 2 of the time actually left
+once a tenth of a bar's work is done, or within 3 s of it in a sweep's last seconds.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ def amount(value: float) -> str:
 
 
 def clock(seconds: float | None) -> str:
-    """``3725.2`` -> ``"1:02:06"``; ``None`` (no estimate yet) -> ``"-:--:--"``."""
+    """``3725.2`` -> ``"1:02:05"``; ``None`` (no estimate yet) -> ``"-:--:--"``."""
     if seconds is None or not math.isfinite(seconds):
         return "-:--:--"
     whole = round(seconds)

@@ -27,7 +27,13 @@ from cmarlcd import registry
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep_config import DeepConfig
-from cmarlcd.limits import check_episodes, check_run_count, check_seed
+from cmarlcd.limits import (
+    MAX_CURVE_POINTS,
+    check_at_most,
+    check_episodes,
+    check_run_count,
+    check_seed,
+)
 from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec
@@ -108,6 +114,7 @@ class EpisodicSweep:
         check_episodes(self.eval_episodes, "eval_episodes")
         check_seed(self.seed)
         require(self.curve_points >= 0, "curve_points", f"must be >= 0 (got {self.curve_points})")
+        check_at_most(self.curve_points, MAX_CURVE_POINTS, "curve_points")
         require(
             self.curve_eval_episodes >= 1,
             "curve_eval_episodes",

@@ -241,9 +241,10 @@ class ValueDecomposition(nn.Module):
         return self.q_values(state, legal).argmax(dim=-1)
 
     def set_state_legal(self, legal: torch.Tensor) -> None:
-        """The legal actions of every integer state, (S, n, A) bool, for games whose
-        masks depend on the state: used by :meth:`greedy_table` and for the next states
-        of :meth:`td_step` (default: every action legal everywhere)."""
+        """The legal actions of every integer state, (S, n, A) bool for all seeds or
+        (B, S, n, A) for each seed its own, for games whose masks depend on the state:
+        used by :meth:`greedy_table` and for the next states of :meth:`td_step` (default:
+        every action legal everywhere)."""
         self.state_legal = legal
         self._next_value_table = None
 
