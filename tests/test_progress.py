@@ -165,10 +165,12 @@ def replay(path: Path, check) -> dict[str, float]:
 
 
 #: Slack of the ETA test: besides a factor of 2, an ETA may be off by this many seconds.
-#: The last seconds of a sweep belong to its last tasks, and no pace measured on the
-#: other work foresees exactly when a single task ends (a VDN batch's last episodes are
-#: slower than its first: the trained policy's episodes run to the step cap).
-SLACK_SECONDS = 3.0
+#: The last seconds of a sweep belong to its last tasks, and no pace measured on other
+#: work foresees when a single task ends: in the DSN recording, QMIX's batch at L = 6,000
+#: spends the last 6 % of its estimated cost in a third of its time (its late episodes,
+#: at small ε with an untrained policy, run to the step cap), and the ETA at 42 % of the
+#: sweep says 3.9 s where 7.9 s are left.
+SLACK_SECONDS = 5.0
 
 
 @pytest.mark.parametrize("path", RECORDINGS, ids=lambda p: p.stem)

@@ -14,7 +14,8 @@ finished runs. A section's ETA is the time until the sweep has done all the work
 out up to that section's last task (or its own remaining work, if that is more), at the
 sweep's pace, and no less than the longest task still running. On recorded sweeps
 (``tests/data/progress-*.jsonl``) it stays within a factor of 2 of the time actually left
-once a tenth of a bar's work is done, or within 3 s of it in a sweep's last seconds.
+once a tenth of a bar's work is done, or within 5 s of it (a single batch whose last
+episodes run slower than its first, which no pace foresees).
 """
 
 from __future__ import annotations
