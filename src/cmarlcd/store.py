@@ -252,7 +252,8 @@ class ResultStore:
         except ConfigError:
             raise
         except (OSError, sqlite3.Error) as exc:
-            raise ConfigError("store", f"cannot open {self.path} ({exc})") from None
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+            raise ConfigError("store", f"cannot open {self.path} ({reason})") from None
 
     def close(self) -> None:
         self._conn.close()

@@ -242,7 +242,9 @@ def _has_torch() -> bool:
 
 
 def _needs_torch(algorithms: Iterable[str]) -> str:
-    return f"{' and '.join(algorithms)} need PyTorch: pip install 'cmarl-cd[deep]'"
+    names = list(algorithms)
+    verb = "needs" if len(names) == 1 else "need"
+    return f"{' and '.join(names)} {verb} PyTorch: pip install 'cmarl-cd[deep]'"
 
 
 def _learners(
