@@ -279,7 +279,7 @@ def test_dsn_json_tables_figures_and_resume(paths) -> None:
         (["--runs", "0"], "--runs"),
         (["--eval-episodes", "0"], "--eval-episodes"),
         (["--c-min", "2", "--c-max", "1"], "--c-max"),
-        (["--gamma", "0"], "--gamma"),
+        (["--gamma", "-0.1"], "--gamma"),
         (["--gamma", "1.01"], "--gamma"),
         (["--rate", "1"], "--rate"),
     ],
@@ -585,12 +585,43 @@ def test_tournament_json_figures_resume_and_report(paths) -> None:
         (["--learn-episodes", "0"], "--learn-episodes"),
         (["--eval-episodes", "-3"], "--eval-episodes"),
         (["--learn-episodes", "many"], "--learn-episodes"),
+        (["--gamma", "-0.5"], "--gamma"),
+        (["--gamma", "2"], "--gamma"),
+        (["--tolerance", "-1"], "--tolerance"),
+        (["--unseen", "highest"], "--unseen"),
+        (["--marine", "3,1"], "--marine"),
+        (["--marine", "0,1,0.8"], "--marine"),
+        (["--marine", "3,1.5,0.8"], "--marine"),
+        (["--gunner", "6,2,0"], "--gunner"),
+        (["--gunner", "6,2,1.2"], "--gunner"),
+        (["--gunner", "6,0,0.6"], "--gunner"),
+        (["--gunner", "99,2,0.6", "--marine", "99,1,0.8"], "--marine"),
     ],
 )
 def test_tournament_bad_input(paths, args, option) -> None:
     store, figures, where = paths
     result = invoke("tournament", "--rounds", "1", *where, *args)
     assert_rejected_cleanly(result, option, store, figures)
+
+
+def test_tournament_readings_are_recorded_shown_and_kept_apart(paths) -> None:
+    _, _, where = paths
+    args = ["tournament", "--algorithms", "cmarl-cd", "--rounds", "1", "--learn-episodes", "30"]
+    args += ["--eval-episodes", "30", "--workers", "1", "--json", *where]
+    default = json.loads(invoke(*args).stdout)
+    changed = ["--gamma", "0", "--unseen", "random", "--gunner", "6,2,0.9"]
+    doc = json.loads(invoke(*args, *changed).stdout)
+    assert doc["runs_computed"] == 1 and doc["runs_reused"] == 0  # a match of its own
+    assert doc["readings"]["gamma"] == 0 and doc["readings"]["unseen"] == "random"
+    assert doc["readings"]["gunner"] == {"hp": 6, "damage": 2, "hit_rate": 0.9}
+    assert "γ = 0; unseen states: random; gunner hit rate 0.9" in doc["settings"]
+    assert default["readings"]["gamma"] == 0.9 and "readings: defaults" in default["settings"]
+    report = json.loads(invoke("report", "--json", *where).stdout)
+    assert sorted(t["title"] for t in report["tournament"]) == [
+        "Figs. 6-7: the blood battlefield tournament",
+        "Figs. 6-7: the blood battlefield tournament (γ = 0; unseen states: random; gunner "
+        "hit rate 0.9)",
+    ]
 
 
 def test_tournament_with_every_algorithm(paths) -> None:

@@ -8,6 +8,8 @@ middle of a sweep, raises :class:`BackendLost`, also one line.
 
 from __future__ import annotations
 
+import math
+
 
 class ConfigError(ValueError):
     """A parameter is outside its allowed range.
@@ -27,6 +29,16 @@ def require(condition: bool, parameter: str, message: str) -> None:
     """Raise :class:`ConfigError` for ``parameter`` unless ``condition`` holds."""
     if not condition:
         raise ConfigError(parameter, message)
+
+
+def check_discount(gamma: float, parameter: str = "gamma") -> None:
+    """The discount γ of eq. (1), in [0, 1]: every learner of the package accepts 0 (each
+    step's own reward, a myopic learner) and 1 (undiscounted episodes)."""
+    require(
+        bool(math.isfinite(gamma)) and 0 <= gamma <= 1,
+        parameter,
+        f"must be in [0, 1] (got {gamma})",
+    )
 
 
 class BackendLost(RuntimeError):

@@ -403,11 +403,13 @@ def tournament_report(
     claims = tour.check_claims(records, cells)
     first = records[0]
     rounds = sorted({r.key.run_index for r in records})
+    reading = tour.match_reading(records)
+    reading_text = tour.reading_label(reading)
     settings = (
         f"{len(rounds)} round{'s' if len(rounds) > 1 else ''}, "
         f"{first.config['learn_episodes']:,} learning and "
         f"{first.config['eval_episodes']:,} evaluation episodes per match, seed "
-        f"{first.key.root_seed}"
+        f"{first.key.root_seed}; readings: {reading_text}"
     )
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
     seed = first.key.root_seed
@@ -429,8 +431,10 @@ def tournament_report(
             figure_line(console, path, f"Fig. {key[3:]}, {settings}")
     return {
         "experiment": tour.EXPERIMENT,
-        "title": "Figs. 6-7: the blood battlefield tournament",
+        "title": "Figs. 6-7: the blood battlefield tournament"
+        + ("" if reading_text == "defaults" else f" ({reading_text})"),
         "settings": settings,
+        "readings": reading,
         "versions": versions(records, console),
         "seed": seed,
         "rounds": len(rounds),

@@ -284,7 +284,7 @@ def test_greedy_breaks_ties_by_lowest_index() -> None:
         ({"c_min": 2.0, "c_max": 1.0}, "c_max"),
         ({"c_min": 0.0}, "c_min"),
         ({"c_init": 5.0}, "c_init"),
-        ({"gamma": 0.0}, "gamma"),
+        ({"gamma": -0.1}, "gamma"),
         ({"gamma": 1.5}, "gamma"),
         ({"delta": 0.0}, "delta"),
         ({"temperature": -1.0}, "temperature"),

@@ -105,7 +105,7 @@ def test_batched_seeds_have_independent_parameters() -> None:
     [
         ({"mixer": "sum"}, "mixer"),
         ({"batch_size": 0}, "batch_size"),
-        ({"gamma": 0.0}, "gamma"),
+        ({"gamma": -0.1}, "gamma"),
         ({"buffer_size": 10, "batch_size": 20}, "batch_size"),
         ({"lr": 0.0}, "lr"),
     ],

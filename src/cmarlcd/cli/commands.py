@@ -36,6 +36,7 @@ from cmarlcd.cli.options import (
     parse_counts,
     parse_names,
     parse_range,
+    parse_unit,
 )
 from cmarlcd.cli.progress import RichSweepView
 from cmarlcd.compare_report import compare_report
@@ -45,6 +46,7 @@ from cmarlcd.experiments import episodic, theorem
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.experiments import tournament as tour
+from cmarlcd.games import battlefield
 from cmarlcd.games.matrix import MAX_JOINT_ACTIONS
 from cmarlcd.learners.coordination import RepeatedConfig
 from cmarlcd.limits import MAX_RUNS, check_at_most, check_seed, check_seed_batch, check_workers
@@ -380,6 +382,11 @@ def _tournament_learners(names: Sequence[str]) -> tuple[LearnerConfig, ...]:
     return tuple(known[name] for name in names)
 
 
+def _unit_text(unit: battlefield.Unit) -> str:
+    """A unit as the options write it: ``HP,DAMAGE,HIT_RATE``."""
+    return f"{unit.hp},{unit.damage},{unit.hit_rate:g}"
+
+
 @app.command(short_help="Figs. 6-7: the blood battlefield tournament (resumable).")
 @fails_cleanly
 def tournament(
@@ -396,6 +403,35 @@ def tournament(
         str, typer.Option(help="Greedy evaluation episodes of each match (500k allowed).")
     ] = str(tour.PAPER_EVAL_EPISODES),
     seed: SeedOption = 0,
+    gamma: Annotated[
+        float | None,
+        typer.Option(
+            help="Discount γ of CMARL-CD and LA-OCA, in [0, 1]; 0: each turn's own reward "
+            f"[default: theirs, {tour.DEFAULT_READING['gamma']:g}].",
+            show_default=False,
+        ),
+    ] = None,
+    tolerance: Annotated[
+        float | None,
+        typer.Option(
+            help="Returns this close count as equal in the max-return indicator of CMARL-CD "
+            f"and LA-OCA [default: theirs, {tour.DEFAULT_READING['tolerance']:g}].",
+            show_default=False,
+        ),
+    ] = None,
+    unseen: Annotated[
+        str,
+        typer.Option(
+            help="What a tabular side plays at evaluation in a state it never visited: "
+            "lowest (each agent's lowest legal target) or random (a uniform legal target)."
+        ),
+    ] = tour.DEFAULT_READING["unseen"],
+    marine: Annotated[str, typer.Option(help="The marine's HP,DAMAGE,HIT_RATE.")] = _unit_text(
+        battlefield.MARINE
+    ),
+    gunner: Annotated[str, typer.Option(help="The gunner's HP,DAMAGE,HIT_RATE.")] = _unit_text(
+        battlefield.GUNNER
+    ),
     seed_batch: Annotated[
         int,
         typer.Option(help="Rounds of a pairing with VDN/QMIX that learn together (one model)."),
@@ -409,13 +445,22 @@ def tournament(
     progress: ProgressOption = True,
 ) -> None:
     """Figs. 6-7: the blood battlefield tournament (Section V-B); every match is stored
-    as it finishes."""
+    as it finishes. The options from --gamma to --gunner are the readings of what the
+    paper leaves open; each match records those that differ from the defaults."""
+    readings = tour.Readings(
+        gamma=gamma,
+        tolerance=tolerance,
+        unseen=unseen.strip().lower(),
+        marine=parse_unit(marine, "marine"),
+        gunner=parse_unit(gunner, "gunner"),
+    )
     contest = tour.Tournament(
         learners=_tournament_learners(parse_names(algorithms, "algorithms")),
         rounds=rounds,
         learn_episodes=parse_count(learn_episodes, "learn_episodes"),
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),
         seed=seed,
+        readings=readings,
     )
     check_seed_batch(seed_batch)
     run = Execution(store, figures, workers, progress, backend, address)
@@ -732,7 +777,6 @@ def _report_groups(
     if case is None:
         kinds = (
             ("dsn", dsn, dsn_exp.EXPERIMENT, episodic.protocol_key),
-            ("tournament", report.tournament_report, tour.EXPERIMENT, tour.protocol_key),
             ("theorem1", _theorem_report, theorem.EXPERIMENT, _theorem_key),
         )
         dsn_runs = [r for r in db.records(dsn_exp.EXPERIMENT) if cmp.is_comparison_dsn_run(r)]
@@ -741,6 +785,9 @@ def _report_groups(
             stored = (r for r in db.records(experiment) if r.key not in compared)
             for records in _groups(stored, key).values():
                 found.append((kind, render, records))
+            if kind == "dsn":  # the paper's order: DSN, battlefield, Theorem 1
+                for records in tour.tournaments(db.records(tour.EXPERIMENT)):
+                    found.append(("tournament", report.tournament_report, records))
         for seed_, records in _groups(db.records(cmp.EXPERIMENT), _seed_key).items():
             ours = [r for r in dsn_runs if r.key.root_seed == seed_]
             found.append(("compare", compare_report, records + ours))

@@ -13,6 +13,14 @@ deep sides then train as one stacked model, each match playing exactly what it p
 alone. In
 self-play both sides are the same algorithm, and its rates are the mean of its two sides.
 
+The choices the paper leaves open on the battlefield are one named setting each, a
+:class:`Readings` (the discount and the max-return tolerance of the tabular learners,
+what a tabular side plays in a state it never visited, the unit stats); its defaults are
+the package's readings. A match records the readings that differ from the defaults and
+apply to it (a match of two deep learners has no tabular side to change), so stores made
+before these settings existed resume as they are, and matches no reading touches are
+shared by the tournaments of several readings.
+
 Per (algorithm, opponent) and round: the win, loss and tie rates of the algorithm's
 side over the evaluation episodes, and its *win steps* (the mean turns of its won
 episodes, undefined in a round it won none). Reported as mean and spread (population
@@ -25,22 +33,25 @@ import math
 import time
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
 
 from cmarlcd import registry
-from cmarlcd.errors import require
+from cmarlcd.errors import check_discount, require
 from cmarlcd.games import battlefield
+from cmarlcd.games.battlefield import GUNNER, MARINE, Battlefield, Unit
 from cmarlcd.learners.automata import AutomatonConfig
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD
 from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig
+from cmarlcd.learners.tabular import TabularConfig
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.store import RunRecord
 from cmarlcd.training.match import Match, MatchBatch
+from cmarlcd.training.sides import UNSEEN_MODES, check_unseen
 
 EXPERIMENT = "tournament"
 PAPER_ROUNDS = 30
@@ -67,6 +78,101 @@ def battlefield_learners() -> dict[str, LearnerConfig]:
 TABULAR = ("cmarl-cd", "la-oca")
 
 
+#: State indices a tabular side may address (its row index holds 8 bytes per index):
+#: unit stats whose HP would make the battlefield larger are refused for CMARL-CD and
+#: LA-OCA. The paper's battlefield has 802,816.
+MAX_TABLE_STATES = 50_000_000
+#: The unit kinds of a battlefield, in the order :class:`Readings` names them.
+UNIT_KINDS = ("marine", "gunner")
+
+
+def is_tabular(config: LearnerConfig) -> bool:
+    """Whether a learner keeps tables (CMARL-CD, LA-OCA) rather than networks."""
+    return isinstance(config, TabularConfig)
+
+
+@dataclass(frozen=True)
+class Readings:
+    """How to read what Section V-B leaves open; the defaults are the package's readings.
+
+    ``gamma`` and ``tolerance`` are the tabular learners' (the deep learners keep their
+    own settings), None meaning each learner's own value.
+    """
+
+    gamma: float | None = None
+    """[choice] Discount γ of eq. (1) for CMARL-CD and LA-OCA: None keeps theirs, 0.9 (as
+    on the DSN); 0 reads the paper's "each player needs to consider only its own fire
+    deployment" as each turn's own reward."""
+    tolerance: float | None = None
+    """[choice] Under which two returns count as equal in the max-return indicator
+    (eq. 16) of CMARL-CD and LA-OCA: None keeps theirs, 1e-9 (equal up to rounding)."""
+    unseen: str = UNSEEN_MODES[0]
+    """[choice] What a tabular side plays at evaluation in a state it never visited:
+    ``lowest`` (each agent's lowest legal target) or ``random`` (a uniformly random legal
+    target, a draw of the learners' initial strategy)."""
+    marine: Unit = MARINE
+    """[choice] The marine's HP, damage and hit rate (Fig. 5 is not in the text)."""
+    gunner: Unit = GUNNER
+    """[choice] The gunner's HP, damage and hit rate."""
+
+    def __post_init__(self) -> None:
+        if self.gamma is not None:
+            check_discount(self.gamma)
+        if self.tolerance is not None:
+            tolerance = self.tolerance
+            require(
+                math.isfinite(tolerance) and tolerance >= 0,
+                "tolerance",
+                f"must be a number >= 0 (got {tolerance})",
+            )
+        check_unseen(self.unseen)
+
+    def rules(self) -> Battlefield:
+        """The battlefield these unit stats make (the paper's troop of 4 + 2)."""
+        return Battlefield(marine=self.marine, gunner=self.gunner)
+
+    def apply(self, config: LearnerConfig) -> LearnerConfig:
+        """``config`` with this reading's tabular settings (deep learners as they are)."""
+        if not is_tabular(config):
+            return config
+        names = {f.name for f in fields(config)}
+        changes = {
+            k: v
+            for k, v in (("gamma", self.gamma), ("tolerance", self.tolerance))
+            if v is not None and k in names
+        }
+        return replace(config, **changes) if changes else config
+
+    def stored(self, tabular: bool) -> dict[str, Any]:
+        """What a pairing's stored config records of this reading: the parts that differ
+        from the defaults and apply to it (``tabular``: it has a tabular side; the
+        discount and tolerance travel in its learners' settings)."""
+        out: dict[str, Any] = {}
+        if (self.marine, self.gunner) != (MARINE, GUNNER):
+            out["battlefield"] = {kind: unit_fields(getattr(self, kind)) for kind in UNIT_KINDS}
+        if tabular and self.unseen != UNSEEN_MODES[0]:
+            out["unseen"] = self.unseen
+        return out
+
+
+def unit_fields(unit: Unit) -> dict[str, Any]:
+    """A unit as stored: ``{"hp": …, "damage": …, "hit_rate": …}``."""
+    return asdict(unit)
+
+
+def rules_of(config: Mapping[str, Any]) -> Battlefield:
+    """The battlefield a stored pairing was played on (the paper's when not recorded)."""
+    stats = config.get("battlefield")
+    if stats is None:
+        return battlefield.PAPER
+    return Battlefield(**{kind: Unit(**stats[kind]) for kind in UNIT_KINDS})
+
+
+def unseen_of(config: Mapping[str, Any]) -> str:
+    """What a stored pairing's tabular sides played in unseen states."""
+    return config.get("unseen", UNSEEN_MODES[0])
+
+
 def pairings(names: Sequence[str]) -> list[tuple[str, str]]:
     """Every pair of ``names`` and each against itself, in the order given."""
     return [(names[i], names[j]) for i in range(len(names)) for j in range(i, len(names))]
@@ -82,6 +188,8 @@ class Tournament:
     learn_episodes: int = PAPER_LEARN_EPISODES
     eval_episodes: int = PAPER_EVAL_EPISODES
     seed: int = 0
+    readings: Readings = field(default_factory=Readings)
+    """The readings of what the paper leaves open (:class:`Readings`)."""
 
     def __post_init__(self) -> None:
         names = [config.name for config in self.learners]
@@ -100,6 +208,19 @@ class Tournament:
         check_episodes(self.eval_episodes, "eval_episodes")
         check_seed(self.seed)
         check_run_count(self.run_count(), "rounds")
+        if any(is_tabular(config) for config in self.learners):
+            states = self.readings.rules().n_states
+            require(
+                states <= MAX_TABLE_STATES,
+                "marine",
+                f"with the gunner's, these HP make {states:,} state indices per side; a "
+                f"tabular side indexes at most {MAX_TABLE_STATES:,} (the paper's: 802,816)",
+            )
+
+    @property
+    def playing(self) -> tuple[LearnerConfig, ...]:
+        """The learners as they play: their settings with the readings applied."""
+        return tuple(self.readings.apply(config) for config in self.learners)
 
     def run_count(self) -> int:
         """Matches of the tournament, without listing them."""
@@ -111,22 +232,26 @@ class Tournament:
         return tuple(config.name for config in self.learners)
 
     def config(self, pair: tuple[LearnerConfig, LearnerConfig]) -> dict[str, Any]:
-        """The stored config of one pairing's matches."""
+        """The stored config of one pairing's matches (``pair`` as they play)."""
         return {
             "algorithms": [config.name for config in pair],
             "learners": [asdict(config) for config in pair],
             "learn_episodes": self.learn_episodes,
             "eval_episodes": self.eval_episodes,
+            **self.readings.stored(any(is_tabular(config) for config in pair)),
         }
 
     def specs(self) -> list[RunSpec]:
         """One spec per (pairing, round); a match's streams depend on its pairing, the
-        learning budget and its round, not on the evaluation budget."""
-        by_name = {config.name: config for config in self.learners}
+        learning budget, the unit stats and its round, not on the evaluation budget nor
+        on what a side plays in unseen states (so ``unseen`` changes the evaluation
+        alone: the sides learn exactly what they learn by default)."""
+        by_name = {config.name: config for config in self.playing}
         specs = []
         for names in pairings(self.algorithms):
             config = self.config((by_name[names[0]], by_name[names[1]]))
-            stream = {k: config[k] for k in ("algorithms", "learners", "learn_episodes")}
+            kept = ("algorithms", "learners", "learn_episodes", "battlefield")
+            stream = {k: config[k] for k in kept if k in config}
             label = match_label(names)
             specs += [
                 RunSpec.make(EXPERIMENT, label, config, self.seed, r, stream)
@@ -163,12 +288,13 @@ def play_rounds(
     positions = [(0, 1) if r % 2 == 0 else (1, 0) for r in rounds]  # balanced sides
     streams = [[np.random.default_rng(s) for s in seed.spawn(4)] for seed in seeds]
     batch = MatchBatch(
-        battlefield.SPEC,
+        rules_of(config).spec(),
         pair,
         positions,
         [env for env, _, _, _ in streams],
         [(side0, side1) for _, side0, side1, _ in streams],
         config["learn_episodes"],
+        unseen_of(config),
     )
     batch.learn()
     learn_seconds = (time.perf_counter() - start) / len(seeds)
@@ -255,10 +381,98 @@ TOURNAMENT = Experiment(
 # ------------------------------------------------------------------- aggregation
 
 
+def reading_of(config: Mapping[str, Any]) -> dict[str, Any]:
+    """The readings a stored pairing was played under: the tabular learners' discount and
+    tolerance and what they play in unseen states (None when it has no tabular side),
+    and the unit stats."""
+    tabular = [_learner(config, k) for k in range(2)]
+    tabular = [learner for learner in tabular if is_tabular(learner)]
+    rules = rules_of(config)
+
+    def one(name: str) -> Any:
+        values = sorted({getattr(learner, name) for learner in tabular})
+        return None if not values else values[0] if len(values) == 1 else values
+
+    return {
+        "gamma": one("gamma"),
+        "tolerance": one("tolerance"),
+        "unseen": unseen_of(config) if tabular else None,
+        **{kind: unit_fields(getattr(rules, kind)) for kind in UNIT_KINDS},
+    }
+
+
+#: The readings of a match played with the defaults (a tabular learner's γ and
+#: tolerance: CMARL-CD's and LA-OCA's own).
+DEFAULT_READING = {
+    "gamma": BATTLEFIELD_CMARLCD.gamma,
+    "tolerance": BATTLEFIELD_CMARLCD.tolerance,
+    "unseen": UNSEEN_MODES[0],
+    **{kind: unit_fields(unit) for kind, unit in zip(UNIT_KINDS, (MARINE, GUNNER), strict=True)},
+}
+
+
+def match_reading(records: Sequence[RunRecord]) -> dict[str, Any]:
+    """The readings of one tournament's matches (:func:`tournaments`): those of a match
+    with a tabular side when there is one (a match of two deep learners leaves the
+    tabular readings open)."""
+    readings = [reading_of(rec.config) for rec in records]
+    return next((r for r in readings if r["unseen"] is not None), readings[0])
+
+
+def reading_label(reading: Mapping[str, Any]) -> str:
+    """What a reading changes from the defaults, in a few words (``defaults`` if
+    nothing); parts a match has no side for (None) are left out."""
+    words = []
+    for name, symbol in (("gamma", "γ"), ("tolerance", "tolerance")):
+        value = reading.get(name)
+        if value is not None and value != DEFAULT_READING[name]:
+            words.append(
+                f"{symbol} = {value:g}" if not isinstance(value, list) else f"{symbol} = {value}"
+            )
+    if reading.get("unseen") not in (None, DEFAULT_READING["unseen"]):
+        words.append(f"unseen states: {reading['unseen']}")
+    for kind in UNIT_KINDS:
+        unit, paper = reading[kind], DEFAULT_READING[kind]
+        changed = [
+            f"{k.replace('_', ' ')} {unit[k]:g}"
+            for k in ("hp", "damage", "hit_rate")
+            if unit[k] != paper[k]
+        ]
+        if changed:
+            words.append(f"{kind} " + ", ".join(changed))
+    return "; ".join(words) or "defaults"
+
+
 def protocol_key(record: RunRecord) -> tuple:
-    """Matches that belong in one set of figures: same seed and budgets."""
+    """Matches that belong in one tournament: same seed, budgets and readings (the last
+    entry None for a match without a tabular side, see :func:`tournaments`)."""
     cfg = record.config
-    return (record.key.root_seed, cfg["learn_episodes"], cfg["eval_episodes"])
+    reading = reading_of(cfg)
+    rules = tuple(tuple(reading[kind].values()) for kind in UNIT_KINDS)
+    tabular = None
+    if reading["unseen"] is not None:
+        tabular = tuple(json_key(reading[k]) for k in ("gamma", "tolerance", "unseen"))
+    return (record.key.root_seed, cfg["learn_episodes"], cfg["eval_episodes"], rules, tabular)
+
+
+def json_key(value: Any) -> Any:
+    """A hashable form of a reading's value (lists become tuples)."""
+    return tuple(value) if isinstance(value, list) else value
+
+
+def tournaments(records: Iterable[RunRecord]) -> list[list[RunRecord]]:
+    """Stored matches grouped into tournaments (:func:`protocol_key`). A match of two deep
+    learners belongs to every tournament with its seed, budgets and unit stats, whatever
+    the tabular readings: no reading of the tabular learners changes it."""
+    full: dict[tuple, list[RunRecord]] = defaultdict(list)
+    deep_only: dict[tuple, list[RunRecord]] = defaultdict(list)
+    for rec in records:
+        key = protocol_key(rec)
+        (full if key[-1] is not None else deep_only)[key].append(rec)
+    groups = [recs + deep_only.get((*key[:-1], None), []) for key, recs in full.items()]
+    joined = {key[:-1] for key in full}
+    groups += [recs for key, recs in deep_only.items() if key[:-1] not in joined]
+    return groups
 
 
 @dataclass(frozen=True)

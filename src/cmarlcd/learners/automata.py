@@ -132,7 +132,7 @@ class AutomatonConfig(TabularConfig):
     rate: float = 0.1
     """λ of the linear reward-inaction update, in (0, 1)."""
     gamma: float = 0.9
-    """Discount of eq. (1), in (0, 1]."""
+    """Discount of eq. (1), in [0, 1] (0: each step's own reward)."""
     tolerance: float = 1e-9
     """[choice] Absolute tolerance under which two returns count as equal."""
 

@@ -444,7 +444,7 @@ class StochasticConfig(TabularConfig):
     c_init: float = 1.5
     """Initial degree, and the value a new record resets a state's degrees to."""
     gamma: float = 0.9
-    """Discount of eq. (1), in (0, 1]."""
+    """Discount of eq. (1), in [0, 1] (0: each step's own reward)."""
     tolerance: float = 1e-9
     """[choice] Absolute tolerance under which two returns count as equal."""
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cmarlcd.errors import require
+from cmarlcd.errors import check_discount, require
 from cmarlcd.learners.policy import annealed_epsilon
 
 MIXERS = ("vdn", "qmix")
@@ -37,7 +37,7 @@ class DeepConfig:
     lr: float = 1e-3
     """Adam learning rate."""
     gamma: float = 0.9
-    """[choice] Discount of the TD target, in (0, 1]."""
+    """[choice] Discount of the TD target, in [0, 1] (0: each step's own reward)."""
     eps_start: float = 1.0
     """ε_ini of eq. (18)."""
     eps_end: float = 0.0
@@ -71,7 +71,7 @@ class DeepConfig:
             require(value >= 1, name, f"must be >= 1 (got {value})")
         require(self.batch_size <= self.buffer_size, "batch_size", "must be <= buffer_size")
         require(self.lr > 0, "lr", f"must be > 0 (got {self.lr})")
-        require(0 < self.gamma <= 1, "gamma", f"must be in (0, 1] (got {self.gamma})")
+        check_discount(self.gamma)
         for name in ("eps_start", "eps_end", "eps_after"):
             value = getattr(self, name)
             require(0 <= value <= 1, name, f"must be in [0, 1] (got {value})")

@@ -27,6 +27,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from cmarlcd.compiled import kernel
+from cmarlcd.errors import check_discount
 from cmarlcd.learners.independent import (
     ClassicLearner,
     best_value,
@@ -201,11 +202,11 @@ class DistributedQStochasticConfig(DistributedQConfig, TabularConfig):
     )  # fmt: skip
 
     gamma: float = 0.9
-    """Discount, in (0, 1]."""
+    """Discount, in [0, 1] (0: each step's own reward)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        check_unit(gamma=self.gamma)
+        check_discount(self.gamma)
 
     def params(self) -> StateDistributedQParams:  # type: ignore[override]
         return StateDistributedQParams(self.epsilon, self.gamma)

@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit
 
 from cmarlcd.compiled import kernel
-from cmarlcd.errors import require
+from cmarlcd.errors import check_discount, require
 from cmarlcd.learners.independent import (
     BoltzmannSchedule,
     ClassicLearner,
@@ -141,11 +141,11 @@ class HystereticStochasticConfig(HystereticConfig, TabularConfig):
     )  # fmt: skip
 
     gamma: float = 0.9
-    """Discount, in (0, 1]."""
+    """Discount, in [0, 1] (0: each step's own reward)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        check_unit(gamma=self.gamma)
+        check_discount(self.gamma)
 
     def params(self) -> StateHystereticParams:  # type: ignore[override]
         return StateHystereticParams(

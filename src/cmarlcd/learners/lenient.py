@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 
 from cmarlcd.compiled import kernel
-from cmarlcd.errors import require
+from cmarlcd.errors import check_discount, require
 from cmarlcd.learners.independent import (
     ClassicLearner,
     check_positive,
@@ -267,13 +267,14 @@ class LenientStochasticConfig(LenientConfig, TabularConfig):
     )  # fmt: skip
 
     gamma: float = 0.9
-    """Discount, in (0, 1]."""
+    """Discount, in [0, 1] (0: each step's own reward)."""
     diffusion: float = 0.1
     """``τ``: how much of the next state's mean temperature flows back, in (0, 1]."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        check_unit(gamma=self.gamma, diffusion=self.diffusion)
+        check_discount(self.gamma)
+        check_unit(diffusion=self.diffusion)
 
     def params(self) -> StateLenientParams:  # type: ignore[override]
         return StateLenientParams(

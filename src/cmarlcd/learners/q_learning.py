@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 
 from cmarlcd.compiled import kernel
+from cmarlcd.errors import check_discount
 from cmarlcd.learners.independent import (
     BoltzmannSchedule,
     ClassicLearner,
@@ -144,11 +145,11 @@ class IQLStochasticConfig(IQLConfig, TabularConfig):
     )  # fmt: skip
 
     gamma: float = 0.9
-    """Discount, in (0, 1]."""
+    """Discount, in [0, 1] (0: each step's own reward)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        check_unit(gamma=self.gamma)
+        check_discount(self.gamma)
 
     def params(self) -> StateQParams:  # type: ignore[override]
         return StateQParams(self.alpha, self.gamma, self.max_temperature, self.decay, 0.0)

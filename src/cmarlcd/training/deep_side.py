@@ -170,8 +170,9 @@ def deep_pause(side) -> bool:
     return side.counters[TURNS] - side.counters[PAUSED_AT] >= side.schedule[5]
 
 
-def deep_greedy(side, env, team, offset, legal, joint) -> None:
-    """Template: every agent's greedy legal action at the side's features."""
+def deep_greedy(side, env, team, offset, legal, rng, joint) -> None:
+    """Template: every agent's greedy legal action at the side's features (``rng`` is not
+    drawn from: a network has a greedy action in every state)."""
     x = side.obs[0]
     game.features(env, team, x)
     game.legal(env, legal)

@@ -55,8 +55,9 @@ class SideKernels(NamedTuple):
     ``act(side, key, rng, joint)``: its joint action while learning;
     ``observe(side, t, next_key, terminal)``: turn ``t`` led to ``next_key``;
     ``end_episode(side, length)``; ``pause(side)``: stop the loop now (a deep side's
-    gradient step is due); ``greedy(side, env, team, offset, legal, joint)``: its fixed
-    greedy joint action.
+    gradient step is due); ``greedy(side, env, team, offset, legal, rng, joint)``: its
+    fixed greedy joint action (``rng``, the side's evaluation stream, for what it plays
+    where it has no greedy choice).
     """
 
     fits: Any
@@ -123,9 +124,10 @@ def record_turn(side, t: int, joint, reward: float) -> None:
     side.rewards[t] = reward
 
 
-def evaluate_match(env, a, b, episodes, max_steps, env_rng, tally) -> None:
+def evaluate_match(env, a, b, episodes, max_steps, env_rng, rng_a, rng_b, tally) -> None:
     """Template: ``episodes`` episodes with both sides' fixed greedy strategies, counted
-    in ``tally`` (see :func:`record_outcome`)."""
+    in ``tally`` (see :func:`record_outcome`); ``rng_a`` and ``rng_b`` are the sides'
+    own evaluation streams."""
     n_a, n_b = a.counts.shape[0], b.counts.shape[0]
     legal = np.zeros((n_a + n_b, max(a.counts.max(), b.counts.max())), dtype=np.bool_)
     joint = np.zeros(n_a + n_b, dtype=np.int64)
@@ -134,8 +136,8 @@ def evaluate_match(env, a, b, episodes, max_steps, env_rng, tally) -> None:
         game.reset(env, env_rng)
         turns, return_a, return_b = 0, 0.0, 0.0
         while turns < max_steps:
-            first.greedy(a, env, 0, 0, legal, joint[:n_a])
-            second.greedy(b, env, 1, n_a, legal, joint[n_a:])
+            first.greedy(a, env, 0, 0, legal, rng_a, joint[:n_a])
+            second.greedy(b, env, 1, n_a, legal, rng_b, joint[n_a:])
             game.step(env, joint, env_rng, team_rewards)
             return_a += team_rewards[0]
             return_b += team_rewards[1]
@@ -227,6 +229,9 @@ class Match:
             side's ε is annealed over it (eq. 18).
         sides: the sides, when made elsewhere (:class:`MatchBatch`); by default each
             config's side on its own.
+        unseen: what a tabular side plays at evaluation in a state it never visited,
+            ``"lowest"`` (default) or ``"random"``
+            (:func:`cmarlcd.training.sides.tabular_greedy`).
     """
 
     def __init__(
@@ -237,6 +242,7 @@ class Match:
         agent_rngs: Sequence[np.random.Generator],
         learn_episodes: int,
         sides: Sequence[MatchSide] | None = None,
+        unseen: str = "lowest",
     ) -> None:
         from cmarlcd.training.sides import new_side
 
@@ -252,7 +258,7 @@ class Match:
             list(sides)
             if sides is not None
             else [
-                new_side(spec, team, config, rng, self.learn_episodes)
+                new_side(spec, team, config, rng, self.learn_episodes, unseen)
                 for team, (config, rng) in enumerate(zip(configs, agent_rngs, strict=True))
             ]
         )
@@ -302,10 +308,13 @@ class Match:
 
     def evaluate(self, episodes: int, rng: np.random.Generator) -> MatchResult:
         """Both sides' greedy strategies for ``episodes`` episodes, the game's randomness
-        drawn from ``rng``."""
+        drawn from ``rng``; what the sides draw themselves (a tabular side's unseen
+        states, ``unseen="random"``) comes from two streams spawned from ``rng``'s seed,
+        which leave the game's draws as they are."""
         tally = np.zeros(6, dtype=np.int64)
         a, b = (side.data for side in self.sides)
-        self._evaluate(self.env, a, b, int(episodes), self.spec.max_steps, rng, tally)
+        rng_a, rng_b = rng.spawn(2)
+        self._evaluate(self.env, a, b, int(episodes), self.spec.max_steps, rng, rng_a, rng_b, tally)
         report_progress(float(episodes))
         return MatchResult(
             int(episodes),
@@ -340,6 +349,8 @@ class MatchBatch:
             (``(0, 1)`` or ``(1, 0)``: rounds may swap sides).
         env_rngs, agent_rngs: each match's streams (per side), as for :class:`Match`.
         learn_episodes: each match's learning stage.
+        unseen: what the tabular sides play in states they never visited (see
+            :class:`Match`).
     """
 
     def __init__(
@@ -350,11 +361,12 @@ class MatchBatch:
         env_rngs: Sequence[np.random.Generator],
         agent_rngs: Sequence[Sequence[np.random.Generator]],
         learn_episodes: int,
+        unseen: str = "lowest",
     ) -> None:
         from cmarlcd.training.sides import new_sides
 
         self.learn_episodes = int(learn_episodes)
-        sides, self.groups = new_sides(spec, configs, positions, agent_rngs, learn_episodes)
+        sides, self.groups = new_sides(spec, configs, positions, agent_rngs, learn_episodes, unseen)
         self.matches = [
             Match(
                 spec,

@@ -20,7 +20,9 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from cmarlcd.compiled import Unbound, shared_kernel, specialise
+from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
+from cmarlcd.learners.policy import uniform_legal_action
 from cmarlcd.learners.tabular import TabularConfig, grow_tables
 from cmarlcd.training.match import MatchSide, SideKernels
 
@@ -29,6 +31,20 @@ learner = Unbound("learner")
 
 #: [choice] Rows a side's tables start with (they double as more states are visited).
 INITIAL_ROWS = 4096
+#: What a tabular side plays at evaluation in a state it never visited while learning
+#: (:func:`tabular_greedy`), by name; the first is the default.
+UNSEEN_MODES = ("lowest", "random")
+LOWEST, RANDOM = range(len(UNSEEN_MODES))
+
+
+def check_unseen(mode: str) -> int:
+    """The code of an unseen-state mode named by the user (one of :data:`UNSEEN_MODES`)."""
+    require(
+        mode in UNSEEN_MODES,
+        "unseen",
+        f"must be one of {', '.join(UNSEEN_MODES)} (got {mode!r})",
+    )
+    return UNSEEN_MODES.index(mode)
 
 
 class TabularData(NamedTuple):
@@ -49,6 +65,8 @@ class TabularData(NamedTuple):
     """... the side's joint action at each turn ..."""
     rewards: np.ndarray
     """... and the side's reward after it."""
+    unseen: np.ndarray
+    """``unseen[0]``: LOWEST or RANDOM, what the side plays in a state it never visited."""
 
 
 @shared_kernel  # takes a plug-in's tables: see cmarlcd.compiled.shared_kernel
@@ -98,17 +116,22 @@ def never_pause(side) -> bool:
     return False
 
 
-def tabular_greedy(side, env, team, offset, legal, joint) -> None:
+def tabular_greedy(side, env, team, offset, legal, rng, joint) -> None:
     """Template: the learner's greedy joint action. [choice] In a state the side never
-    visited while learning, each agent plays its lowest legal action (the greedy choice
-    among untouched values)."""
+    visited while learning, each agent plays its lowest legal action (LOWEST, the default:
+    the greedy choice among untouched values, which start equal), or a legal action drawn
+    uniformly from ``rng`` at every such visit (RANDOM: a sample of the initial strategy
+    of CMARL-CD and of LA-OCA, both uniform over the legal actions)."""
     row = side.rows[game.state(env, team)]
     if row >= 0:
         learner.greedy(side.tables, row, side.counts, joint)
         return
     game.legal(env, legal)
     for i in range(joint.shape[0]):
-        joint[i] = np.argmax(legal[offset + i])
+        if side.unseen[0] == RANDOM:
+            joint[i] = uniform_legal_action(legal[offset + i], side.counts[i], rng.random())
+        else:
+            joint[i] = np.argmax(legal[offset + i])
 
 
 def tabular_kernels(spec: GameSpec, config: TabularConfig) -> SideKernels:
@@ -128,7 +151,9 @@ def tabular_kernels(spec: GameSpec, config: TabularConfig) -> SideKernels:
 class TabularSide(MatchSide):
     """A tabular learner on one side: tables that grow with the states it visits."""
 
-    def __init__(self, spec: GameSpec, team: int, config: TabularConfig) -> None:
+    def __init__(
+        self, spec: GameSpec, team: int, config: TabularConfig, unseen: str = UNSEEN_MODES[0]
+    ) -> None:
         counts = spec.action_counts[list(spec.teams[team])].copy()
         steps = spec.max_steps
         capacity = max(min(INITIAL_ROWS, spec.n_states), steps + 1)
@@ -143,6 +168,7 @@ class TabularSide(MatchSide):
             np.zeros(steps + 1, dtype=np.int64),
             np.zeros((steps, counts.shape[0]), dtype=np.int64),
             np.zeros(steps),
+            np.array([check_unseen(unseen)], dtype=np.int64),
         )
 
     def between_calls(self) -> None:
@@ -160,11 +186,17 @@ class TabularSide(MatchSide):
 
 
 def new_side(
-    spec: GameSpec, team: int, config: Any, rng: np.random.Generator, learn_episodes: int
+    spec: GameSpec,
+    team: int,
+    config: Any,
+    rng: np.random.Generator,
+    learn_episodes: int,
+    unseen: str = UNSEEN_MODES[0],
 ) -> MatchSide:
-    """The side of ``config``'s learner: tabular, or deep (needs the ``[deep]`` extra)."""
+    """The side of ``config``'s learner: tabular (playing ``unseen`` in states it never
+    visited), or deep (needs the ``[deep]`` extra)."""
     if isinstance(config, TabularConfig):
-        return TabularSide(spec, team, config)
+        return TabularSide(spec, team, config, unseen)
     from cmarlcd.training.deep_side import DeepSide  # needs the [deep] extra
 
     return DeepSide.alone(spec, team, config, rng, learn_episodes)
@@ -176,16 +208,18 @@ def new_sides(
     positions: Sequence[tuple[int, int]],
     agent_rngs: Sequence[Sequence[np.random.Generator]],
     learn_episodes: int,
+    unseen: str = UNSEEN_MODES[0],
 ) -> tuple[list[list[MatchSide]], list[Any]]:
     """The sides of a batch of matches (see :class:`cmarlcd.training.match.MatchBatch`):
-    per match its two sides, and the groups that train the deep positions together."""
+    per match its two sides, and the groups that train the deep positions together
+    (``unseen``: what the tabular sides play in states they never visited)."""
     matches: list[list[MatchSide | None]] = [[None, None] for _ in positions]
     groups = []
     for p, config in enumerate(configs):
         seats = [(m, order.index(p)) for m, order in enumerate(positions)]
         if isinstance(config, TabularConfig):
             for m, team in seats:
-                matches[m][team] = TabularSide(spec, team, config)
+                matches[m][team] = TabularSide(spec, team, config, unseen)
             continue
         from cmarlcd.training.deep_side import DeepGroup  # needs the [deep] extra
 
