@@ -563,8 +563,7 @@ def test_tournament_json_figures_resume_and_report(paths) -> None:
     )
     assert {c["verdict"] for c in doc["claims"]} <= {
         "supported",
-        "not supported",
-        "not supported (within noise)",
+        "not separated",
         "contradicted",
         "not checked",
     }

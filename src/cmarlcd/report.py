@@ -441,6 +441,6 @@ def tournament_report(
         "learn_episodes": first.config["learn_episodes"],
         "eval_episodes": first.config["eval_episodes"],
         "cells": [c.to_dict() for c in cells],
-        "claims": [asdict(c) for c in claims],
+        "claims": [c.to_dict() for c in claims],
         "figures": {key: str(path) for key, path in paths.items()},
     }

@@ -161,3 +161,29 @@ def test_rounds_learning_together_store_what_they_store_alone() -> None:
         }
     assert [m["sides"] for m in together] == [["vdn", "cmarl-cd"], ["cmarl-cd", "vdn"]]
     assert tour.has_deep_learner(specs[0].config)
+
+
+@pytest.mark.parametrize(
+    ("qmix_wins", "verdict"),
+    [
+        ((50, 52, 51, 49), "contradicted"),  # 50.5 %, 40 % lies > 2 SE below
+        ((30, 32, 31, 29), "supported"),  # 30.5 %, 40 % lies > 2 SE above
+        ((30, 50, 35, 45), "not separated"),  # 40 % ± 4.6 % x 2: within the noise
+    ],
+)
+def test_under_40_percent_is_a_margin_with_its_standard_error(qmix_wins, verdict) -> None:
+    records = [
+        match("cmarl-cd vs qmix", r, ["qmix", "cmarl-cd"], [w, 90 - w], 10, [6 * w, 0])
+        for r, w in enumerate(qmix_wins)
+    ]
+    cells = tour.summarize(records, ["cmarl-cd", "qmix"])
+    claims = {c.claim: c for c in tour.check_claims(records, cells)}
+    claim = claims["QMIX wins under 40 % against CMARL-CD"]
+    assert claim.verdict == verdict
+    (margin,) = claim.margins
+    rates = [w / 100 for w in qmix_wins]
+    assert margin.value == pytest.approx(0.4 - sum(rates) / 4)
+    assert margin.standard_error == pytest.approx(
+        math.sqrt(sum((x - sum(rates) / 4) ** 2 for x in rates) / 3) / 2
+    )
+    assert claims["VDN wins under 40 % against CMARL-CD"].verdict == "not checked"

@@ -577,119 +577,187 @@ def round_rates(
 
 # ------------------------------------------------------------------- the claims
 
+#: The verdicts of a claim: it holds beyond the noise, the opposite holds beyond the
+#: noise, the rounds cannot tell, or the tournament lacks an algorithm it needs.
+SUPPORTED, CONTRADICTED, NOT_SEPARATED, NOT_CHECKED = (
+    "supported",
+    "contradicted",
+    "not separated",
+    "not checked",
+)
+#: [choice] A claim's margin counts when it is more than this many standard errors (over
+#: rounds) from 0.
+STANDARD_ERRORS = 2.0
+#: The paper's threshold for "wins under 40 % against CMARL-CD".
+UNDER = 0.4
+
+
+@dataclass(frozen=True)
+class Margin:
+    """One comparison behind a claim: the margin by which it holds (> 0: as the paper
+    says), against whom, its standard error over rounds, and the rounds it rests on."""
+
+    against: str
+    value: float
+    standard_error: float
+    rounds: int
+
+    @property
+    def verdict(self) -> str:
+        """SUPPORTED, CONTRADICTED or NOT_SEPARATED (:data:`STANDARD_ERRORS`)."""
+        if self.rounds == 0:
+            return NOT_SEPARATED
+        if self.value > STANDARD_ERRORS * self.standard_error:
+            return SUPPORTED
+        if self.value < -STANDARD_ERRORS * self.standard_error:
+            return CONTRADICTED
+        return NOT_SEPARATED
+
 
 @dataclass(frozen=True)
 class Claim:
-    """One claim of the paper (SPEC §6) against our matches."""
+    """One claim of the paper (Section V-B) against our matches."""
 
     claim: str
     verdict: str
-    """'supported', 'not supported', 'contradicted' or 'not checked'."""
+    """SUPPORTED, CONTRADICTED, NOT_SEPARATED or NOT_CHECKED."""
     evidence: str
+    margins: tuple[Margin, ...] = ()
+    """The comparisons it rests on (all must hold for SUPPORTED, one against it makes
+    it CONTRADICTED)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        for margin in out["margins"]:
+            for key in ("value", "standard_error"):
+                if not math.isfinite(margin[key]):
+                    margin[key] = None
+        return out
 
 
-def _paired(records: Sequence[RunRecord], a: str, b: str) -> tuple[float, float, int]:
-    """Mean over rounds of (win rate of a against b) - (win rate of b against a), its
-    standard error, and the rounds it rests on."""
+#: The claims of Section V-B, in the order the paper makes them.
+CLAIMS = (
+    "CMARL-CD has the higher win rate against every other algorithm",
+    "QMIX beats LA-OCA",
+    "VDN beats LA-OCA",
+    "QMIX wins under 40 % against CMARL-CD",
+    "VDN wins under 40 % against CMARL-CD",
+    "CMARL-CD needs the fewest win steps",
+)
+
+
+def _standard_error(values: np.ndarray) -> float:
+    """The standard error of the mean of per-round values (infinite from one round)."""
+    return float(values.std(ddof=1) / math.sqrt(values.size)) if values.size > 1 else math.inf
+
+
+def _margin(against: str, values: Sequence[float]) -> Margin:
+    finite = np.array([v for v in values if not math.isnan(v)])
+    if finite.size == 0:
+        return Margin(against, math.nan, math.nan, 0)
+    return Margin(against, float(finite.mean()), _standard_error(finite), int(finite.size))
+
+
+def _paired(records: Sequence[RunRecord], a: str, b: str) -> Margin:
+    """Per round, (win rate of a against b) - (win rate of b against a)."""
     mine, theirs = round_rates(records, a, b), round_rates(records, b, a)
     rounds = sorted(set(mine) & set(theirs))
-    diffs = np.array([mine[r] - theirs[r] for r in rounds])
-    if diffs.size == 0:
-        return math.nan, math.nan, 0
-    se = float(diffs.std(ddof=1) / math.sqrt(diffs.size)) if diffs.size > 1 else math.inf
-    return float(diffs.mean()), se, int(diffs.size)
+    return _margin(b, [mine[r] - theirs[r] for r in rounds])
 
 
-def _verdict(diff: float, se: float) -> str:
-    """[choice] A difference counts when it is more than two standard errors from 0."""
-    if diff > 2 * se:
-        return "supported"
-    if diff < -2 * se:
-        return "contradicted"
-    return "not supported (within noise)"
+def _below(records: Sequence[RunRecord], a: str, b: str, threshold: float) -> Margin:
+    """Per round, ``threshold`` minus the win rate of a against b."""
+    return _margin(b, [threshold - rate for rate in round_rates(records, a, b).values()])
 
 
-def _beats(records: Sequence[RunRecord], cells: dict, a: str, b: str) -> str:
-    diff, se, n = _paired(records, a, b)
-    wa, wb = cells[(a, b)].win_rate, cells[(b, a)].win_rate
-    return (
-        _verdict(diff, se),
-        f"{registry.display_name(a)} wins {wa:.1%} against {registry.display_name(b)}, "
-        f"which wins {wb:.1%} (difference {diff:+.1%} ± {2 * se:.1%}, {n} rounds)",
-    )
+def _plus_minus(margin: Margin, scale: float = 100.0, unit: str = "") -> str:
+    spread = STANDARD_ERRORS * margin.standard_error * scale
+    return f"{margin.value * scale:+.1f}{unit} ± {spread:.1f}{unit}, {margin.rounds} rounds"
+
+
+def _combined(text: str, margins: Sequence[Margin], evidence: str) -> Claim:
+    verdicts = [m.verdict for m in margins]
+    if all(v == SUPPORTED for v in verdicts):
+        verdict = SUPPORTED
+    elif any(v == CONTRADICTED for v in verdicts):
+        verdict = CONTRADICTED
+    else:
+        verdict = NOT_SEPARATED
+    return Claim(text, verdict, evidence, tuple(margins))
 
 
 def check_claims(records: Sequence[RunRecord], cells: Sequence[Cell]) -> list[Claim]:
-    """SPEC §6's four claims, each with our numbers."""
+    """Each claim of :data:`CLAIMS`, with our numbers: a margin per comparison, counted
+    when it is more than :data:`STANDARD_ERRORS` standard errors over rounds from 0."""
     table = {(c.algorithm, c.opponent): c for c in cells}
     names = {c.algorithm for c in cells}
+
+    def missing(*required: str) -> Claim | None:
+        lacking = [registry.display_name(n) for n in required if n not in names]
+        return ", ".join(lacking) if lacking else None
+
+    def beats(text: str, a: str, others: Sequence[str]) -> Claim:
+        margins = [_paired(records, a, o) for o in others]
+        evidence = "; ".join(
+            f"{registry.display_name(a)} wins {table[(a, m.against)].win_rate:.1%} against "
+            f"{registry.display_name(m.against)}, which wins "
+            f"{table[(m.against, a)].win_rate:.1%} (difference {_plus_minus(m, unit=' %')})"
+            for m in margins
+        )
+        return _combined(text, margins, evidence)
+
     claims = []
-
-    def need(*required: str) -> str | None:
-        missing = [registry.display_name(n) for n in required if n not in names]
-        return f"needs {', '.join(missing)} in the tournament" if missing else None
-
     others = sorted(names - {"cmarl-cd"}, key=_rank)
-    text = "CMARL-CD has the higher win rate against every other algorithm"
-    if (why := need("cmarl-cd")) or not others:
-        claims.append(Claim(text, "not checked", why or "needs a second algorithm"))
+    first = CLAIMS[0]
+    if (lacking := missing("cmarl-cd")) or not others:
+        why = f"needs {lacking} in the tournament" if lacking else "needs a second algorithm"
+        claims.append(Claim(first, NOT_CHECKED, why))
     else:
-        verdicts = [_beats(records, table, "cmarl-cd", o) for o in others]
-        verdict = _all(v for v, _ in verdicts)
-        claims.append(Claim(text, verdict, "; ".join(e for _, e in verdicts)))
-    for deep in ("qmix", "vdn"):
-        text = f"{registry.display_name(deep)} beats LA-OCA"
-        if why := need(deep, "la-oca"):
-            claims.append(Claim(text, "not checked", why))
+        claims.append(beats(first, "cmarl-cd", others))
+    for deep, text in (("qmix", CLAIMS[1]), ("vdn", CLAIMS[2])):
+        if lacking := missing(deep, "la-oca"):
+            claims.append(Claim(text, NOT_CHECKED, f"needs {lacking} in the tournament"))
         else:
-            claims.append(Claim(text, *_beats(records, table, deep, "la-oca")))
-    for deep in ("qmix", "vdn"):
-        text = f"{registry.display_name(deep)} wins under 40 % against CMARL-CD"
-        if why := need(deep, "cmarl-cd"):
-            claims.append(Claim(text, "not checked", why))
-        else:
-            cell = table[(deep, "cmarl-cd")]
-            verdict = "supported" if cell.win_rate < 0.4 else "not supported"
-            claims.append(Claim(text, verdict, f"{cell.win_rate:.1%} ± {cell.win_rate_std:.1%}"))
+            claims.append(beats(text, deep, ["la-oca"]))
+    for deep, text in (("qmix", CLAIMS[3]), ("vdn", CLAIMS[4])):
+        if lacking := missing(deep, "cmarl-cd"):
+            claims.append(Claim(text, NOT_CHECKED, f"needs {lacking} in the tournament"))
+            continue
+        margin = _below(records, deep, "cmarl-cd", UNDER)
+        cell = table[(deep, "cmarl-cd")]
+        evidence = (
+            f"{cell.win_rate:.1%} ± {cell.win_rate_std:.1%} (spread); 40 % minus it: "
+            f"{_plus_minus(margin, unit=' %')}"
+        )
+        claims.append(_combined(text, [margin], evidence))
     claims.append(_fewest_win_steps(records, names))
     return claims
-
-
-def _all(verdicts: Iterable[str]) -> str:
-    verdicts = list(verdicts)
-    if all(v == "supported" for v in verdicts):
-        return "supported"
-    if any(v == "contradicted" for v in verdicts):
-        return "contradicted"
-    return "not supported"
 
 
 def _fewest_win_steps(records: Sequence[RunRecord], names: set[str]) -> Claim:
     """CMARL-CD against each other algorithm X: per round, X's mean win steps over its
     opponents minus CMARL-CD's; the claim holds against X when that difference is more
     than two standard errors above 0."""
-    text = "CMARL-CD needs the fewest win steps"
+    text = CLAIMS[5]
     if "cmarl-cd" not in names or len(names) < 2:
-        return Claim(text, "not checked", "needs CMARL-CD and another algorithm")
-    verdicts, evidence = [], []
-    for other in sorted(names - {"cmarl-cd"}, key=_rank):
-        diffs = _win_step_differences(records, other, "cmarl-cd", sorted(names))
-        if diffs.size == 0:
-            verdicts.append("not supported")
-            evidence.append(f"{registry.display_name(other)}: no rounds won by both")
-            continue
-        se = float(diffs.std(ddof=1) / math.sqrt(diffs.size)) if diffs.size > 1 else math.inf
-        verdicts.append(_verdict(float(diffs.mean()), se))
-        evidence.append(
-            f"{registry.display_name(other)} needs {diffs.mean():+.2f} ± {2 * se:.2f} turns "
-            f"more ({diffs.size} rounds)"
-        )
-    return Claim(text, _all(verdicts), "; ".join(evidence))
+        return Claim(text, NOT_CHECKED, "needs CMARL-CD and another algorithm")
+    margins = [
+        _margin(other, _win_step_differences(records, other, "cmarl-cd", sorted(names)))
+        for other in sorted(names - {"cmarl-cd"}, key=_rank)
+    ]
+    evidence = "; ".join(
+        f"{registry.display_name(m.against)}: no rounds won by both"
+        if m.rounds == 0
+        else f"{registry.display_name(m.against)} needs {m.value:+.2f} ± "
+        f"{STANDARD_ERRORS * m.standard_error:.2f} turns more ({m.rounds} rounds)"
+        for m in margins
+    )
+    return _combined(text, margins, evidence)
 
 
 def _win_step_differences(
     records: Sequence[RunRecord], other: str, ours: str, opponents: Sequence[str]
-) -> np.ndarray:
+) -> list[float]:
     """Per round: the mean win steps of ``other`` over its opponents minus those of
     ``ours`` (rounds where either won nothing are left out)."""
 
@@ -702,8 +770,7 @@ def _win_step_differences(
 
     theirs, mine = per_round(other), per_round(ours)
     rounds = sorted(set(theirs) & set(mine))
-    diffs = [theirs[r] - mine[r] for r in rounds]
-    return np.array([d for d in diffs if not math.isnan(d)])
+    return [d for d in (theirs[r] - mine[r] for r in rounds) if not math.isnan(d)]
 
 
 def _rank(name: str) -> int:
