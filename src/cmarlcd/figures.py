@@ -226,3 +226,38 @@ def comparison_heatmap(
     ax.set_title(textwrap.fill(title, 95), fontsize=9)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def hit_rate_dial(
+    points: dict[float, Sequence], names: dict[str, str], title: str, path: Path
+) -> Path:
+    """The battlefield's hit-rate dial: one panel per algorithm, its win rate against
+    each opponent (one line each, error bars one spread over rounds) as the hit rate of
+    both unit kinds runs over ``points`` (hit rate -> that tournament's
+    :class:`cmarlcd.experiments.tournament.Cell` list)."""
+    plt = _pyplot()
+    rates = sorted(points)
+    tables = {rate: {(c.algorithm, c.opponent): c for c in points[rate]} for rate in rates}
+    algorithms = [n for n in names if any((n, n) in t for t in tables.values())]
+    fig, axes = plt.subplots(
+        1, len(algorithms), figsize=(3.2 * len(algorithms) + 1.6, 3.4), sharey=True, squeeze=False
+    )
+    for ax, algorithm in zip(axes[0], algorithms, strict=True):
+        for opponent in algorithms:
+            cells = [tables[rate].get((algorithm, opponent)) for rate in rates]
+            y = [np.nan if c is None else 100 * c.win_rate for c in cells]
+            err = [np.nan if c is None else 100 * c.win_rate_std for c in cells]
+            ax.errorbar(rates, y, yerr=err, marker="o", capsize=3, label=f"vs {names[opponent]}")
+        ax.axhline(50, color="grey", linewidth=0.6, linestyle=":")
+        ax.set_title(names[algorithm], fontsize=9)
+        ax.set_xlabel("hit rate of every unit")
+        ax.set_xticks(rates)
+    axes[0][0].set_ylabel("win rate (%)")
+    axes[0][0].set_ylim(0, 100)
+    axes[0][-1].legend(
+        title="opponent", fontsize=8, title_fontsize=8, loc="center left",
+        bbox_to_anchor=(1.0, 0.5), frameon=False,
+    )  # fmt: skip
+    fig.suptitle(textwrap.fill(title, 110), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path)

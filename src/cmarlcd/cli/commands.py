@@ -786,12 +786,27 @@ def _report_groups(
             for records in _groups(stored, key).values():
                 found.append((kind, render, records))
             if kind == "dsn":  # the paper's order: DSN, battlefield, Theorem 1
-                for records in tour.tournaments(db.records(tour.EXPERIMENT)):
-                    found.append(("tournament", report.tournament_report, records))
+                found += _battlefield_groups(db.records(tour.EXPERIMENT))
         for seed_, records in _groups(db.records(cmp.EXPERIMENT), _seed_key).items():
             ours = [r for r in dsn_runs if r.key.root_seed == seed_]
             found.append(("compare", compare_report, records + ours))
     return [g for g in found if seed in (None, g[2][0].key.root_seed)]
+
+
+def _battlefield_groups(records: list[RunRecord]) -> list[tuple[str, Renderer, list[RunRecord]]]:
+    """Each stored tournament, then each readings study (two or more readings with the
+    same seed and budgets) as one more section."""
+    from cmarlcd.experiments.readings import stored_studies
+    from cmarlcd.readings_report import stored_readings_report
+
+    groups = tour.tournaments(records)
+    found: list[tuple[str, Renderer, list[RunRecord]]] = [
+        ("tournament", report.tournament_report, g) for g in groups
+    ]
+    for study in stored_studies(groups):
+        every = list({rec.key: rec for o in study for rec in o.records}.values())
+        found.append(("readings", stored_readings_report, every))
+    return found
 
 
 def _seed_key(rec: RunRecord) -> int:
@@ -842,6 +857,7 @@ def _document(
         "repeated": [],
         "dsn": [],
         "tournament": [],
+        "readings": [],
         "theorem1": [],
         "compare": [],
     }

@@ -127,6 +127,15 @@ class Readings:
             )
         check_unseen(self.unseen)
 
+    def as_reading(self) -> dict[str, Any]:
+        """These readings in the form :func:`reading_of` gives a stored match's."""
+        return {
+            "gamma": DEFAULT_READING["gamma"] if self.gamma is None else self.gamma,
+            "tolerance": DEFAULT_READING["tolerance"] if self.tolerance is None else self.tolerance,
+            "unseen": self.unseen,
+            **{kind: unit_fields(getattr(self, kind)) for kind in UNIT_KINDS},
+        }
+
     def rules(self) -> Battlefield:
         """The battlefield these unit stats make (the paper's troop of 4 + 2)."""
         return Battlefield(marine=self.marine, gunner=self.gunner)
@@ -419,6 +428,18 @@ def match_reading(records: Sequence[RunRecord]) -> dict[str, Any]:
     return next((r for r in readings if r["unseen"] is not None), readings[0])
 
 
+def shared_hit_rate(reading: Mapping[str, Any]) -> float | None:
+    """The hit rate every unit shares when the unit stats differ from the defaults in
+    their hit rates alone (the readings study's dial), else None."""
+    rates = {reading[kind]["hit_rate"] for kind in UNIT_KINDS}
+    units = [{**reading[kind], "hit_rate": None} for kind in UNIT_KINDS]
+    paper = [{**DEFAULT_READING[kind], "hit_rate": None} for kind in UNIT_KINDS]
+    defaults = [DEFAULT_READING[kind] for kind in UNIT_KINDS]
+    if len(rates) != 1 or units != paper or [reading[k] for k in UNIT_KINDS] == defaults:
+        return None
+    return rates.pop()
+
+
 def reading_label(reading: Mapping[str, Any]) -> str:
     """What a reading changes from the defaults, in a few words (``defaults`` if
     nothing); parts a match has no side for (None) are left out."""
@@ -431,6 +452,9 @@ def reading_label(reading: Mapping[str, Any]) -> str:
             )
     if reading.get("unseen") not in (None, DEFAULT_READING["unseen"]):
         words.append(f"unseen states: {reading['unseen']}")
+    rate = shared_hit_rate(reading)
+    if rate is not None:
+        return "; ".join([*words, f"hit rate {rate:g}"])
     for kind in UNIT_KINDS:
         unit, paper = reading[kind], DEFAULT_READING[kind]
         changed = [

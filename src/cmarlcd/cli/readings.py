@@ -1,0 +1,132 @@
+"""``cmarl-cd readings``: the battlefield tournament under each reading of what the paper
+leaves open, and the claims under each (:mod:`cmarlcd.experiments.readings`)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+
+from cmarlcd.cli.commands import (
+    Execution,
+    _print_results,
+    _run_counts,
+    _sweep,
+    _tournament_learners,
+    app,
+)
+from cmarlcd.cli.options import (
+    DEFAULT_FIGURES,
+    AddressOption,
+    BackendOption,
+    FiguresOption,
+    JsonOption,
+    ProgressOption,
+    SeedOption,
+    StoreOption,
+    WorkersOption,
+    fails_cleanly,
+    parse_count,
+    parse_names,
+)
+from cmarlcd.errors import ConfigError
+from cmarlcd.experiments import readings as study_module
+from cmarlcd.experiments import tournament as tour
+from cmarlcd.limits import check_seed_batch
+from cmarlcd.readings_report import readings_report
+from cmarlcd.runner import SweepResult
+from cmarlcd.store import DEFAULT_STORE
+
+
+def parse_rates(text: str) -> tuple[float, ...]:
+    """``"0.6,0.8,1"`` -> (0.6, 0.8, 1.0), each in (0, 1]."""
+    try:
+        rates = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        form = f"expected a comma list such as 0.6,0.8,1 (got {text!r})"
+        raise ConfigError("hit_rates", form) from None
+    return tuple(sorted(set(rates)))
+
+
+def run_study(
+    study: study_module.ReadingsStudy, run: Execution, console: Console | None, seed_batch: int
+) -> dict[str, Any]:
+    """Play (or resume) the single changes and the dial, then the combination they point
+    to; report every tournament of the study."""
+    first = study.first_stage()
+    records, done = _sweep(study.specs(first), run, "battlefield readings", seed_batch)
+    stored = {rec.key: rec for rec in records}
+    outcomes = [study_module.outcome(r, study_module.records_of(study, r, stored)) for r in first]
+    combined = study_module.combination({o.reading: o.score for o in outcomes})
+    tally = [done]
+    if combined is not None and combined not in first:
+        if console is not None:
+            console.print(f"the single changes point to: {combined.name}", soft_wrap=True)
+        more, extra = _sweep(study.specs([combined]), run, "readings combined", seed_batch)
+        stored.update((rec.key, rec) for rec in more)
+        outcomes.append(
+            study_module.outcome(combined, study_module.records_of(study, combined, stored))
+        )
+        tally.append(extra)
+    elif console is not None:
+        console.print("fewer than two changes raise CMARL-CD's margin: no combination played")
+    doc = readings_report(outcomes, run.figures, console)
+    return {**doc, **_run_counts(_total(tally), run.store, console)}
+
+
+def _total(parts: list[SweepResult]) -> SweepResult:
+    """The tally of the study's sweeps together."""
+    fields = ("total", "computed", "reused", "shared", "duplicates", "wall_seconds")
+    return SweepResult(**{name: sum(getattr(p, name) for p in parts) for name in fields})
+
+
+@app.command(short_help="Figs. 6-7 under each reading of what the paper leaves open.")
+@fails_cleanly
+def readings(
+    algorithms: Annotated[
+        str, typer.Option(help="Comma list of the algorithms that play.")
+    ] = ",".join(tour.battlefield_learners()),
+    rounds: Annotated[int, typer.Option(help="Rounds of each tournament.")] = (
+        study_module.STUDY_ROUNDS
+    ),
+    learn_episodes: Annotated[
+        str, typer.Option(help="Learning episodes of each match (100k allowed).")
+    ] = str(study_module.STUDY_EPISODES),
+    eval_episodes: Annotated[
+        str, typer.Option(help="Greedy evaluation episodes of each match.")
+    ] = str(study_module.STUDY_EPISODES),
+    hit_rates: Annotated[
+        str, typer.Option(help="The dial: hit rates of every unit, one tournament each.")
+    ] = ",".join(f"{rate:g}" for rate in study_module.HIT_RATES),
+    seed: SeedOption = 0,
+    seed_batch: Annotated[
+        int,
+        typer.Option(help="Rounds of a pairing with VDN/QMIX that learn together (one model)."),
+    ] = tour.SEED_BATCH,
+    workers: WorkersOption = None,
+    backend: BackendOption = "process",
+    address: AddressOption = None,
+    as_json: JsonOption = False,
+    store: StoreOption = DEFAULT_STORE,
+    figures: FiguresOption = DEFAULT_FIGURES,
+    progress: ProgressOption = True,
+) -> None:
+    """One battlefield tournament with the defaults, one per reading that changes one
+    choice (γ = 0 for the tabular learners, random targets in unseen states, a loose
+    max-return tolerance), one per hit rate of every unit (the dial), then the
+    combination the single changes point to; a table of reading × claim and a figure of
+    win rates against the hit rate. Every match is stored, so the study resumes, and
+    each tournament is also a section of 'cmarl-cd report'."""
+    study = study_module.ReadingsStudy(
+        learners=_tournament_learners(parse_names(algorithms, "algorithms")),
+        rounds=rounds,
+        learn_episodes=parse_count(learn_episodes, "learn_episodes"),
+        eval_episodes=parse_count(eval_episodes, "eval_episodes"),
+        seed=seed,
+        hit_rates=parse_rates(hit_rates),
+    )
+    check_seed_batch(seed_batch)
+    run = Execution(store, figures, workers, progress, backend, address)
+    run.check()
+    _print_results(as_json, run, lambda console: run_study(study, run, console, seed_batch))

@@ -1,0 +1,149 @@
+"""The report of the battlefield readings study (:mod:`cmarlcd.experiments.readings`):
+one table of reading × claim, the hit-rate dial as a figure, and its JSON."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from rich.table import Table
+
+from cmarlcd import registry
+from cmarlcd.experiments import tournament as tour
+from cmarlcd.experiments.readings import Outcome, dialled, stored_studies
+from cmarlcd.report import Output, figure_line, figure_name, say, show, versions
+from cmarlcd.store import RunRecord
+
+TITLE = "Figs. 6-7 under each reading of Section V-B: which choices decide the claims"
+#: Column headings of the claims, in :data:`tour.CLAIMS` order.
+SHORT = (
+    "CMARL-CD beats every other",
+    "QMIX beats LA-OCA",
+    "VDN beats LA-OCA",
+    "QMIX < 40 % vs CMARL-CD",
+    "VDN < 40 % vs CMARL-CD",
+    "CMARL-CD fewest win steps",
+)
+#: How the margins of each claim are written: scale and unit (win rates in percentage
+#: points, win steps in turns).
+SCALES = (100.0, 100.0, 100.0, 100.0, 100.0, 1.0)
+
+
+def _initials(name: str) -> str:
+    return {"cmarl-cd": "CD", "la-oca": "LA", "vdn": "VDN", "qmix": "QMIX"}.get(
+        name, registry.display_name(name)
+    )
+
+
+def margin_text(claim: tour.Claim, scale: float) -> str:
+    """``contradicted: LA −6.9±8.2 · VDN −23.0±10.3``: the verdict, then each margin and
+    two standard errors (one margin: no opponent named)."""
+    if claim.verdict == tour.NOT_CHECKED:
+        return "not checked"
+    digits = 1 if scale > 1 else 2
+    parts = []
+    for m in claim.margins:
+        if m.rounds == 0:
+            parts.append(f"{_initials(m.against)} —")
+            continue
+        two = tour.STANDARD_ERRORS * m.standard_error * scale
+        number = f"{m.value * scale:+.{digits}f}±{two:.{digits}f}"
+        parts.append(number if len(claim.margins) == 1 else f"{_initials(m.against)} {number}")
+    return f"{claim.verdict}: " + "; ".join(parts)
+
+
+def study_table(outcomes: Sequence[Outcome], caption: str) -> Table:
+    """Reading × claim: each claim's verdict and margins (± two standard errors)."""
+    table = Table(
+        title="The paper's claims under each reading: verdict, then each margin ± 2 standard "
+        "errors over rounds (win rates in points, win steps in turns; > 0: as the paper says)",
+        caption=caption,
+    )
+    table.add_column("reading", overflow="fold")
+    table.add_column("CMARL-CD's mean margin", justify="right")
+    for heading in SHORT:
+        table.add_column(heading, overflow="fold")
+    for found in outcomes:
+        claims = {c.claim: c for c in found.claims}
+        cells = [
+            margin_text(claims[text], scale)
+            for text, scale in zip(tour.CLAIMS, SCALES, strict=True)
+        ]
+        score = "—" if math.isnan(found.score) else f"{100 * found.score:+.1f}"
+        table.add_row(found.reading.name, score, *cells)
+    return table
+
+
+def readings_report(
+    outcomes: Sequence[Outcome], figures: Path, console: Output | None
+) -> dict[str, Any]:
+    """The study's table, its hit-rate figure (when two or more hit rates were played)
+    and its JSON, from its tournaments' stored matches."""
+    from cmarlcd import figures as figs
+
+    first = outcomes[0].records[0]
+    rounds = max(len({r.key.run_index for r in o.records}) for o in outcomes)
+    settings = (
+        f"{len(outcomes)} tournaments of up to {rounds} rounds, "
+        f"{first.config['learn_episodes']:,} learning and {first.config['eval_episodes']:,} "
+        f"evaluation episodes per match, seed {first.key.root_seed}"
+    )
+    records = [rec for o in outcomes for rec in o.records]
+    names = {n: registry.display_name(n) for n in _order(outcomes)}
+    paths = {}
+    dial = {dialled(o.reading.readings): o.cells for o in outcomes if o.reading.kind == "hit rate"}
+    if len(dial) >= 2:
+        group = sorted({(r.key.algorithm, r.key.config) for r in records})
+        stem = f"battlefield-hit-rates-seed{first.key.root_seed}"
+        title = f"Win rate against each opponent as the hit rate of every unit varies ({settings})"
+        paths["hit_rates"] = figs.hit_rate_dial(
+            dial, names, title, figures / figure_name(stem, group)
+        )
+    if console is not None:
+        show(console, study_table(outcomes, settings))
+        say(
+            console,
+            "CMARL-CD's mean margin: its win rate minus its opponent's, averaged over the "
+            "other algorithms (points). The defaults: γ 0.9 and tolerance 1e-9 for the "
+            "tabular learners, the lowest legal target in unseen states, marine 3 HP / 1 "
+            "damage / hit 0.8, gunner 6 HP / 2 damage / hit 0.6.",
+        )
+        for path in paths.values():
+            figure_line(console, path, f"win rate against hit rate, {settings}")
+    return {
+        "experiment": "tournament-readings",
+        "title": TITLE,
+        "settings": settings,
+        "versions": versions(records, console),
+        "readings": [
+            {
+                "name": o.reading.name,
+                "kind": o.reading.kind,
+                "readings": o.reading.readings.as_reading(),
+                "rounds": len({r.key.run_index for r in o.records}),
+                "matches": len(o.records),
+                "main_margin": None if math.isnan(o.score) else o.score,
+                "cells": [c.to_dict() for c in o.cells],
+                "claims": [c.to_dict() for c in o.claims],
+            }
+            for o in outcomes
+        ],
+        "figures": {key: str(path) for key, path in paths.items()},
+    }
+
+
+def stored_readings_report(
+    records: Sequence[RunRecord], figures: Path, console: Output | None
+) -> dict[str, Any]:
+    """:func:`readings_report` of one study found in the store (its tournaments'
+    matches, :func:`cmarlcd.experiments.readings.stored_studies`)."""
+    (outcomes,) = stored_studies(tour.tournaments(records))
+    return readings_report(outcomes, figures, console)
+
+
+def _order(outcomes: Sequence[Outcome]) -> list[str]:
+    present = {c.algorithm for o in outcomes for c in o.cells}
+    known = list(tour.battlefield_learners())
+    return sorted(present, key=lambda n: (known.index(n) if n in known else len(known), n))
