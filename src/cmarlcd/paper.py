@@ -1,6 +1,6 @@
 """The values the paper publishes, for side-by-side reports.
 
-Transcribed from the paper's tables (see SPEC.md); never used by any learner.
+Transcribed from the paper's tables; never used by any learner.
 """
 
 from __future__ import annotations

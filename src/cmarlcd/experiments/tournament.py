@@ -1,4 +1,4 @@
-"""The blood battlefield tournament of Section V-B (Figs. 6-7, SPEC §6).
+"""The blood battlefield tournament of Section V-B (Figs. 6-7).
 
 A *round* has one match per pair of algorithms and one of each algorithm against itself
 (10 matches for four). A match: both sides learn for ``learn_episodes`` episodes, then

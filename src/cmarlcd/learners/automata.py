@@ -1,7 +1,7 @@
 """LA-OCA, the learning-automata baseline (ref. [23] of the paper), as a documented stand-in.
 
 The paper gives no update rule for LA-OCA and its reference is not openly available.
-[choice] (SPEC §3) Per state, each agent runs a linear reward-inaction automaton driven
+[choice] Per state, each agent runs a linear reward-inaction automaton driven
 by the same max-return indicator as CMARL-CD (:mod:`cmarlcd.learners.max_return`): when
 the return from a state reaches the best seen from it, the action taken is rewarded,
 
@@ -56,7 +56,7 @@ class AutomatonParams(NamedTuple):
 def automaton_rule(
     p_row: np.ndarray, legal_row: np.ndarray, count: int, action: int, rate: float
 ) -> None:
-    """Linear reward-inaction step of rate ``λ`` towards ``action`` (SPEC §3)."""
+    """Linear reward-inaction step of rate ``λ`` towards ``action``."""
     for a in range(count):
         if a == action:
             p_row[a] += rate * (1.0 - p_row[a])
@@ -117,7 +117,7 @@ def automaton_end_episode(tables, params, states, joints, rewards, length, count
 
 @dataclass(frozen=True)
 class AutomatonConfig(TabularConfig):
-    """LA-OCA stand-in (SPEC §3)."""
+    """LA-OCA stand-in."""
 
     name: ClassVar[str] = "la-oca"
     display_name: ClassVar[str] = "LA-OCA"
@@ -151,7 +151,7 @@ class AutomatonConfig(TabularConfig):
 
 
 class LAOCA(MaxReturnLearner):
-    """The LA-OCA stand-in (SPEC §3), step by step (see
+    """The LA-OCA stand-in, step by step (see
     :class:`cmarlcd.learners.tabular.TabularLearner`)."""
 
     default_config = AutomatonConfig()

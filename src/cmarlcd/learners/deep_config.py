@@ -1,4 +1,4 @@
-"""Hyper-parameters of the VDN and QMIX baselines (SPEC §4) and the ε schedule of eq. (18).
+"""Hyper-parameters of the VDN and QMIX baselines and the ε schedule of eq. (18).
 
 Kept free of PyTorch so that configs validate, and the command line reports bad input,
 without the ``[deep]`` extra installed.
@@ -18,7 +18,7 @@ DISPLAY_NAMES = {"vdn": "VDN", "qmix": "QMIX"}
 
 @dataclass(frozen=True)
 class DeepConfig:
-    """Hyper-parameters of VDN / QMIX; defaults are the paper's DSN settings (SPEC §4)."""
+    """Hyper-parameters of VDN / QMIX; defaults are the paper's DSN settings."""
 
     mixer: str = "vdn"
     """``"vdn"`` (sum) or ``"qmix"`` (monotonic mixing network)."""

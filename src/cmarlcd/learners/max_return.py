@@ -2,7 +2,7 @@
 
 Both learners keep ``R_max(s)``, the largest discounted return ever observed from state
 ``s`` (shared by the agents: the reward is global, so they would all hold the same value).
-After each episode the recorded steps are processed backwards (SPEC §2, [choice] every
+After each episode the recorded steps are processed backwards ([choice] every
 visit): ``G_t = r_{t+1} + γ G_{t+1}`` (eq. 1) is compared with ``R_max(s_t)`` (eq. 16,
 equality within a tolerance), and unless it falls below, the learner's per-state rule is
 applied to the action each agent took at ``s_t``. The indicator's part of each step of

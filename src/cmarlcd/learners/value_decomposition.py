@@ -1,4 +1,4 @@
-"""VDN and QMIX baselines (paper Section V-A/B, SPEC §4), trained B seeds at a time.
+"""VDN and QMIX baselines (paper Section V-A/B), trained B seeds at a time.
 
 Requires the ``[deep]`` extra (PyTorch). Every tensor carries a leading *group* axis: one
 group per independent seed (and per agent for the agent networks), so B seeds train as one

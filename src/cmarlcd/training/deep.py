@@ -10,7 +10,7 @@ fixed order: parameter initialisation, environment, exploration, replay sampling
 b of a batch follows the same trajectory as that seed trained alone, up to float rounding
 in the batched products.
 
-Schedule (SPEC §4): after every ``train_every`` environment steps, one gradient step once
+Schedule: after every ``train_every`` environment steps, one gradient step once
 ``batch_size`` transitions are stored; after it, the target networks are copied whenever
 another ``target_every`` steps have passed. The networks only change at these gradient
 steps, so between them each seed's greedy policy is a table over the game's states.

@@ -5,7 +5,7 @@ index: the battlefield's 802,816 states per side are far too many for one-hot in
 Inside the compiled loop it acts ε-greedily (eq. 18, annealed over the match's learning
 episodes) with its agent networks' forward pass, compiled here over a copy of their
 weights, and appends each turn to its replay buffer. Every ``train_every`` turns the loop
-stops, and :meth:`DeepSide.between_calls` takes the gradient step (SPEC §4: once
+stops, and :meth:`DeepSide.between_calls` takes the gradient step (once
 ``batch_size`` transitions are stored, then a target copy whenever another
 ``target_every`` turns have passed) on the model of
 :class:`cmarlcd.learners.value_decomposition.ValueDecomposition` and copies the new

@@ -1,4 +1,4 @@
-"""The blood battlefield (Section V-B, Fig. 5; SPEC §6): two troops fire at each other.
+"""The blood battlefield (Section V-B, Fig. 5): two troops fire at each other.
 
 Each side (0 and 1) has the same troop: by default four marines (units 0-3) and two
 gunners (units 4-5). Units never move. Every turn each live unit picks a live opponent
@@ -19,7 +19,7 @@ mixed-radix, opponents' HP first, own alive flags last; a live unit sees one of
 and a side's index ranges over twice that, ``802,816``, since it also says which unit is
 alive.
 
-Choices the paper leaves open (SPEC §6):
+Choices the paper leaves open (the README's interpretation choices):
 
 * [choice] unit stats (Fig. 5 is not in the text): marine HP 3, damage 1, hit rate 0.8;
   gunner HP 6, damage 2, hit rate 0.6 (:data:`MARINE`, :data:`GUNNER`);
@@ -73,15 +73,15 @@ class Unit:
         require(0 < rate <= 1, "hit_rate", f"must be in (0, 1] (got {rate})")
 
 
-#: [choice] SPEC §6: the marine.
+#: [choice] The marine (see the README's interpretation choices).
 MARINE = Unit(hp=3, damage=1, hit_rate=0.8)
-#: [choice] SPEC §6: the gunner.
+#: [choice] The gunner.
 GUNNER = Unit(hp=6, damage=2, hit_rate=0.6)
 
 
 @dataclass(frozen=True)
 class Battlefield:
-    """The rules of one blood battlefield; the defaults are the paper's (SPEC §6).
+    """The rules of one blood battlefield; the defaults are the paper's.
 
     Both sides field the same troop: ``marines`` marines, then ``gunners`` gunners.
     """
@@ -334,7 +334,7 @@ def outcome(env) -> int:
     return int(env[5][OUTCOME])
 
 
-#: The paper's battlefield (SPEC §6).
+#: The paper's battlefield.
 PAPER = Battlefield()
 #: Its protocol: 12 agents in two teams of 6, 802,816 state indices per side, 100 turns.
 SPEC = PAPER.spec()

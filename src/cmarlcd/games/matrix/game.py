@@ -3,7 +3,7 @@
 A repeated game is a payoff tensor of shape ``(|A_1|, ..., |A_n|)``; entry ``a`` is the
 global reward every agent receives when the joint action ``a`` is played (Section III-B).
 
-The random generators follow Section IV-C of the paper and SPEC §1:
+The random generators follow Section IV-C of the paper:
 
 * **case 1** -- the component action of every optimal joint action is unique: agent
   ``i``'s component actions across the ``m`` optima are a random permutation of its
@@ -179,7 +179,7 @@ def random_case1(n_agents: int, n_actions: int, rng: np.random.Generator) -> Mat
 
 
 def case2_optimum_count(n_agents: int, n_actions: int) -> int:
-    """``round(0.1 m^n)``, rounding halves up, in exact arithmetic (SPEC §1).
+    """``round(0.1 m^n)``, rounding halves up, in exact arithmetic.
 
     [choice] The paper's ``[ ]`` rounds to an integer; for ``m = 5`` every cell is a
     tie (``0.1 * 5^n = x.5``), which we round up. At least one optimum is kept.

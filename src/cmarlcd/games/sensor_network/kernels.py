@@ -1,4 +1,4 @@
-"""The distributed sensor network (DSN) task (Section V-A, Fig. 3; SPEC §5).
+"""The distributed sensor network (DSN) task (Section V-A, Fig. 3).
 
 Twelve sensors sit on the 3 x 4 intersections of a grid of 2 x 3 cells and try to
 capture two moving targets. Cells are numbered row-major ``0..5`` (cell ``(r, c)`` is
@@ -194,7 +194,7 @@ def dsn_reset(targets: np.ndarray, energy: np.ndarray, rng) -> None:
 
 @njit(cache=True)
 def dsn_state(targets: np.ndarray) -> int:
-    """The global state index (SPEC §5): 0..29 both alive, 30..35 / 36..41 one alive, 42 none."""
+    """The global state index: 0..29 both alive, 30..35 / 36..41 one alive, 42 none."""
     t0 = targets[0]
     t1 = targets[1]
     if t0 >= 0 and t1 >= 0:
