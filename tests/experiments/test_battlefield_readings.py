@@ -251,7 +251,7 @@ def test_matches_of_two_deep_learners_join_every_tournament_of_their_unit_stats(
     assert labels == {
         "defaults": 2,
         "γ = 0": 2,
-        "marine hit rate 1; gunner hit rate 1": 1,  # the deep match was on other rules
+        "hit rate 1": 1,  # the deep match was on other rules
     }
 
 
