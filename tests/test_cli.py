@@ -595,6 +595,9 @@ def test_tournament_json_figures_resume_and_report(paths) -> None:
         (["--gunner", "6,2,1.2"], "--gunner"),
         (["--gunner", "6,0,0.6"], "--gunner"),
         (["--gunner", "99,2,0.6", "--marine", "99,1,0.8"], "--marine"),
+        (["--gunner", "99,2,0.6"], "--gunner"),
+        (["--marine", "3,99999999999999999999,0.8"], "--marine"),
+        (["--tolerance", "nan"], "--tolerance"),
     ],
 )
 def test_tournament_bad_input(paths, args, option) -> None:

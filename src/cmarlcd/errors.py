@@ -41,6 +41,15 @@ def check_discount(gamma: float, parameter: str = "gamma") -> None:
     )
 
 
+def check_tolerance(tolerance: float, parameter: str = "tolerance") -> None:
+    """A tolerance under which two returns count as equal: a number >= 0."""
+    require(
+        bool(math.isfinite(tolerance)) and tolerance >= 0,
+        parameter,
+        f"must be a number >= 0 (got {tolerance})",
+    )
+
+
 class BackendLost(RuntimeError):
     """The backend cannot be reached, or stopped answering: a one-line message saying
     where, for how long, and what is kept. Whatever the backend left running (Ray's

@@ -38,7 +38,7 @@ def _initials(name: str) -> str:
 
 
 def margin_text(claim: tour.Claim, scale: float) -> str:
-    """``contradicted: LA −6.9±8.2 · VDN −23.0±10.3``: the verdict, then each margin and
+    """``contradicted: LA -6.9±8.2; VDN -23.0±10.3``: the verdict, then each margin and
     two standard errors (one margin: no opponent named)."""
     if claim.verdict == tour.NOT_CHECKED:
         return "not checked"
@@ -106,9 +106,7 @@ def readings_report(
         say(
             console,
             "CMARL-CD's mean margin: its win rate minus its opponent's, averaged over the "
-            "other algorithms (points). The defaults: γ 0.9 and tolerance 1e-9 for the "
-            "tabular learners, the lowest legal target in unseen states, marine 3 HP / 1 "
-            "damage / hit 0.8, gunner 6 HP / 2 damage / hit 0.6.",
+            f"other algorithms (points). The defaults: {defaults_text()}.",
         )
         for path in paths.values():
             figure_line(console, path, f"win rate against hit rate, {settings}")
@@ -132,6 +130,19 @@ def readings_report(
         ],
         "figures": {key: str(path) for key, path in paths.items()},
     }
+
+
+def defaults_text() -> str:
+    """The default readings in words."""
+    d = tour.DEFAULT_READING
+    units = ", ".join(
+        f"{kind} {d[kind]['hp']} HP / {d[kind]['damage']} damage / hit {d[kind]['hit_rate']:g}"
+        for kind in tour.UNIT_KINDS
+    )
+    return (
+        f"γ {d['gamma']:g} and tolerance {d['tolerance']:g} for the tabular learners, the "
+        f"{d['unseen']} legal target in unseen states, {units}"
+    )
 
 
 def stored_readings_report(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 from collections import Counter
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,7 @@ import pytest
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games import battlefield
-from cmarlcd.games.battlefield import GUNNER, MARINE, Battlefield, Unit
+from cmarlcd.games.battlefield import GUNNER, MARINE, Unit
 from cmarlcd.learners.automata import LAOCA, AutomatonConfig
 from cmarlcd.learners.coordination import CMARLCDStochastic, StochasticConfig
 from cmarlcd.store import RunKey, RunRecord
@@ -207,7 +208,12 @@ def test_default_tournament_plays_the_matches_of_0_5_1() -> None:
         metrics = tour.run(spec.config, spec.seed_sequence())
         kept = {k: v for k, v in metrics.items() if k in reference[0]["metrics"]}
         played.append(
-            {"algorithms": spec.config["algorithms"], "round": spec.run_index, "metrics": kept}
+            {
+                "algorithms": spec.config["algorithms"],
+                "round": spec.run_index,
+                "key_config": spec.key.config,  # the same store key: old stores resume
+                "metrics": kept,
+            }
         )
     played.sort(key=lambda d: (d["algorithms"], d["round"]))
     assert played == reference
@@ -216,45 +222,109 @@ def test_default_tournament_plays_the_matches_of_0_5_1() -> None:
 # ------------------------------------------------------------------ the store
 
 
-def stored(algorithms: list[str], round_index: int, **extra) -> RunRecord:
-    names = {"cmarl-cd": TABULAR[0], "vdn": LEARNERS["vdn"]}
-    from dataclasses import asdict
-
+def stored(
+    algorithms: list[str], round_index: int = 0, seed: int = 0, learn: int = 10, **extra
+) -> RunRecord:
+    """A stored match of ``algorithms`` (as their paper settings, ``gamma=…`` for the
+    tabular ones, a dict of name -> γ for each its own) and the readings in ``extra``."""
+    gamma = extra.pop("gamma", None)
+    learners = []
+    for name in algorithms:
+        learner = asdict(LEARNERS[name])
+        own = gamma.get(name) if isinstance(gamma, dict) else gamma
+        if own is not None and name in ("cmarl-cd", "la-oca"):
+            learner["gamma"] = own
+        learners.append(learner)
     config = {
         "algorithms": algorithms,
-        "learners": [asdict(names[a]) for a in algorithms],
-        "learn_episodes": 10,
+        "learners": learners,
+        "learn_episodes": learn,
         "eval_episodes": 10,
         **extra,
     }
-    if "gamma" in extra:
-        config.pop("gamma")
-        config["learners"] = [
-            {**learner, "gamma": extra["gamma"]} if a == "cmarl-cd" else learner
-            for a, learner in zip(algorithms, config["learners"], strict=True)
-        ]
-    key = RunKey("tournament", " vs ".join(algorithms), json.dumps(config), 0, round_index)
+    key = RunKey("tournament", " vs ".join(algorithms), json.dumps(config), seed, round_index)
     return RunRecord(key=key, metrics={}, wall_seconds=0.0)
 
 
+def labelled(groups) -> dict[str, list[str]]:
+    return {
+        tour.reading_label(tour.match_reading(g)): sorted(r.key.algorithm for r in g)
+        for g in groups
+    }
+
+
+SURE = {
+    kind: {"hp": unit.hp, "damage": unit.damage, "hit_rate": 1.0}
+    for kind, unit in (("marine", MARINE), ("gunner", GUNNER))
+}
+
+
 def test_matches_of_two_deep_learners_join_every_tournament_of_their_unit_stats() -> None:
-    deep = stored(["vdn", "vdn"], 0)
-    default = stored(["cmarl-cd", "vdn"], 0)
-    myopic = stored(["cmarl-cd", "vdn"], 0, gamma=0.0)
-    sure = {
-        kind: {"hp": u.hp, "damage": u.damage, "hit_rate": 1.0}
-        for kind, u in (("marine", MARINE), ("gunner", GUNNER))
-    }
-    other_rules = stored(["cmarl-cd", "vdn"], 0, battlefield=sure)
+    deep = stored(["vdn", "vdn"])
+    default = stored(["cmarl-cd", "vdn"])
+    myopic = stored(["cmarl-cd", "vdn"], gamma=0.0)
+    other_rules = stored(["cmarl-cd", "vdn"], battlefield=SURE)
     groups = tour.tournaments([deep, default, myopic, other_rules])
-    labels = {tour.reading_label(tour.match_reading(g)): len(g) for g in groups}
-    assert labels == {
-        "defaults": 2,
-        "γ = 0": 2,
-        "hit rate 1": 1,  # the deep match was on other rules
+    assert labelled(groups) == {
+        "defaults": ["cmarl-cd vs vdn", "vdn vs vdn"],
+        "γ = 0": ["cmarl-cd vs vdn", "vdn vs vdn"],
+        "hit rate 1": ["cmarl-cd vs vdn"],  # the deep match was played on other rules
     }
 
 
-def test_battlefield_rules_are_the_readings_units() -> None:
-    rules = tour.Readings(gunner=Unit(6, 2, 0.9)).rules()
-    assert rules == Battlefield(gunner=Unit(6, 2, 0.9))
+def test_a_deep_match_joins_only_tournaments_that_have_both_its_learners() -> None:
+    four = ["cmarl-cd", "la-oca", "vdn", "qmix"]
+    default = [stored([a, b]) for i, a in enumerate(four) for b in four[i:]]
+    lone = stored(["la-oca", "la-oca"], gamma=0.0)  # tournament --algorithms la-oca --gamma 0
+    played = {"wins": [1, 1], "ties": 0, "win_turns": [5, 5], "episodes": 2}
+    records = [
+        RunRecord(r.key, {**played, "sides": r.config["algorithms"]}, 0.0) for r in [*default, lone]
+    ]
+    groups = tour.tournaments(records)
+    assert labelled(groups)["γ = 0"] == ["la-oca vs la-oca"]
+    assert len(labelled(groups)["defaults"]) == 10
+    for group in groups:  # every claim is checked, or says why not, without failing
+        claims = tour.check_claims(group, tour.summarize(group))
+        assert len(claims) == len(tour.CLAIMS)
+
+
+def test_tabular_learners_with_settings_of_their_own_stay_one_tournament() -> None:
+    own = {"cmarl-cd": 0.5, "la-oca": 0.9}  # possible from the Python API only
+    matches = [
+        stored(["cmarl-cd", "cmarl-cd"], gamma=own),
+        stored(["cmarl-cd", "la-oca"], gamma=own),
+        stored(["la-oca", "la-oca"], gamma=own),
+    ]
+    (group,) = tour.tournaments(matches)
+    assert len(group) == 3
+    assert tour.match_reading(group)["gamma"] == [0.5, 0.9]
+
+
+def test_seeds_and_budgets_keep_tournaments_apart() -> None:
+    matches = [stored(["cmarl-cd", "vdn"]), stored(["cmarl-cd", "vdn"], seed=1)]
+    matches += [stored(["cmarl-cd", "vdn"], learn=20), stored(["vdn", "vdn"], seed=1)]
+    groups = tour.tournaments(matches)
+    assert sorted(len(g) for g in groups) == [1, 1, 2]
+    assert {(g[0].key.root_seed, g[0].config["learn_episodes"]) for g in groups} == {
+        (0, 10),
+        (1, 10),
+        (0, 20),
+    }
+
+
+def test_whole_and_decimal_numbers_are_one_reading() -> None:
+    assert tour.Readings(gamma=0) == tour.Readings(gamma=0.0)
+    assert Unit(6, 2, 1) == Unit(6.0, 2, 1.0) and isinstance(Unit(6.0, 2, 1).hp, int)
+    one = tour.Tournament(TABULAR[:1], rounds=1, readings=tour.Readings(gamma=0))
+    other = tour.Tournament(TABULAR[:1], rounds=1, readings=tour.Readings(gamma=0.0))
+    assert one.specs()[0].key == other.specs()[0].key
+
+
+@pytest.mark.parametrize(
+    ("stats", "field"),
+    [((0, 1, 0.8), "hp"), ((100, 1, 0.8), "hp"), ((3, 10**20, 0.8), "damage"),
+     ((3, 1.5, 0.8), "damage"), ((3, 1, 0.0), "hit_rate"), ((3, 1, float("nan")), "hit_rate")],
+)  # fmt: skip
+def test_impossible_units_are_refused(stats, field) -> None:
+    with pytest.raises(ConfigError, match=field):
+        Unit(*stats)

@@ -30,7 +30,7 @@ def test_each_single_reading_changes_one_choice_and_the_dial_only_hit_rates() ->
             if getattr(reading.readings, name) != getattr(default, name)
         ]
         assert len(changed) == 1 and reading.kind == "single"
-    assert [r.name for r in singles[1:]] == ["γ = 0", "unseen states: random", "tolerance = 1"]
+    assert [r.name for r in singles[1:]] == ["γ = 0", "tolerance = 1", "unseen states: random"]
     for rate, reading in zip(study.HIT_RATES, study.dial(), strict=True):
         units = (reading.readings.marine, reading.readings.gunner)
         assert units == (Unit(3, 1, rate), Unit(6, 2, rate)) and reading.kind == "hit rate"
@@ -43,7 +43,7 @@ def named(*readings: Readings) -> list[study.Reading]:
 
 
 def test_the_combination_takes_every_change_that_raises_cmarl_cd_s_margin() -> None:
-    default, gamma, unseen, loose = study.single_readings()
+    default, gamma, loose, unseen = study.single_readings()
     low, high = study.dial((0.6, 1.0))
     scores = {default: -0.20, gamma: -0.10, unseen: -0.25, loose: -0.19, low: -0.15, high: 0.1}
     combined = study.combination(scores)
@@ -73,6 +73,13 @@ def test_bad_hit_rates_are_rejected(rates, message) -> None:
         study.ReadingsStudy((LEARNERS["cmarl-cd"],), hit_rates=rates)
 
 
+def test_a_study_too_large_as_a_whole_is_refused_at_once() -> None:
+    four = tuple(LEARNERS.values())  # 10 matches a round, 4 + 5 + 1 tournaments
+    study.ReadingsStudy(four, rounds=1_000)  # 100,000 runs: within the cap
+    with pytest.raises(ConfigError, match="rounds"):
+        study.ReadingsStudy(four, rounds=5_000)  # each tournament fits, the study does not
+
+
 def test_a_claim_s_cell_is_its_verdict_and_margins() -> None:
     claim = tour.Claim(
         tour.CLAIMS[0],
@@ -86,6 +93,7 @@ def test_a_claim_s_cell_is_its_verdict_and_margins() -> None:
 
 
 # ---------------------------------------------------------------- end to end
+
 
 @pytest.mark.slow
 def test_the_study_runs_resumes_and_is_a_section_of_the_report(tmp_path) -> None:
@@ -101,8 +109,8 @@ def test_the_study_runs_resumes_and_is_a_section_of_the_report(tmp_path) -> None
     assert names[:6] == [
         "defaults",
         "γ = 0",
-        "unseen states: random",
         "tolerance = 1",
+        "unseen states: random",
         "hit rate 0.7",
         "hit rate 1",
     ]

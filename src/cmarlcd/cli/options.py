@@ -10,7 +10,6 @@ from __future__ import annotations
 import errno
 import functools
 import importlib.util
-import math
 import os
 import sys
 from collections.abc import Callable
@@ -181,7 +180,7 @@ def parse_counts(text: str, parameter: str) -> tuple[int, ...]:
 
 def parse_unit(text: str, parameter: str) -> Unit:
     """``"3,1,0.8"`` -> a unit of 3 HP, 1 damage per hit and hit rate 0.8 (Fig. 5's
-    stats: positive whole HP and damage, a hit rate in (0, 1])."""
+    stats: whole HP and damage in 1..99, a hit rate in (0, 1])."""
     form = f"expected HP,DAMAGE,HIT_RATE such as 3,1,0.8 (got {text!r})"
     parts = [part.strip() for part in text.split(",")]
     require(len(parts) == 3, parameter, form)
@@ -189,11 +188,8 @@ def parse_unit(text: str, parameter: str) -> Unit:
         hp, damage, hit_rate = int(parts[0]), int(parts[1]), float(parts[2])
     except ValueError:
         raise ConfigError(parameter, form) from None
-    require(1 <= hp <= 99, parameter, f"HP must be a whole number in 1..99 (got {hp})")
-    require(damage >= 1, parameter, f"damage must be a whole number >= 1 (got {damage})")
-    require(
-        math.isfinite(hit_rate) and 0 < hit_rate <= 1,
-        parameter,
-        f"the hit rate must be in (0, 1] (got {parts[2]})",
-    )
-    return Unit(hp, damage, hit_rate)
+    try:
+        return Unit(hp, damage, hit_rate)
+    except ConfigError as err:  # the unit's own check, under the option's name
+        what = {"hp": "HP", "damage": "damage", "hit_rate": "the hit rate"}[err.parameter]
+        raise ConfigError(parameter, f"{what} {err.message}") from None

@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 from cmarlcd.errors import require
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments.tournament import Readings, Tournament
+from cmarlcd.limits import check_run_count
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import RunSpec
 from cmarlcd.store import RunRecord
@@ -62,8 +63,8 @@ def single_readings() -> list[Reading]:
     return [
         Reading(Readings()),
         Reading(Readings(gamma=0.0)),
-        Reading(Readings(unseen="random")),
         Reading(Readings(tolerance=LOOSE_TOLERANCE)),
+        Reading(Readings(unseen="random")),
     ]
 
 
@@ -107,14 +108,12 @@ def combination(scores: Mapping[Reading, float]) -> Reading | None:
     chosen = singles + dialled[:1]
     if len(chosen) < 2:
         return None
-    fields: dict[str, Any] = {}
-    for reading in chosen:
-        for name in ("gamma", "tolerance", "marine", "gunner"):
-            if getattr(reading.readings, name) != getattr(Readings(), name):
-                fields[name] = getattr(reading.readings, name)
-        if reading.readings.unseen != Readings().unseen:
-            fields["unseen"] = reading.readings.unseen
-    return Reading(Readings(**fields))
+    settings = {
+        name: getattr(reading.readings, name)
+        for reading in chosen
+        for name in changed(reading.readings)
+    }
+    return Reading(Readings(**settings))
 
 
 @dataclass(frozen=True)
@@ -132,8 +131,9 @@ class ReadingsStudy:
         for rate in self.hit_rates:
             require(0 < rate <= 1, "hit_rates", f"each must be in (0, 1] (got {rate})")
         require(len(set(self.hit_rates)) == len(self.hit_rates), "hit_rates", "each at most once")
-        for reading in self.first_stage():
-            self.tournament(reading)  # every setting checked before anything runs
+        planned = [self.tournament(r) for r in self.first_stage()]  # each one checked
+        runs = sum(t.run_count() for t in planned) + planned[0].run_count()  # + combination
+        check_run_count(runs, "rounds")
 
     def first_stage(self) -> list[Reading]:
         """The single changes and the dial, played before the combination is known."""
@@ -207,43 +207,46 @@ def readings_from(reading: Mapping[str, Any]) -> Readings | None:
     )
 
 
+def changed(readings: Readings) -> list[str]:
+    """The settings of ``readings`` that differ from the defaults, in field order."""
+    default = Readings()
+    names = [f.name for f in fields(Readings)]
+    return [name for name in names if getattr(readings, name) != getattr(default, name)]
+
+
 def kind_of(readings: Readings) -> str:
     """See :attr:`Reading.kind`."""
-    default = Readings()
-    changed = [
-        name
-        for name in ("gamma", "tolerance", "unseen", "marine", "gunner")
-        if getattr(readings, name) != getattr(default, name)
-    ]
-    if not changed:
+    names = changed(readings)
+    if not names:
         return "default"
-    if dialled(readings) is not None and set(changed) <= {"marine", "gunner"}:
+    if dialled(readings) is not None and set(names) <= set(tour.UNIT_KINDS):
         return "hit rate"
-    return "single" if len(changed) == 1 else "combined"
+    return "single" if len(names) == 1 else "combined"
 
 
 def stored_studies(groups: Sequence[Sequence[RunRecord]]) -> list[list[Outcome]]:
     """Stored tournaments (:func:`tour.tournaments`) that form a study: two or more
     readings with the same seed and budgets. Each study lists its tournaments in the
     order defaults, single changes, the dial by hit rate, combinations."""
-    by_protocol: dict[tuple, list[Outcome]] = {}
+    by_protocol: dict[tuple, list[tuple[Readings, Sequence[RunRecord]]]] = {}
     for records in groups:
         readings = readings_from(tour.match_reading(records))
-        if readings is None:
-            continue
-        key = tour.protocol_key(records[0])[:3]
-        by_protocol.setdefault(key, []).append(outcome(Reading(readings), records))
-    return [sorted(found, key=_place) for found in by_protocol.values() if len(found) >= 2]
+        if readings is not None:
+            key = tour.protocol_key(records[0])[:3]
+            by_protocol.setdefault(key, []).append((readings, records))
+    studies = [
+        [outcome(Reading(readings), records) for readings, records in found]
+        for found in by_protocol.values()
+        if len(found) >= 2
+    ]
+    return [sorted(found, key=_place) for found in studies]
 
 
 def _place(found: Outcome) -> tuple:
-    """Defaults, single changes (γ, unseen, tolerance, units), the dial by hit rate, then
-    combinations."""
+    """Defaults, single changes (in field order: γ, tolerance, unseen, units), the dial by
+    hit rate, then combinations."""
     kinds = ("default", "single", "hit rate", "combined")
-    readings, default = found.reading.readings, Readings()
-    names = ("gamma", "unseen", "tolerance", "marine", "gunner")
-    changed = [
-        k for k, name in enumerate(names) if getattr(readings, name) != getattr(default, name)
-    ]
-    rate = dialled(readings) or 0.0
-    return (kinds.index(found.reading.kind), rate, changed, found.reading.name)
+    readings = found.reading.readings
+    order = [f.name for f in fields(Readings)]
+    which = [order.index(name) for name in changed(readings)]
+    return (kinds.index(found.reading.kind), dialled(readings) or 0.0, which, found.reading.name)

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from cmarlcd import registry
-from cmarlcd.errors import check_discount, require
+from cmarlcd.errors import check_discount, check_tolerance, require
 from cmarlcd.games import battlefield
 from cmarlcd.games.battlefield import GUNNER, MARINE, Battlefield, Unit
 from cmarlcd.learners.automata import AutomatonConfig
@@ -118,13 +118,10 @@ class Readings:
     def __post_init__(self) -> None:
         if self.gamma is not None:
             check_discount(self.gamma)
+            object.__setattr__(self, "gamma", float(self.gamma))  # 0 and 0.0: one match
         if self.tolerance is not None:
-            tolerance = self.tolerance
-            require(
-                math.isfinite(tolerance) and tolerance >= 0,
-                "tolerance",
-                f"must be a number >= 0 (got {tolerance})",
-            )
+            check_tolerance(self.tolerance)
+            object.__setattr__(self, "tolerance", float(self.tolerance))
         check_unseen(self.unseen)
 
     def as_reading(self) -> dict[str, Any]:
@@ -219,11 +216,12 @@ class Tournament:
         check_run_count(self.run_count(), "rounds")
         if any(is_tabular(config) for config in self.learners):
             states = self.readings.rules().n_states
+            changed = [k for k in UNIT_KINDS if getattr(self.readings, k) != getattr(Readings(), k)]
             require(
                 states <= MAX_TABLE_STATES,
-                "marine",
-                f"with the gunner's, these HP make {states:,} state indices per side; a "
-                f"tabular side indexes at most {MAX_TABLE_STATES:,} (the paper's: 802,816)",
+                (changed or ["marine"])[0],
+                f"these HP make {states:,} state indices per side; a tabular side (CMARL-CD, "
+                f"LA-OCA) indexes at most {MAX_TABLE_STATES:,} (the paper's: 802,816)",
             )
 
     @property
@@ -421,11 +419,20 @@ DEFAULT_READING = {
 
 
 def match_reading(records: Sequence[RunRecord]) -> dict[str, Any]:
-    """The readings of one tournament's matches (:func:`tournaments`): those of a match
-    with a tabular side when there is one (a match of two deep learners leaves the
-    tabular readings open)."""
+    """The readings of one tournament's matches (:func:`tournaments`): a tabular
+    learners' setting that differs among them is the list of its values; a tournament
+    of deep learners alone has no tabular readings (None)."""
     readings = [reading_of(rec.config) for rec in records]
-    return next((r for r in readings if r["unseen"] is not None), readings[0])
+    tabular = [r for r in readings if r["unseen"] is not None]
+    merged = dict(readings[0])
+    for name in ("gamma", "tolerance", "unseen"):
+        values = sorted({v for r in tabular for v in _as_list(r[name])})
+        merged[name] = None if not values else values[0] if len(values) == 1 else values
+    return merged
+
+
+def _as_list(value: Any) -> list:
+    return list(value) if isinstance(value, list) else [value]
 
 
 def shared_hit_rate(reading: Mapping[str, Any]) -> float | None:
@@ -468,35 +475,81 @@ def reading_label(reading: Mapping[str, Any]) -> str:
 
 
 def protocol_key(record: RunRecord) -> tuple:
-    """Matches that belong in one tournament: same seed, budgets and readings (the last
-    entry None for a match without a tabular side, see :func:`tournaments`)."""
+    """What every match of one tournament shares: seed, budgets and unit stats (the
+    tabular readings are told apart by :func:`tabular_key`)."""
     cfg = record.config
-    reading = reading_of(cfg)
-    rules = tuple(tuple(reading[kind].values()) for kind in UNIT_KINDS)
-    tabular = None
-    if reading["unseen"] is not None:
-        tabular = tuple(json_key(reading[k]) for k in ("gamma", "tolerance", "unseen"))
-    return (record.key.root_seed, cfg["learn_episodes"], cfg["eval_episodes"], rules, tabular)
+    rules = rules_of(cfg)
+    units = tuple(tuple(unit_fields(getattr(rules, kind)).values()) for kind in UNIT_KINDS)
+    return (record.key.root_seed, cfg["learn_episodes"], cfg["eval_episodes"], units)
 
 
-def json_key(value: Any) -> Any:
-    """A hashable form of a reading's value (lists become tuples)."""
-    return tuple(value) if isinstance(value, list) else value
+def tabular_settings(config: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
+    """Each tabular learner's (γ, tolerance) in a stored pairing."""
+    learners = [_learner(config, k) for k in range(2)]
+    return {
+        learner.name: (float(learner.gamma), float(learner.tolerance))
+        for learner in learners
+        if is_tabular(learner)
+    }
+
+
+def tabular_key(record: RunRecord) -> tuple | None:
+    """The tabular readings of a match: what its tabular sides play in unseen states and
+    the (γ, tolerance) they all share, or each one's when they differ (possible from the
+    Python API only); None for a match of two deep learners."""
+    settings = tabular_settings(record.config)
+    if not settings:
+        return None
+    shared = set(settings.values())
+    each = ("all", *shared.pop()) if len(shared) == 1 else ("each", *sorted(settings.items()))
+    return (unseen_of(record.config), each)
 
 
 def tournaments(records: Iterable[RunRecord]) -> list[list[RunRecord]]:
-    """Stored matches grouped into tournaments (:func:`protocol_key`). A match of two deep
-    learners belongs to every tournament with its seed, budgets and unit stats, whatever
-    the tabular readings: no reading of the tabular learners changes it."""
-    full: dict[tuple, list[RunRecord]] = defaultdict(list)
-    deep_only: dict[tuple, list[RunRecord]] = defaultdict(list)
+    """Stored matches grouped into tournaments: same seed, budgets and unit stats
+    (:func:`protocol_key`), same tabular readings (:func:`tabular_key`). A match is in
+    every tournament it was played for: a match of two deep learners in every one that
+    has both of them (no tabular reading changes it), a tabular learner's match in one
+    whose tabular learners have settings of their own when it has the same. A group
+    that another one contains is not a tournament of its own."""
+    buckets: dict[tuple, list[RunRecord]] = defaultdict(list)
     for rec in records:
-        key = protocol_key(rec)
-        (full if key[-1] is not None else deep_only)[key].append(rec)
-    groups = [recs + deep_only.get((*key[:-1], None), []) for key, recs in full.items()]
-    joined = {key[:-1] for key in full}
-    groups += [recs for key, recs in deep_only.items() if key[:-1] not in joined]
-    return groups
+        buckets[protocol_key(rec)].append(rec)
+    return [group for bucket in buckets.values() for group in _tournaments_of(bucket)]
+
+
+def _tournaments_of(records: Sequence[RunRecord]) -> list[list[RunRecord]]:
+    """:func:`tournaments` among matches of one seed, budgets and unit stats."""
+    by_key: dict[tuple, list[RunRecord]] = defaultdict(list)
+    deep_only = []
+    for rec in records:
+        key = tabular_key(rec)
+        if key is None:
+            deep_only.append(rec)
+        else:
+            by_key[key].append(rec)
+    groups = {key: list(recs) for key, recs in by_key.items()}
+    for (unseen, shared), recs in by_key.items():
+        if shared[0] != "each":
+            continue
+        own = dict(shared[1:])
+        for (other_unseen, other), others in by_key.items():
+            if other_unseen == unseen and other[0] == "all":
+                recs += [
+                    rec
+                    for rec in others
+                    if all(own.get(n) == other[1:] for n in tabular_settings(rec.config))
+                ]
+        groups[(unseen, shared)] = recs
+    found = []
+    for recs in groups.values():
+        names = {name for rec in recs for name in rec.config["algorithms"]}
+        found.append(recs + [r for r in deep_only if set(r.config["algorithms"]) <= names])
+    if deep_only:
+        found.append(deep_only)
+    keys = [frozenset(rec.key for rec in group) for group in found]
+    kept = [g for g, k in zip(found, keys, strict=True) if not any(k < other for other in keys)]
+    return sorted(kept, key=lambda g: reading_label(match_reading(g)) != "defaults")
 
 
 @dataclass(frozen=True)
@@ -720,7 +773,18 @@ def check_claims(records: Sequence[RunRecord], cells: Sequence[Cell]) -> list[Cl
         lacking = [registry.display_name(n) for n in required if n not in names]
         return ", ".join(lacking) if lacking else None
 
+    def unplayed(text: str, a: str, others: Sequence[str]) -> Claim | None:
+        lacking = [o for o in others if (a, o) not in table or (o, a) not in table]
+        if not lacking:
+            return None
+        pairs = ", ".join(
+            f"{registry.display_name(a)} vs {registry.display_name(o)}" for o in lacking
+        )
+        return Claim(text, NOT_CHECKED, f"no match of {pairs}")
+
     def beats(text: str, a: str, others: Sequence[str]) -> Claim:
+        if (why := unplayed(text, a, others)) is not None:
+            return why
         margins = [_paired(records, a, o) for o in others]
         evidence = "; ".join(
             f"{registry.display_name(a)} wins {table[(a, m.against)].win_rate:.1%} against "
@@ -746,6 +810,9 @@ def check_claims(records: Sequence[RunRecord], cells: Sequence[Cell]) -> list[Cl
     for deep, text in (("qmix", CLAIMS[3]), ("vdn", CLAIMS[4])):
         if lacking := missing(deep, "cmarl-cd"):
             claims.append(Claim(text, NOT_CHECKED, f"needs {lacking} in the tournament"))
+            continue
+        if (why := unplayed(text, deep, ["cmarl-cd"])) is not None:
+            claims.append(why)
             continue
         margin = _below(records, deep, "cmarl-cd", UNDER)
         cell = table[(deep, "cmarl-cd")]

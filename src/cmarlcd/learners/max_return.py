@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from cmarlcd.errors import check_discount, require
+from cmarlcd.errors import check_discount, check_tolerance
 from cmarlcd.learners.tabular import TabularLearner
 
 BELOW, TIE, RECORD = 0, 1, 2
@@ -26,7 +26,7 @@ BELOW, TIE, RECORD = 0, 1, 2
 def check_gamma_tolerance(gamma: float, tolerance: float) -> None:
     """Validate the discount of eq. (1) and the tie tolerance of eq. (16)."""
     check_discount(gamma)
-    require(tolerance >= 0, "tolerance", f"must be >= 0 (got {tolerance})")
+    check_tolerance(tolerance)
 
 
 @njit(cache=True)

@@ -58,6 +58,11 @@ TARGET, HIT, RECEIVED = 0, 1, 2
 NO_TARGET = -1
 
 
+#: The largest HP and damage of a unit (the damage a unit receives in a turn is summed
+#: over at most eight attackers, far inside int64).
+MAX_UNIT_STAT = 99
+
+
 @dataclass(frozen=True)
 class Unit:
     """A kind of unit (Fig. 5): its hit points, damage per hit and hit rate."""
@@ -67,10 +72,19 @@ class Unit:
     hit_rate: float
 
     def __post_init__(self) -> None:
-        require(1 <= self.hp <= 99, "hp", f"must be in 1..99 (got {self.hp})")
-        require(self.damage >= 1, "damage", f"must be >= 1 (got {self.damage})")
+        for name in ("hp", "damage"):
+            value = getattr(self, name)
+            require(
+                float(value).is_integer() and 1 <= value <= MAX_UNIT_STAT,
+                name,
+                f"must be a whole number in 1..{MAX_UNIT_STAT} (got {value})",
+            )
+            object.__setattr__(self, name, int(value))  # 6 and 6.0: one unit
         rate = self.hit_rate
-        require(0 < rate <= 1, "hit_rate", f"must be in (0, 1] (got {rate})")
+        require(
+            bool(np.isfinite(rate)) and 0 < rate <= 1, "hit_rate", f"must be in (0, 1] (got {rate})"
+        )
+        object.__setattr__(self, "hit_rate", float(rate))
 
 
 #: [choice] The marine (see the README's interpretation choices).
