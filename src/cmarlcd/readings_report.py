@@ -12,12 +12,14 @@ from rich.table import Table
 
 from cmarlcd import registry
 from cmarlcd.experiments import tournament as tour
+from cmarlcd.experiments import tournament_claims as claim_checks
+from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.experiments.readings import Outcome, dialled, stored_studies
 from cmarlcd.report import Output, figure_line, figure_name, say, show, versions
 from cmarlcd.store import RunRecord
 
 TITLE = "Figs. 6-7 under each reading of Section V-B: which choices decide the claims"
-#: Column headings of the claims, in :data:`tour.CLAIMS` order.
+#: Column headings of the claims, in :data:`claim_checks.CLAIMS` order.
 SHORT = (
     "CMARL-CD beats every other",
     "QMIX beats LA-OCA",
@@ -37,10 +39,10 @@ def _initials(name: str) -> str:
     )
 
 
-def margin_text(claim: tour.Claim, scale: float) -> str:
+def margin_text(claim: claim_checks.Claim, scale: float) -> str:
     """``contradicted: LA -6.9±8.2; VDN -23.0±10.3``: the verdict, then each margin and
     two standard errors (one margin: no opponent named)."""
-    if claim.verdict == tour.NOT_CHECKED:
+    if claim.verdict == claim_checks.NOT_CHECKED:
         return "not checked"
     digits = 1 if scale > 1 else 2
     parts = []
@@ -48,7 +50,7 @@ def margin_text(claim: tour.Claim, scale: float) -> str:
         if m.rounds == 0:
             parts.append(f"{_initials(m.against)} —")
             continue
-        two = tour.STANDARD_ERRORS * m.standard_error * scale
+        two = claim_checks.STANDARD_ERRORS * m.standard_error * scale
         number = f"{m.value * scale:+.{digits}f}±{two:.{digits}f}"
         parts.append(number if len(claim.margins) == 1 else f"{_initials(m.against)} {number}")
     return f"{claim.verdict}: " + "; ".join(parts)
@@ -69,7 +71,7 @@ def study_table(outcomes: Sequence[Outcome], caption: str) -> Table:
         claims = {c.claim: c for c in found.claims}
         cells = [
             margin_text(claims[text], scale)
-            for text, scale in zip(tour.CLAIMS, SCALES, strict=True)
+            for text, scale in zip(claim_checks.CLAIMS, SCALES, strict=True)
         ]
         score = "—" if math.isnan(found.score) else f"{100 * found.score:+.1f}"
         table.add_row(found.reading.name, score, *cells)
@@ -150,7 +152,7 @@ def stored_readings_report(
 ) -> dict[str, Any]:
     """:func:`readings_report` of one study found in the store (its tournaments'
     matches, :func:`cmarlcd.experiments.readings.stored_studies`)."""
-    (outcomes,) = stored_studies(tour.tournaments(records))
+    (outcomes,) = stored_studies(match_results.tournaments(records))
     return readings_report(outcomes, figures, console)
 
 

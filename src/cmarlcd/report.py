@@ -29,6 +29,8 @@ from rich.text import Text
 from cmarlcd.document import Recorder, version_warning
 from cmarlcd.experiments import episodic
 from cmarlcd.experiments import repeated as rep
+from cmarlcd.experiments import tournament_claims as claim_checks
+from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.experiments.episodic import EpisodicGame, Row
 from cmarlcd.experiments.repeated import CellSummary
 from cmarlcd.store import RunRecord
@@ -399,12 +401,12 @@ def tournament_report(
     known = list(tour.battlefield_learners())
     order = sorted(present, key=lambda n: (known.index(n) if n in known else len(known), n))
     names = {name: _label(name, present[name]) for name in order}
-    cells = tour.summarize(records, list(names))
-    claims = tour.check_claims(records, cells)
+    cells = match_results.summarize(records, list(names))
+    claims = claim_checks.check_claims(records, cells)
     first = records[0]
     rounds = sorted({r.key.run_index for r in records})
-    reading = tour.match_reading(records)
-    reading_text = tour.reading_label(reading)
+    reading = match_results.match_reading(records)
+    reading_text = match_results.reading_label(reading)
     settings = (
         f"{len(rounds)} round{'s' if len(rounds) > 1 else ''}, "
         f"{first.config['learn_episodes']:,} learning and "

@@ -13,6 +13,8 @@ import pytest
 
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import tournament as tour
+from cmarlcd.experiments import tournament_claims as claim_checks
+from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.games import battlefield
 from cmarlcd.games.battlefield import GUNNER, MARINE, Unit
 from cmarlcd.learners.automata import LAOCA, AutomatonConfig
@@ -53,7 +55,7 @@ def test_the_tournament_gamma_and_tolerance_reach_the_tabular_learners_only() ->
     pair = stored["cmarl-cd vs vdn"]
     learners = dict(zip(pair["algorithms"], pair["learners"], strict=True))
     assert learners["cmarl-cd"]["gamma"] == 0.0 and learners["vdn"]["gamma"] == 0.9
-    assert tour._learner(stored["la-oca vs la-oca"], 0).params().tolerance == 0.5
+    assert tour.learner_of(stored["la-oca vs la-oca"], 0).params().tolerance == 0.5
     # a match of two deep learners is the same match under every tabular reading
     default = {s.algorithm: s.key for s in tour.Tournament(contest.learners, rounds=1).specs()}
     assert {s.algorithm: s.key for s in contest.specs()}["vdn vs vdn"] == default["vdn vs vdn"]
@@ -248,7 +250,9 @@ def stored(
 
 def labelled(groups) -> dict[str, list[str]]:
     return {
-        tour.reading_label(tour.match_reading(g)): sorted(r.key.algorithm for r in g)
+        match_results.reading_label(match_results.match_reading(g)): sorted(
+            r.key.algorithm for r in g
+        )
         for g in groups
     }
 
@@ -264,7 +268,7 @@ def test_matches_of_two_deep_learners_join_every_tournament_of_their_unit_stats(
     default = stored(["cmarl-cd", "vdn"])
     myopic = stored(["cmarl-cd", "vdn"], gamma=0.0)
     other_rules = stored(["cmarl-cd", "vdn"], battlefield=SURE)
-    groups = tour.tournaments([deep, default, myopic, other_rules])
+    groups = match_results.tournaments([deep, default, myopic, other_rules])
     assert labelled(groups) == {
         "defaults": ["cmarl-cd vs vdn", "vdn vs vdn"],
         "γ = 0": ["cmarl-cd vs vdn", "vdn vs vdn"],
@@ -280,12 +284,12 @@ def test_a_deep_match_joins_only_tournaments_that_have_both_its_learners() -> No
     records = [
         RunRecord(r.key, {**played, "sides": r.config["algorithms"]}, 0.0) for r in [*default, lone]
     ]
-    groups = tour.tournaments(records)
+    groups = match_results.tournaments(records)
     assert labelled(groups)["γ = 0"] == ["la-oca vs la-oca"]
     assert len(labelled(groups)["defaults"]) == 10
     for group in groups:  # every claim is checked, or says why not, without failing
-        claims = tour.check_claims(group, tour.summarize(group))
-        assert len(claims) == len(tour.CLAIMS)
+        claims = claim_checks.check_claims(group, match_results.summarize(group))
+        assert len(claims) == len(claim_checks.CLAIMS)
 
 
 def test_tabular_learners_with_settings_of_their_own_stay_one_tournament() -> None:
@@ -295,15 +299,15 @@ def test_tabular_learners_with_settings_of_their_own_stay_one_tournament() -> No
         stored(["cmarl-cd", "la-oca"], gamma=own),
         stored(["la-oca", "la-oca"], gamma=own),
     ]
-    (group,) = tour.tournaments(matches)
+    (group,) = match_results.tournaments(matches)
     assert len(group) == 3
-    assert tour.match_reading(group)["gamma"] == [0.5, 0.9]
+    assert match_results.match_reading(group)["gamma"] == [0.5, 0.9]
 
 
 def test_seeds_and_budgets_keep_tournaments_apart() -> None:
     matches = [stored(["cmarl-cd", "vdn"]), stored(["cmarl-cd", "vdn"], seed=1)]
     matches += [stored(["cmarl-cd", "vdn"], learn=20), stored(["vdn", "vdn"], seed=1)]
-    groups = tour.tournaments(matches)
+    groups = match_results.tournaments(matches)
     assert sorted(len(g) for g in groups) == [1, 1, 2]
     assert {(g[0].key.root_seed, g[0].config["learn_episodes"]) for g in groups} == {
         (0, 10),

@@ -13,6 +13,7 @@ from cmarlcd.cli import app
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import readings as study
 from cmarlcd.experiments import tournament as tour
+from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments.tournament import Readings, Unit
 from cmarlcd.readings_report import margin_text
 
@@ -81,14 +82,22 @@ def test_a_study_too_large_as_a_whole_is_refused_at_once() -> None:
 
 
 def test_a_claim_s_cell_is_its_verdict_and_margins() -> None:
-    claim = tour.Claim(
-        tour.CLAIMS[0],
-        tour.CONTRADICTED,
+    claim = claim_checks.Claim(
+        claim_checks.CLAIMS[0],
+        claim_checks.CONTRADICTED,
         "",
-        (tour.Margin("la-oca", -0.069, 0.041, 10), tour.Margin("vdn", -0.23, 0.0515, 10)),
+        (
+            claim_checks.Margin("la-oca", -0.069, 0.041, 10),
+            claim_checks.Margin("vdn", -0.23, 0.0515, 10),
+        ),
     )
     assert margin_text(claim, 100.0) == "contradicted: LA -6.9±8.2; VDN -23.0±10.3"
-    steps = tour.Claim(tour.CLAIMS[5], tour.SUPPORTED, "", (tour.Margin("vdn", 0.38, 0.045, 9),))
+    steps = claim_checks.Claim(
+        claim_checks.CLAIMS[5],
+        claim_checks.SUPPORTED,
+        "",
+        (claim_checks.Margin("vdn", 0.38, 0.045, 9),),
+    )
     assert margin_text(steps, 1.0) == "supported: +0.38±0.09"
 
 

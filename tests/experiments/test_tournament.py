@@ -9,6 +9,8 @@ import pytest
 
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import tournament as tour
+from cmarlcd.experiments import tournament_claims as claim_checks
+from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.store import RunKey, RunRecord
 
 
@@ -90,7 +92,7 @@ def test_rates_and_win_steps_per_opponent_over_rounds() -> None:
         # self-play: each side of a is a, their mean
         match("a vs a", 0, ["a", "a"], [45, 35], 20, [90, 140]),
     ]
-    cells = {(c.algorithm, c.opponent): c for c in tour.summarize(records, ["a", "b"])}
+    cells = {(c.algorithm, c.opponent): c for c in match_results.summarize(records, ["a", "b"])}
     ab, ba, aa = cells[("a", "b")], cells[("b", "a")], cells[("a", "a")]
     assert ab.rounds == 2 and ab.win_rate == pytest.approx(0.55)
     assert ab.win_rate_std == pytest.approx(0.05)
@@ -103,7 +105,7 @@ def test_rates_and_win_steps_per_opponent_over_rounds() -> None:
 
 def test_a_round_without_wins_has_no_win_steps() -> None:
     records = [match("a vs b", 0, ["a", "b"], [0, 90], 10, [0, 450])]
-    cells = {(c.algorithm, c.opponent): c for c in tour.summarize(records, ["a", "b"])}
+    cells = {(c.algorithm, c.opponent): c for c in match_results.summarize(records, ["a", "b"])}
     assert math.isnan(cells[("a", "b")].win_steps)
     assert cells[("a", "b")].to_dict()["win_steps"] is None
 
@@ -121,8 +123,8 @@ def test_claims_say_supported_contradicted_or_not_checked() -> None:
                 [4 * (70 + r), 9 * (25 - r)],
             )
         )
-    cells = tour.summarize(records, ["cmarl-cd", "la-oca"])
-    claims = {c.claim: c for c in tour.check_claims(records, cells)}
+    cells = match_results.summarize(records, ["cmarl-cd", "la-oca"])
+    claims = {c.claim: c for c in claim_checks.check_claims(records, cells)}
     beats = claims["CMARL-CD has the higher win rate against every other algorithm"]
     assert beats.verdict == "supported" and "71.5%" in beats.evidence
     assert claims["CMARL-CD needs the fewest win steps"].verdict == "supported"
@@ -138,8 +140,8 @@ def test_claims_say_supported_contradicted_or_not_checked() -> None:
         )
         for r in range(4)
     ]
-    cells = tour.summarize(flipped, ["cmarl-cd", "la-oca"])
-    claims = {c.claim: c for c in tour.check_claims(flipped, cells)}
+    cells = match_results.summarize(flipped, ["cmarl-cd", "la-oca"])
+    claims = {c.claim: c for c in claim_checks.check_claims(flipped, cells)}
     assert claims["CMARL-CD has the higher win rate against every other algorithm"].verdict == (
         "contradicted"
     )
@@ -176,8 +178,8 @@ def test_under_40_percent_is_a_margin_with_its_standard_error(qmix_wins, verdict
         match("cmarl-cd vs qmix", r, ["qmix", "cmarl-cd"], [w, 90 - w], 10, [6 * w, 0])
         for r, w in enumerate(qmix_wins)
     ]
-    cells = tour.summarize(records, ["cmarl-cd", "qmix"])
-    claims = {c.claim: c for c in tour.check_claims(records, cells)}
+    cells = match_results.summarize(records, ["cmarl-cd", "qmix"])
+    claims = {c.claim: c for c in claim_checks.check_claims(records, cells)}
     claim = claims["QMIX wins under 40 % against CMARL-CD"]
     assert claim.verdict == verdict
     (margin,) = claim.margins

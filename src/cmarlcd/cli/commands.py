@@ -46,6 +46,7 @@ from cmarlcd.experiments import episodic, theorem
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.experiments import tournament as tour
+from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.games import battlefield
 from cmarlcd.games.matrix import MAX_JOINT_ACTIONS
 from cmarlcd.learners.coordination import RepeatedConfig
@@ -799,7 +800,7 @@ def _battlefield_groups(records: list[RunRecord]) -> list[tuple[str, Renderer, l
     from cmarlcd.experiments.readings import stored_studies
     from cmarlcd.readings_report import stored_readings_report
 
-    groups = tour.tournaments(records)
+    groups = match_results.tournaments(records)
     found: list[tuple[str, Renderer, list[RunRecord]]] = [
         ("tournament", report.tournament_report, g) for g in groups
     ]

@@ -22,6 +22,8 @@ from typing import Any
 
 from cmarlcd.errors import require
 from cmarlcd.experiments import tournament as tour
+from cmarlcd.experiments import tournament_claims as claim_checks
+from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.experiments.tournament import Readings, Tournament
 from cmarlcd.limits import check_run_count
 from cmarlcd.registry import LearnerConfig
@@ -37,7 +39,7 @@ HIT_RATES = (0.6, 0.7, 0.8, 0.9, 1.0)
 #: it (half the reward of one kill), against the default's 1e-9 (equal up to rounding).
 LOOSE_TOLERANCE = 1.0
 #: The claim whose margins decide where a reading points (the paper's main claim).
-MAIN_CLAIM = tour.CLAIMS[0]
+MAIN_CLAIM = claim_checks.CLAIMS[0]
 
 
 @dataclass(frozen=True)
@@ -55,7 +57,7 @@ class Reading:
     @property
     def name(self) -> str:
         """What it changes from the defaults, in a few words."""
-        return tour.reading_label(self.readings.as_reading())
+        return match_results.reading_label(self.readings.as_reading())
 
 
 def single_readings() -> list[Reading]:
@@ -80,7 +82,7 @@ def with_hit_rate(readings: Readings, rate: float) -> Readings:
 def dialled(readings: Readings) -> float | None:
     """The hit rate every unit shares when the unit stats differ from the defaults in
     their hit rates alone, else None."""
-    return tour.shared_hit_rate(readings.as_reading())
+    return match_results.shared_hit_rate(readings.as_reading())
 
 
 def dial(rates: Sequence[float] = HIT_RATES) -> list[Reading]:
@@ -88,7 +90,7 @@ def dial(rates: Sequence[float] = HIT_RATES) -> list[Reading]:
     return [Reading(with_hit_rate(Readings(), rate)) for rate in rates]
 
 
-def main_margin(claims: Sequence[tour.Claim]) -> float:
+def main_margin(claims: Sequence[claim_checks.Claim]) -> float:
     """Where a tournament stands on the main claim: the mean over opponents of CMARL-CD's
     win-rate difference (NaN if the claim was not checked)."""
     claim = next(c for c in claims if c.claim == MAIN_CLAIM)
@@ -164,8 +166,8 @@ class Outcome:
 
     reading: Reading
     records: list[RunRecord]
-    cells: list[tour.Cell]
-    claims: list[tour.Claim]
+    cells: list[match_results.Cell]
+    claims: list[claim_checks.Claim]
 
     @property
     def score(self) -> float:
@@ -174,8 +176,8 @@ class Outcome:
 
 def outcome(reading: Reading, records: Sequence[RunRecord]) -> Outcome:
     """The cells and claims of one reading's stored matches."""
-    cells = tour.summarize(records)
-    return Outcome(reading, list(records), cells, tour.check_claims(records, cells))
+    cells = match_results.summarize(records)
+    return Outcome(reading, list(records), cells, claim_checks.check_claims(records, cells))
 
 
 def records_of(study: ReadingsStudy, reading: Reading, stored: Mapping[Any, RunRecord]) -> list:
@@ -187,7 +189,7 @@ def records_of(study: ReadingsStudy, reading: Reading, stored: Mapping[Any, RunR
 
 
 def readings_from(reading: Mapping[str, Any]) -> Readings | None:
-    """The :class:`Readings` of a stored tournament (:func:`tour.match_reading`), or None
+    """The :class:`Readings` of a stored tournament (:func:`match_results.match_reading`), or None
     when its tabular learners were given different settings (the Python API allows it;
     no study does it)."""
     if isinstance(reading["gamma"], list) or isinstance(reading["tolerance"], list):
@@ -225,14 +227,14 @@ def kind_of(readings: Readings) -> str:
 
 
 def stored_studies(groups: Sequence[Sequence[RunRecord]]) -> list[list[Outcome]]:
-    """Stored tournaments (:func:`tour.tournaments`) that form a study: two or more
+    """Stored tournaments (:func:`match_results.tournaments`) that form a study: two or more
     readings with the same seed and budgets. Each study lists its tournaments in the
     order defaults, single changes, the dial by hit rate, combinations."""
     by_protocol: dict[tuple, list[tuple[Readings, Sequence[RunRecord]]]] = {}
     for records in groups:
-        readings = readings_from(tour.match_reading(records))
+        readings = readings_from(match_results.match_reading(records))
         if readings is not None:
-            key = tour.protocol_key(records[0])[:3]
+            key = match_results.protocol_key(records[0])[:3]
             by_protocol.setdefault(key, []).append((readings, records))
     studies = [
         [outcome(Reading(readings), records) for readings, records in found]
