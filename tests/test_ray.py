@@ -81,7 +81,7 @@ def test_a_ray_sweep_resumes_from_the_store(local_ray, tmp_path) -> None:
 def test_a_node_with_another_version_is_one_line(local_ray, tmp_path, monkeypatch) -> None:
     """The driver says it runs another version: every task refuses, and the sweep ends
     with a ConfigError naming the backend (one line on the command line)."""
-    from cmarlcd import ray_backend
+    from cmarlcd.backends import ray_cluster as ray_backend
     from cmarlcd.errors import ConfigError
 
     monkeypatch.setattr(ray_backend, "__version__", "0.0.0-elsewhere")

@@ -16,8 +16,9 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from cmarlcd import __version__, ray_backend, registry, report
+from cmarlcd import registry, report
 from cmarlcd import theory as theory_module
+from cmarlcd.backends import ray_cluster
 from cmarlcd.cli.options import (
     DEFAULT_FIGURES,
     AddressOption,
@@ -55,6 +56,7 @@ from cmarlcd.registry import LearnerConfig
 from cmarlcd.runner import SweepResult, run_sweep
 from cmarlcd.runs import RunSpec
 from cmarlcd.store import DEFAULT_STORE, ResultStore, RunRecord, discard_if_empty
+from cmarlcd.version import __version__
 
 app = typer.Typer(
     help="CMARL-CD: cooperative multi-agent RL by coordination degree; paper reproduction.",
@@ -119,7 +121,7 @@ def _sweep(
     """Compute what the store lacks of ``specs``; return their records and the tally. A
     store this call created is removed again if the sweep ends with nothing in it."""
     created = not run.store.exists()
-    watching, ray_backend.on_lost = ray_backend.on_lost, leave_now  # a lost cluster ends
+    watching, ray_cluster.on_lost = ray_cluster.on_lost, leave_now  # a lost cluster ends
     try:  # the command, even one blocked inside Ray
         with ResultStore(run.store) as store:
             done = run_sweep(
@@ -140,7 +142,7 @@ def _sweep(
             discard_if_empty(run.store)
         raise
     finally:
-        ray_backend.on_lost = watching
+        ray_cluster.on_lost = watching
 
 
 def _run_counts(done: SweepResult, store_path: Path, console: Console | None) -> dict[str, Any]:

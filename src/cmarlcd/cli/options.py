@@ -19,9 +19,9 @@ from typing import Annotated, Any, TypeVar
 import typer
 
 from cmarlcd.backends import BACKENDS
+from cmarlcd.backends.ray_cluster import head_of
 from cmarlcd.errors import BackendLost, ConfigError, require
 from cmarlcd.games.battlefield import Unit
-from cmarlcd.ray_backend import head_of
 from cmarlcd.runner import SweepInterrupted
 from cmarlcd.store import check_output_directory, check_store
 

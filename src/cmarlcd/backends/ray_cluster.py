@@ -42,9 +42,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from cmarlcd import __version__
-from cmarlcd.backends import Finished, ProgressCallback, Task, execute_reporting
+from cmarlcd.backends.tasks import Finished, ProgressCallback, Task, execute_reporting
 from cmarlcd.errors import BackendLost, ConfigError, require
+from cmarlcd.version import __version__
 
 #: How many times Ray reruns a task whose worker process or node died.
 TASK_RETRIES = 3

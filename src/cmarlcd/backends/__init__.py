@@ -1,0 +1,62 @@
+"""Where runs are computed: in this process, in local worker processes, or on Ray.
+
+A backend takes *tasks* tagged with a number, computes them somewhere, and hands back
+each task's outcomes when asked (:meth:`Backend.poll`). A task is a list of *batches*
+(runs of one config, computed together when the experiment can batch them): one long
+batch, or several short ones packed together so that each task is worth sending (a
+backend says how long a task should be, :attr:`Backend.task_seconds`). Progress reported
+from inside a run (:func:`cmarlcd.progress.report_progress`) reaches the
+``on_progress(tag, amount, seconds)`` callback given to the backend. Only the caller
+writes to the store.
+
+- :class:`InlineBackend`: this process, one batch at a time (``--workers 1``).
+- :class:`ProcessBackend`: a pool of forked local processes. A worker whose parent dies
+  (``kill -9``, an out-of-memory kill) exits at once rather than holding the store open;
+  Ctrl-C stops the workers.
+- :class:`~.ray_cluster.RayBackend`: tasks on a Ray cluster (the ``[ray]`` extra),
+  imported only when chosen.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+from cmarlcd.backends.local import InlineBackend, ProcessBackend, default_workers
+from cmarlcd.backends.tasks import Finished, ProgressCallback, Task
+
+__all__ = ["BACKENDS", "Backend", "default_workers", "make_backend"]
+
+#: The backends ``--backend`` accepts.
+BACKENDS = ("process", "ray")
+
+
+class Backend(Protocol):
+    """Computes tagged batches of runs."""
+
+    capacity: int
+    """How many tasks it should hold at once (queued or running)."""
+    task_seconds: float
+    """Short batches are packed into tasks of about this many estimated seconds."""
+
+    def submit(self, tag: int, task: Task) -> None:
+        """Start computing ``task``."""
+
+    def poll(self, timeout: float) -> list[Finished]:
+        """The batches finished since the last call, waiting up to ``timeout`` seconds
+        for one."""
+
+    def close(self, cancel: bool) -> None:
+        """Release the workers; ``cancel`` drops batches not finished."""
+
+
+def make_backend(
+    name: str, workers: int, on_progress: ProgressCallback, address: str | None = None
+) -> Backend:
+    """The backend called ``name`` (``process``: in-process when ``workers`` is 1)."""
+    if name == "ray":
+        from cmarlcd.backends.ray_cluster import RayBackend
+
+        return RayBackend(workers, on_progress, address)
+    if workers == 1:
+        return InlineBackend(on_progress)
+    return ProcessBackend(workers, on_progress)

@@ -1,0 +1,143 @@
+"""Backends on this machine: :class:`InlineBackend` (this process, ``--workers 1``) and
+:class:`ProcessBackend` (a pool of forked worker processes that exit with their parent).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import multiprocessing
+import os
+import signal
+import sys
+import threading
+import time
+from collections import deque
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from queue import Empty
+from typing import Any
+
+from cmarlcd.backends.tasks import (
+    Finished,
+    ProgressCallback,
+    Task,
+    execute_reporting,
+    execute_task,
+)
+from cmarlcd.progress import progress_sink
+
+#: How often a worker checks that its parent is still alive, in seconds (where the
+#: operating system cannot tell it, as Linux's parent-death signal does).
+PARENT_CHECK_SECONDS = 0.5
+
+
+class InlineBackend:
+    """This process, one task per :meth:`poll`."""
+
+    capacity = 1
+    task_seconds = 0.0  # nothing to save by packing
+
+    def __init__(self, on_progress: ProgressCallback) -> None:
+        self.on_progress = on_progress
+        self.queue: deque[tuple[int, Task]] = deque()
+
+    def submit(self, tag: int, task: Task) -> None:
+        self.queue.append((tag, task))
+
+    def poll(self, timeout: float) -> list[Finished]:
+        if not self.queue:
+            time.sleep(timeout)
+            return []
+        tag, task = self.queue.popleft()
+        with progress_sink(lambda amount, seconds: self.on_progress(tag, amount, seconds)):
+            return [(tag, execute_task(task))]
+
+    def close(self, cancel: bool) -> None:
+        self.queue.clear()
+
+
+_progress_queue: Any = None
+
+
+def default_workers() -> int:
+    """All cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _execute_in_worker(tag: int, task: Task) -> Finished:
+    return tag, execute_reporting(tag, task, _progress_queue.put)
+
+
+def _worker_init(queue: Any, threads: int, parent: int) -> None:
+    global _progress_queue
+    _exit_with_parent(parent)
+    _progress_queue = queue
+    os.environ["OMP_NUM_THREADS"] = str(threads)
+    if "torch" in sys.modules:  # forked from a parent that imported it
+        sys.modules["torch"].set_num_threads(threads)
+
+
+def _exit_with_parent(parent: int) -> None:
+    """End this worker as soon as the process that started it is gone."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            pr_set_pdeathsig = 1
+            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL)
+    if os.getppid() != parent:  # the parent died before the signal was armed
+        os._exit(1)
+
+    def watch() -> None:  # elsewhere (or as a second line): poll, between compiled calls
+        while os.getppid() == parent:
+            time.sleep(PARENT_CHECK_SECONDS)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+class ProcessBackend:
+    """A pool of ``workers`` local processes (forked where the system can), each with
+    an equal share of the cores for its threads."""
+
+    task_seconds = 0.05  # a task costs a fraction of a millisecond to send
+
+    def __init__(self, workers: int, on_progress: ProgressCallback) -> None:
+        self.on_progress = on_progress
+        self.capacity = 2 * workers  # one running and one queued per worker
+        method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+        context = multiprocessing.get_context(method)
+        self.queue = context.Queue()
+        threads = max(1, default_workers() // workers)
+        self.pool = ProcessPoolExecutor(
+            workers,
+            mp_context=context,
+            initializer=_worker_init,
+            initargs=(self.queue, threads, os.getpid()),
+        )
+        self.pending: set[Future] = set()
+
+    def submit(self, tag: int, task: Task) -> None:
+        self.pending.add(self.pool.submit(_execute_in_worker, tag, task))
+
+    def poll(self, timeout: float) -> list[Finished]:
+        if self.pending:
+            done, self.pending = wait(self.pending, timeout=timeout, return_when=FIRST_COMPLETED)
+        else:
+            done = set()
+            time.sleep(timeout)
+        self._drain()
+        return [future.result() for future in done]
+
+    def _drain(self) -> None:
+        while True:
+            try:
+                tag, amount, seconds = self.queue.get_nowait()
+            except Empty:
+                return
+            self.on_progress(tag, amount, seconds)
+
+    def close(self, cancel: bool) -> None:
+        # On Ctrl-C the workers got the signal too and end; do not wait for queued runs.
+        self.pool.shutdown(wait=not cancel, cancel_futures=cancel)
