@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from cmarlcd import __version__
-from cmarlcd.cli import commands
+from cmarlcd.cli import reproduce as commands
 from cmarlcd.cli.compare import comparison
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.runner import SweepObserver, run_sweep
@@ -80,8 +80,8 @@ def plan(kind: str) -> tuple[list, Any, int]:
         )
         return sweep.specs(), lambda spec: "DSN", dsn_exp.SEED_BATCH
     preset = commands.PRESETS["quick"]
-    parts = commands._reproduction_plan(preset, 0, {}, True)
-    parts[commands.COMPARISON] = commands._comparison(preset, 0).specs()
+    parts = commands.reproduction_plan(preset, 0, {}, True)
+    parts[commands.COMPARISON] = commands.comparison_of(preset, 0).specs()
     section = {s.key: commands.bar_name(name, s) for name, specs in parts.items() for s in specs}
     specs = [s for specs in parts.values() for s in specs]
     return specs, lambda spec: section[spec.key], 10

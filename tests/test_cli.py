@@ -293,7 +293,7 @@ def test_dsn_bad_input(paths, args, option) -> None:
 
 def tiny_reproduction(paths, monkeypatch):
     """``reproduce`` of a tiny preset into ``paths``; returns its JSON document."""
-    from cmarlcd.cli import commands as cli
+    from cmarlcd.cli import reproduce as cli
 
     tiny = cli.Preset(
         repeated_runs=1,
@@ -369,7 +369,7 @@ def without_torch(monkeypatch) -> None:
 
 
 def tiny_paper_preset(monkeypatch) -> None:
-    from cmarlcd.cli import commands as cli
+    from cmarlcd.cli import reproduce as cli
 
     tiny = cli.Preset(
         1,

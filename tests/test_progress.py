@@ -13,8 +13,8 @@ import pytest
 from rich.console import Console
 
 from cmarlcd import registry
-from cmarlcd.cli.commands import bar_name
 from cmarlcd.cli.progress import OVERALL, Pace, RichSweepView, clock, percent
+from cmarlcd.cli.reproduce import bar_name
 from cmarlcd.experiments import compare, register
 from cmarlcd.progress import report_progress
 from cmarlcd.runner import Section, SweepObserver, run_sweep

@@ -33,9 +33,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cmarlcd.backends import BACKENDS, default_workers, make_backend
+from cmarlcd.backends import check_backend, default_workers, make_backend
 from cmarlcd.claims import CLAIM_TIMEOUT, HEARTBEAT_SECONDS, Owner
-from cmarlcd.errors import require
 from cmarlcd.experiments import get_experiment
 from cmarlcd.limits import check_seed_batch, check_workers
 from cmarlcd.runs import RunSpec
@@ -161,10 +160,7 @@ def run_sweep(
     Runs of one config whose experiment can batch them are computed ``seed_batch`` at a
     time in one call (the results are the same as one by one).
     """
-    require(
-        backend in BACKENDS, "backend", f"must be one of {', '.join(BACKENDS)} (got {backend!r})"
-    )
-    require(address is None or backend == "ray", "address", "needs --backend ray")
+    check_backend(backend, address)
     if workers is None and not (backend == "ray" and address):
         workers = default_workers()
     check_workers(workers)

@@ -19,15 +19,37 @@ writes to the store.
 
 from __future__ import annotations
 
+import importlib.util
 from typing import Protocol
 
 from cmarlcd.backends.local import InlineBackend, ProcessBackend, default_workers
 from cmarlcd.backends.tasks import Finished, ProgressCallback, Task
+from cmarlcd.errors import require
 
-__all__ = ["BACKENDS", "Backend", "default_workers", "make_backend"]
+__all__ = ["BACKENDS", "Backend", "check_backend", "default_workers", "make_backend"]
 
 #: The backends ``--backend`` accepts.
 BACKENDS = ("process", "ray")
+
+
+def check_backend(backend: str, address: str | None) -> None:
+    """A known backend, an address only for Ray, and Ray installed when chosen (checked
+    without importing it)."""
+    require(
+        backend in BACKENDS, "backend", f"must be one of {', '.join(BACKENDS)} (got {backend!r})"
+    )
+    require(address is None or backend == "ray", "address", "needs --backend ray")
+    require(address is None or address.strip() != "", "address", "must not be empty")
+    if address not in (None, "auto"):
+        from cmarlcd.backends.ray_cluster import head_of  # (imports no Ray)
+
+        head_of(address)  # HOST:PORT or ray://HOST:PORT
+    if backend == "ray":
+        require(
+            importlib.util.find_spec("ray") is not None,
+            "backend",
+            "ray needs Ray: pip install 'cmarl-cd[ray]'",
+        )
 
 
 class Backend(Protocol):

@@ -1,10 +1,35 @@
-"""The ``cmarl-cd`` command line: :mod:`~.commands` (the commands; ``compare`` in
-:mod:`~.compare`, ``readings`` in :mod:`~.readings`), :mod:`~.options` (parsing and
-clean failures) and :mod:`~.progress` (the progress bar)."""
+"""The ``cmarl-cd`` command line: one module per command (:mod:`~.repeated`, :mod:`~.dsn`,
+:mod:`~.tournament`, :mod:`~.readings`, :mod:`~.reproduce`, :mod:`~.compare`,
+:mod:`~.report`, :mod:`~.play`, :mod:`~.theory`), each registering with the app of
+:mod:`~.app`; :mod:`~.sweeps` (the options and sweep every computing command shares),
+:mod:`~.options` (parsing and clean failures) and :mod:`~.progress` (the progress bar)."""
 
-from cmarlcd.cli import compare as _compare  # noqa: F401  (registers ``compare``)
-from cmarlcd.cli import readings as _readings  # noqa: F401  (registers ``readings``)
-from cmarlcd.cli.commands import app
+from cmarlcd.cli import (  # noqa: F401  (each registers its command)
+    compare,
+    dsn,
+    play,
+    readings,
+    repeated,
+    report,
+    reproduce,
+    theory,
+    tournament,
+)
+from cmarlcd.cli.app import app
 from cmarlcd.cli.options import parse_range
 
 __all__ = ["app", "parse_range"]
+
+#: The commands in the order ``--help`` lists them: the paper first, then beyond it.
+ORDER = (
+    "reproduce",
+    "repeated",
+    "dsn",
+    "tournament",
+    "readings",
+    "theory",
+    "compare",
+    "play",
+    "report",
+)
+app.registered_commands.sort(key=lambda c: ORDER.index(c.name or c.callback.__name__))

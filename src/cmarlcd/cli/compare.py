@@ -9,30 +9,16 @@ import typer
 from rich.console import Console
 
 from cmarlcd import registry
-from cmarlcd.cli.commands import (
-    Execution,
-    _print_results,
-    _run_counts,
-    _sweep,
-    app,
-    bar_name,
-)
+from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
-    DEFAULT_FIGURES,
-    AddressOption,
-    BackendOption,
-    FiguresOption,
-    JsonOption,
-    ProgressOption,
     SeedOption,
-    StoreOption,
-    WorkersOption,
     fails_cleanly,
     parse_names,
 )
+from cmarlcd.cli.reproduce import bar_name
+from cmarlcd.cli.sweeps import Execution, compute_runs, print_results, run_counts, with_execution
 from cmarlcd.compare_report import compare_report
 from cmarlcd.experiments import compare as cmp
-from cmarlcd.store import DEFAULT_STORE
 
 #: Every game of the comparison, the DSN last.
 GAMES = (*cmp.GAMES, cmp.DSN)
@@ -52,7 +38,7 @@ def run_comparison(
     sweep: cmp.Comparison, run: Execution, console: Console | None
 ) -> dict[str, Any]:
     """Run (or resume) a comparison and report it; return its JSON document."""
-    records, done = _sweep(
+    records, done = compute_runs(
         sweep.specs(), run, "compare", section=lambda spec: bar_name("compare", spec)
     )
     doc = compare_report(records, run.figures, console)
@@ -64,11 +50,12 @@ def run_comparison(
             f"and central Q play at most {cmp.joint_action.MAX_JOINT_ACTIONS:,} joint actions)",
             soft_wrap=True,
         )
-    return {**doc, "skipped": skipped, **_run_counts(done, run.store, console)}
+    return {**doc, "skipped": skipped, **run_counts(done, run.store, console)}
 
 
 @app.command(short_help="Beyond the paper: CMARL-CD against the classic independent learners.")
 @fails_cleanly
+@with_execution
 def compare(
     learners: Annotated[
         str, typer.Option(help=f"Comma list of {registry.repeated_learner_names()}.")
@@ -80,18 +67,11 @@ def compare(
         int, typer.Option(help="Runs per learner and game (random games: per size).")
     ] = cmp.DEFAULT_RUNS,
     seed: SeedOption = 0,
-    workers: WorkersOption = None,
-    backend: BackendOption = "process",
-    address: AddressOption = None,
-    as_json: JsonOption = False,
-    store: StoreOption = DEFAULT_STORE,
-    figures: FiguresOption = DEFAULT_FIGURES,
-    progress: ProgressOption = True,
+    *,
+    run: Execution,
 ) -> None:
     """Every learner on every game, many seeds: % of runs ending on an optimal joint
     action and the games until the greedy joint action settled, a table and a heatmap
     (stored and resumable like every experiment)."""
     sweep = comparison(learners, games, runs, seed)
-    run = Execution(store, figures, workers, progress, backend, address)
-    run.check()
-    _print_results(as_json, run, lambda console: run_comparison(sweep, run, console))
+    print_results(run, lambda console: run_comparison(sweep, run, console))

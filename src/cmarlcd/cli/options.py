@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import errno
 import functools
-import importlib.util
 import os
 import sys
 from collections.abc import Callable
@@ -18,8 +17,6 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 
-from cmarlcd.backends import BACKENDS
-from cmarlcd.backends.ray_cluster import head_of
 from cmarlcd.errors import BackendLost, ConfigError, require
 from cmarlcd.games.battlefield import Unit
 from cmarlcd.runner import SweepInterrupted
@@ -105,24 +102,6 @@ def check_outputs(store: Path | None = None, figures: Path | None = None) -> Non
         check_store(store)
     if figures is not None:
         check_output_directory(figures, "figures")
-
-
-def check_backend(backend: str, address: str | None) -> None:
-    """A known backend, an address only for Ray, and Ray installed when chosen (checked
-    without importing it)."""
-    require(
-        backend in BACKENDS, "backend", f"must be one of {', '.join(BACKENDS)} (got {backend!r})"
-    )
-    require(address is None or backend == "ray", "address", "needs --backend ray")
-    require(address is None or address.strip() != "", "address", "must not be empty")
-    if address not in (None, "auto"):
-        head_of(address)  # HOST:PORT or ray://HOST:PORT
-    if backend == "ray":
-        require(
-            importlib.util.find_spec("ray") is not None,
-            "backend",
-            "ray needs Ray: pip install 'cmarl-cd[ray]'",
-        )
 
 
 def parse_range(text: str, parameter: str, low: int, high: int) -> tuple[int, ...]:

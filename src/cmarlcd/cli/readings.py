@@ -8,35 +8,21 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from cmarlcd.cli.commands import (
-    Execution,
-    _print_results,
-    _run_counts,
-    _sweep,
-    _tournament_learners,
-    app,
-)
+from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
-    DEFAULT_FIGURES,
-    AddressOption,
-    BackendOption,
-    FiguresOption,
-    JsonOption,
-    ProgressOption,
     SeedOption,
-    StoreOption,
-    WorkersOption,
     fails_cleanly,
     parse_count,
     parse_names,
 )
+from cmarlcd.cli.sweeps import Execution, compute_runs, print_results, run_counts, with_execution
+from cmarlcd.cli.tournament import tournament_learners
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import readings as study_module
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.limits import check_seed_batch
 from cmarlcd.readings_report import readings_report
 from cmarlcd.runner import SweepResult
-from cmarlcd.store import DEFAULT_STORE
 
 
 def parse_rates(text: str) -> tuple[float, ...]:
@@ -55,7 +41,7 @@ def run_study(
     """Play (or resume) the single changes and the dial, then the combination they point
     to; report every tournament of the study."""
     first = study.first_stage()
-    records, done = _sweep(study.specs(first), run, "battlefield readings", seed_batch)
+    records, done = compute_runs(study.specs(first), run, "battlefield readings", seed_batch)
     stored = {rec.key: rec for rec in records}
     outcomes = [study_module.outcome(r, study_module.records_of(study, r, stored)) for r in first]
     combined = study_module.combination({o.reading: o.score for o in outcomes})
@@ -63,7 +49,7 @@ def run_study(
     if combined is not None and combined not in first:
         if console is not None:
             console.print(f"the single changes point to: {combined.name}", soft_wrap=True)
-        more, extra = _sweep(study.specs([combined]), run, "readings combined", seed_batch)
+        more, extra = compute_runs(study.specs([combined]), run, "readings combined", seed_batch)
         stored.update((rec.key, rec) for rec in more)
         outcomes.append(
             study_module.outcome(combined, study_module.records_of(study, combined, stored))
@@ -72,7 +58,7 @@ def run_study(
     elif console is not None:
         console.print("fewer than two changes raise CMARL-CD's margin: no combination played")
     doc = readings_report(outcomes, run.figures, console)
-    return {**doc, **_run_counts(_total(tally), run.store, console)}
+    return {**doc, **run_counts(_total(tally), run.store, console)}
 
 
 def _total(parts: list[SweepResult]) -> SweepResult:
@@ -83,6 +69,7 @@ def _total(parts: list[SweepResult]) -> SweepResult:
 
 @app.command(short_help="Figs. 6-7 under each reading of what the paper leaves open.")
 @fails_cleanly
+@with_execution
 def readings(
     algorithms: Annotated[
         str, typer.Option(help="Comma list of the algorithms that play.")
@@ -104,13 +91,8 @@ def readings(
         int,
         typer.Option(help="Rounds of a pairing with VDN/QMIX that learn together (one model)."),
     ] = tour.SEED_BATCH,
-    workers: WorkersOption = None,
-    backend: BackendOption = "process",
-    address: AddressOption = None,
-    as_json: JsonOption = False,
-    store: StoreOption = DEFAULT_STORE,
-    figures: FiguresOption = DEFAULT_FIGURES,
-    progress: ProgressOption = True,
+    *,
+    run: Execution,
 ) -> None:
     """One battlefield tournament with the defaults, one per reading that changes one
     choice (γ = 0 for the tabular learners, random targets in unseen states, a loose
@@ -119,7 +101,7 @@ def readings(
     win rates against the hit rate. Every match is stored, so the study resumes, and
     each tournament is also a section of 'cmarl-cd report'."""
     study = study_module.ReadingsStudy(
-        learners=_tournament_learners(parse_names(algorithms, "algorithms")),
+        learners=tournament_learners(parse_names(algorithms, "algorithms")),
         rounds=rounds,
         learn_episodes=parse_count(learn_episodes, "learn_episodes"),
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),
@@ -127,6 +109,4 @@ def readings(
         hit_rates=parse_rates(hit_rates),
     )
     check_seed_batch(seed_batch)
-    run = Execution(store, figures, workers, progress, backend, address)
-    run.check()
-    _print_results(as_json, run, lambda console: run_study(study, run, console, seed_batch))
+    print_results(run, lambda console: run_study(study, run, console, seed_batch))

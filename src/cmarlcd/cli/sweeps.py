@@ -1,0 +1,180 @@
+"""What every command that computes shares: where its runs are computed and its results
+go (:class:`Execution`, whose options are declared once, :func:`with_execution`), the
+sweep into the store, and how results are printed."""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import inspect
+import json
+import typing
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+from rich.console import Console
+
+from cmarlcd import report
+from cmarlcd.backends import check_backend, ray_cluster
+from cmarlcd.cli.options import (
+    DEFAULT_FIGURES,
+    AddressOption,
+    BackendOption,
+    FiguresOption,
+    JsonOption,
+    ProgressOption,
+    StoreOption,
+    WorkersOption,
+    check_outputs,
+    leave_now,
+)
+from cmarlcd.cli.progress import RichSweepView
+from cmarlcd.limits import check_workers
+from cmarlcd.runner import SweepResult, run_sweep
+from cmarlcd.runs import RunSpec
+from cmarlcd.store import DEFAULT_STORE, ResultStore, RunRecord, discard_if_empty
+from cmarlcd.version import __version__
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+@dataclass(frozen=True)
+class Execution:
+    """Where a command's runs are computed and its results go: the options every command
+    that computes takes, declared once (:data:`EXECUTION_OPTIONS`) and checked once
+    (:meth:`check`, by :func:`with_execution` before the command runs)."""
+
+    store: Path = DEFAULT_STORE
+    figures: Path = DEFAULT_FIGURES
+    workers: int | None = None
+    progress: bool = True
+    backend: str = "process"
+    address: str | None = None
+    as_json: bool = False
+
+    def check(self) -> None:
+        """Every choice is valid and every output path usable, before anything runs."""
+        check_workers(self.workers)
+        check_backend(self.backend, self.address)
+        check_outputs(self.store, self.figures)
+
+
+#: The options of :class:`Execution`, as a command line shows them (in this order).
+EXECUTION_OPTIONS: dict[str, tuple[Any, Any]] = {
+    "workers": (WorkersOption, None),
+    "backend": (BackendOption, "process"),
+    "address": (AddressOption, None),
+    "as_json": (JsonOption, False),
+    "store": (StoreOption, DEFAULT_STORE),
+    "figures": (FiguresOption, DEFAULT_FIGURES),
+    "progress": (ProgressOption, True),
+}
+
+
+def with_execution(command: F) -> F:
+    """A command that computes: its signature gains the options of :class:`Execution`,
+    which are checked before the command runs and handed to it as ``run``."""
+    hints = typing.get_type_hints(command, include_extras=True)
+    own = [
+        p.replace(annotation=hints[p.name])
+        for p in inspect.signature(command).parameters.values()
+        if p.name != "run"
+    ]
+    shared = [
+        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=kind)
+        for name, (kind, default) in EXECUTION_OPTIONS.items()
+    ]
+
+    @functools.wraps(command)
+    def wrapper(**options: Any) -> Any:
+        run = Execution(**{name: options.pop(name) for name in EXECUTION_OPTIONS})
+        run.check()
+        return command(run=run, **options)
+
+    wrapper.__signature__ = inspect.Signature(own + shared)  # type: ignore[attr-defined]
+    wrapper.__annotations__ = {p.name: p.annotation for p in own + shared}
+    return wrapper  # type: ignore[return-value]
+
+
+def compute_runs(
+    specs: Sequence[RunSpec],
+    run: Execution,
+    label: str,
+    seed_batch: int = 1,
+    section: Callable[[RunSpec], str] | None = None,
+) -> tuple[list[RunRecord], SweepResult]:
+    """Compute what the store lacks of ``specs``; return their records and the tally. A
+    store this call created is removed again if the sweep ends with nothing in it."""
+    created = not run.store.exists()
+    watching, ray_cluster.on_lost = ray_cluster.on_lost, leave_now  # a lost cluster ends
+    try:  # the command, even one blocked inside Ray
+        with ResultStore(run.store) as store:
+            done = run_sweep(
+                specs,
+                store,
+                workers=run.workers,
+                version=__version__,
+                observer=RichSweepView(show=run.progress),
+                description=label,
+                seed_batch=seed_batch,
+                backend=run.backend,
+                address=run.address,
+                section=section,
+            )
+            return store.get(s.key for s in specs), done
+    except BaseException:
+        if created:
+            discard_if_empty(run.store)
+        raise
+    finally:
+        ray_cluster.on_lost = watching
+
+
+def run_counts(done: SweepResult, store_path: Path, console: Console | None) -> dict[str, Any]:
+    if console is not None:
+        shared = f", {done.shared} by another sweep on the same store" if done.shared else ""
+        report.say(
+            console,
+            f"{done.computed} runs computed, {done.reused} from the store{shared} in "
+            f"{done.wall_seconds:.1f} s",
+        )
+    return {
+        "runs_computed": done.computed,
+        "runs_reused": done.reused,
+        "runs_shared": done.shared,
+        "wall_seconds": done.wall_seconds,
+        "store": str(store_path),
+    }
+
+
+def where(store: Path, figures: Path, console: Console | None) -> None:
+    """The last line of a command: where its results went."""
+    if console is not None:
+        report.say(console, f"results: runs in {store}, figures in {figures}/")
+
+
+def console_for(as_json: bool) -> Console | None:
+    """The console tables go to, or None when stdout carries JSON alone."""
+    return None if as_json else Console()
+
+
+def print_results(run: Execution, compute: Callable[[Console | None], dict]) -> None:
+    """Compute and print a command's results: tables and a last line saying where they
+    went, or its JSON document alone."""
+    console = console_for(run.as_json)
+    doc = compute(console)
+    where(run.store, run.figures, console)
+    if run.as_json:
+        print(json.dumps(doc, indent=2))
+
+
+def has_torch() -> bool:
+    return importlib.util.find_spec("torch") is not None
+
+
+def needs_torch(algorithms: Iterable[str]) -> str:
+    names = list(algorithms)
+    verb = "needs" if len(names) == 1 else "need"
+    return f"{' and '.join(names)} {verb} PyTorch: pip install 'cmarl-cd[deep]'"
