@@ -59,6 +59,11 @@ SEED_BATCH = 10
 STD_DDOF = 0
 
 
+def is_tabular(config: LearnerConfig) -> bool:
+    """Whether a learner keeps tables (CMARL-CD, LA-OCA) rather than networks."""
+    return isinstance(config, TabularConfig)
+
+
 def battlefield_learners() -> dict[str, LearnerConfig]:
     """The paper's settings of each learner on the battlefield (Section V-B)."""
     return {
@@ -69,8 +74,9 @@ def battlefield_learners() -> dict[str, LearnerConfig]:
     }
 
 
-#: The tabular learners (their loops are compiled once before workers fork).
-TABULAR = ("cmarl-cd", "la-oca")
+#: The tabular learners of the battlefield (their loops are compiled once before workers
+#: fork), found by their kind, not by name.
+TABULAR = tuple(name for name, config in battlefield_learners().items() if is_tabular(config))
 
 
 #: State indices a tabular side may address (its row index holds 8 bytes per index):
@@ -79,11 +85,6 @@ TABULAR = ("cmarl-cd", "la-oca")
 MAX_TABLE_STATES = 50_000_000
 #: The unit kinds of a battlefield, in the order :class:`Readings` names them.
 UNIT_KINDS = ("marine", "gunner")
-
-
-def is_tabular(config: LearnerConfig) -> bool:
-    """Whether a learner keeps tables (CMARL-CD, LA-OCA) rather than networks."""
-    return isinstance(config, TabularConfig)
 
 
 @dataclass(frozen=True)
@@ -354,7 +355,7 @@ def _cost(config: Mapping[str, Any]) -> float:
     a deep side adds about 8 times that (fitted to the quick preset's measured matches
     on the project's 2-core machine, benchmarks/fit_costs.py): matches with deep sides
     start first."""
-    deep = sum(name not in TABULAR for name in config["algorithms"])
+    deep = sum(registry.needs_torch(name) for name in config["algorithms"])
     return 14e-6 * _work(config) * (1 + 8 * deep)
 
 
@@ -376,7 +377,7 @@ def run_batch(config: dict[str, Any], seeds: list[np.random.SeedSequence]) -> li
 
 def has_deep_learner(config: Mapping[str, Any]) -> bool:
     """Whether a pairing has a deep learner (its rounds are worth batching)."""
-    return any(name not in TABULAR for name in config["algorithms"])
+    return any(registry.needs_torch(name) for name in config["algorithms"])
 
 
 TOURNAMENT = Experiment(
