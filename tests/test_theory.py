@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from cmarlcd.figures import phase_portrait
 from cmarlcd.theory import (
     StabilityReport,
     check_theorem1,
@@ -17,7 +18,6 @@ from cmarlcd.theory import (
     integrate,
     jacobian_fd,
     optimum_point,
-    plot_phase_portrait,
     random_start,
     reduce_strategies,
     reduced_field,
@@ -230,7 +230,7 @@ def test_bad_input_names_the_parameter(kwargs: dict[str, object], parameter: str
 
 
 def test_phase_portrait_writes_png(tmp_path) -> None:
-    path = plot_phase_portrait(tmp_path / "figures" / "phase.png", temperature=0.5, trajectories=4)
+    path = phase_portrait(tmp_path / "figures" / "phase.png", temperature=0.5, trajectories=4)
     assert path == tmp_path / "figures" / "phase.png"
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert path.stat().st_size > 10_000

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import textwrap
 from collections.abc import Sequence
 from pathlib import Path
@@ -261,3 +262,57 @@ def hit_rate_dial(
     fig.suptitle(textwrap.fill(title, 110), fontsize=9)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def phase_portrait(
+    path: str | os.PathLike[str],
+    temperature: float = 1.0,
+    seed: int = 0,
+    trajectories: int = 12,
+) -> Path:
+    """Theorem 1's phase portrait of the reduced system (12) for 2 agents and 2 optima
+    (:func:`cmarlcd.theory.phase_portrait`); writes a PNG and returns its path.
+
+    The state is ``(p_bar_11, p_bar_21)`` in ``[0, 1]^2``: the field as streamlines, the
+    random starts' trajectories, the two optima (filled: stable by Theorem 1) and the
+    other critical points (hollow): the mismatched corners and the centre all lie on the
+    line of equilibria ``x + y = 1`` (dashed), where ``D_1 = D_2``.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+
+    from cmarlcd.theory import phase_portrait as portrait_of
+
+    data = portrait_of(temperature, seed, trajectories)
+    fig = Figure(figsize=(6.4, 6.0))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    speed = np.hypot(data.u, data.v)
+    shade = Normalize(vmin=-0.4 * speed.max(), vmax=speed.max())  # slowest still visible
+    ax.streamplot(
+        data.grid, data.grid, data.u, data.v, color=speed, cmap="Greys", norm=shade,
+        density=1.2, linewidth=0.8,
+    )  # fmt: skip
+    ax.plot([0, 1], [1, 0], "--", color="tab:red", lw=1.2, label="equilibria: D₁ = D₂")
+    for index, points in enumerate(data.trajectories):
+        label = "trajectories of eq. (8)" if index == 0 else None
+        ax.plot(points[:, 0], points[:, 1], color="tab:blue", lw=1.4, label=label)
+        ax.plot(points[0, 0], points[0, 1], "o", color="tab:blue", ms=3)
+    ax.plot([1, 0], [1, 0], "o", color="black", ms=10, label="optima (stable)", clip_on=False)
+    ax.plot(
+        [1, 0, 0.5], [0, 1, 0.5], "o", mfc="white", mec="tab:red", mew=1.5, ms=10,
+        label="other critical points", clip_on=False,
+    )  # fmt: skip
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    ax.set_aspect("equal")
+    ax.set_xlabel("p̄₁₁ (agent 1, action 1)")
+    ax.set_ylabel("p̄₂₁ (agent 2, action 1)")
+    ax.set_title(f"CMARL-CD Theorem 1: reduced system (eq. 12), n = m = 2, T = {temperature:g}")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8)
+    fig.tight_layout()
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    return out

@@ -31,10 +31,8 @@ Two facts used below and in the tests, both read off eq. (8):
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -379,20 +377,27 @@ def check_theorem1(
     )
 
 
-def plot_phase_portrait(
-    path: str | os.PathLike[str],
-    temperature: float = 1.0,
-    seed: int = 0,
-    trajectories: int = 12,
-) -> Path:
-    """Phase portrait of the reduced system (12) for 2 agents and 2 optima; writes a PNG.
+@dataclass(frozen=True)
+class PhasePortrait:
+    """What the phase portrait of the reduced system (12) shows, for 2 agents and 2
+    optima (drawn by :func:`cmarlcd.figures.phase_portrait`)."""
 
-    The state is ``(p_bar_11, p_bar_21)`` in ``[0, 1]^2``. Draws the field as streamlines,
-    ``trajectories`` random starts integrated along eq. (8) in c-space, the two optima
-    (filled: stable by Theorem 1) and the other critical points (hollow): the mismatched
-    corners and the centre all lie on the line of equilibria ``x + y = 1`` (dashed), where
-    ``D_1 = D_2``. Returns the path written.
-    """
+    temperature: float
+    grid: np.ndarray
+    """Points of each axis, ``(p_bar_11, p_bar_21)`` in ``[0, 1]``."""
+    u: np.ndarray
+    """The field's first component at ``(grid[k], grid[r])``, indexed ``[r, k]`` ..."""
+    v: np.ndarray
+    """... and its second."""
+    trajectories: list[np.ndarray]
+    """Random starts integrated along eq. (8) in c-space, as ``(p_bar_11, p_bar_21)``."""
+
+
+def phase_portrait(
+    temperature: float = 1.0, seed: int = 0, trajectories: int = 12
+) -> PhasePortrait:
+    """The field of the reduced system (12) for 2 agents and 2 optima on a 51 x 51 grid,
+    and ``trajectories`` random starts integrated along eq. (8) in c-space."""
     _require_temperature(temperature)
     require(
         _is_int(trajectories) and trajectories >= 0,
@@ -400,56 +405,15 @@ def plot_phase_portrait(
         f"must be an integer >= 0 (got {trajectories!r})",
     )
     require(_is_int(seed) and seed >= 0, "seed", f"must be an integer >= 0 (got {seed!r})")
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.colors import Normalize
-    from matplotlib.figure import Figure
-
     grid = np.linspace(0.0, 1.0, 51)
     u = np.empty((grid.size, grid.size))
     v = np.empty_like(u)
     for r, y in enumerate(grid):
         for k, x in enumerate(grid):
             u[r, k], v[r, k] = reduced_field(np.array([x, y]), temperature, 2)
-
-    fig = Figure(figsize=(6.4, 6.0))
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
-    speed = np.hypot(u, v)
-    shade = Normalize(vmin=-0.4 * speed.max(), vmax=speed.max())  # slowest still visible
-    ax.streamplot(
-        grid, grid, u, v, color=speed, cmap="Greys", norm=shade, density=1.2, linewidth=0.8
-    )
-    ax.plot([0, 1], [1, 0], "--", color="tab:red", lw=1.2, label="equilibria: D₁ = D₂")
-
     rng = np.random.default_rng(seed)
-    for index in range(trajectories):
+    paths = []
+    for _ in range(trajectories):
         _, ps = trajectory(random_start(rng, 2, 2, temperature), temperature)
-        label = "trajectories of eq. (8)" if index == 0 else None
-        ax.plot(ps[:, 0, 0], ps[:, 1, 0], color="tab:blue", lw=1.4, label=label)
-        ax.plot(ps[0, 0, 0], ps[0, 1, 0], "o", color="tab:blue", ms=3)
-
-    ax.plot([1, 0], [1, 0], "o", color="black", ms=10, label="optima (stable)", clip_on=False)
-    ax.plot(
-        [1, 0, 0.5],
-        [0, 1, 0.5],
-        "o",
-        mfc="white",
-        mec="tab:red",
-        mew=1.5,
-        ms=10,
-        label="other critical points",
-        clip_on=False,
-    )
-    ax.set_xlim(0, 1)
-    ax.set_ylim(0, 1)
-    ax.set_aspect("equal")
-    ax.set_xlabel("p̄₁₁ (agent 1, action 1)")
-    ax.set_ylabel("p̄₂₁ (agent 2, action 1)")
-    ax.set_title(f"CMARL-CD Theorem 1: reduced system (eq. 12), n = m = 2, T = {temperature:g}")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8)
-    fig.tight_layout()
-
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
-    return out
+        paths.append(np.stack([ps[:, 0, 0], ps[:, 1, 0]], axis=1))
+    return PhasePortrait(float(temperature), grid, u, v, paths)

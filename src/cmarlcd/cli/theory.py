@@ -37,14 +37,15 @@ def theory(
     figures: FiguresOption = DEFAULT_FIGURES,
 ) -> None:
     """Theorem 1: integrate the mean-field ODE (8) and check the Jacobian (13) is -(2/T)·I."""
-    from cmarlcd.theory import check_theorem1, plot_phase_portrait
+    from cmarlcd.figures import phase_portrait
+    from cmarlcd.theory import check_theorem1
 
     check_outputs(figures=figures)
     result = check_theorem1(agents, optima, temperature, starts=starts, seed=seed)
     doc = result.to_dict()
     if agents == 2 and optima == 2:  # the portrait is of this case only
         path = figures / f"theorem1-phase-T{temperature:g}.png"
-        doc["figure"] = str(plot_phase_portrait(path, temperature=temperature, seed=seed))
+        doc["figure"] = str(phase_portrait(path, temperature=temperature, seed=seed))
     if as_json:
         print(json.dumps(doc, indent=2))
         return
@@ -55,14 +56,14 @@ def theorem_documents(
     records: Sequence[RunRecord], figures: Path, console: Console | None
 ) -> list[dict[str, Any]]:
     """The stored Theorem 1 checks, with the phase portrait beside the 2-agent one."""
-    from cmarlcd.theory import plot_phase_portrait
+    from cmarlcd.figures import phase_portrait
 
     docs = []
     for rec in records:
         doc = dict(rec.metrics)
         if (doc["n_agents"], doc["n_optima"]) == (2, 2):
             path = figures / f"theorem1-phase-T{doc['temperature']:g}.png"
-            doc["figure"] = str(plot_phase_portrait(path, doc["temperature"], rec.key.root_seed))
+            doc["figure"] = str(phase_portrait(path, doc["temperature"], rec.key.root_seed))
         if console is not None:
             report.theory_report(doc, console)
         docs.append(doc)
