@@ -16,7 +16,14 @@ from cmarlcd.cli.options import (
     parse_names,
 )
 from cmarlcd.cli.sweeps import Execution, compute_runs, print_results, run_counts, with_execution
-from cmarlcd.cli.tournament import tournament_learners
+from cmarlcd.cli.tournament import (
+    ALL_ALGORITHMS,
+    AlgorithmsOption,
+    EvalEpisodesOption,
+    LearnEpisodesOption,
+    RoundsSeedBatchOption,
+    tournament_learners,
+)
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import readings as study_module
 from cmarlcd.experiments import tournament as tour
@@ -71,26 +78,17 @@ def _total(parts: list[SweepResult]) -> SweepResult:
 @fails_cleanly
 @with_execution
 def readings(
-    algorithms: Annotated[
-        str, typer.Option(help="Comma list of the algorithms that play.")
-    ] = ",".join(tour.battlefield_learners()),
+    algorithms: AlgorithmsOption = ALL_ALGORITHMS,
     rounds: Annotated[int, typer.Option(help="Rounds of each tournament.")] = (
         study_module.STUDY_ROUNDS
     ),
-    learn_episodes: Annotated[
-        str, typer.Option(help="Learning episodes of each match (100k allowed).")
-    ] = str(study_module.STUDY_EPISODES),
-    eval_episodes: Annotated[
-        str, typer.Option(help="Greedy evaluation episodes of each match.")
-    ] = str(study_module.STUDY_EPISODES),
+    learn_episodes: LearnEpisodesOption = str(study_module.STUDY_EPISODES),
+    eval_episodes: EvalEpisodesOption = str(study_module.STUDY_EPISODES),
     hit_rates: Annotated[
         str, typer.Option(help="The dial: hit rates of every unit, one tournament each.")
     ] = ",".join(f"{rate:g}" for rate in study_module.HIT_RATES),
     seed: SeedOption = 0,
-    seed_batch: Annotated[
-        int,
-        typer.Option(help="Rounds of a pairing with VDN/QMIX that learn together (one model)."),
-    ] = tour.SEED_BATCH,
+    seed_batch: RoundsSeedBatchOption = tour.SEED_BATCH,
     *,
     run: Execution,
 ) -> None:

@@ -45,6 +45,21 @@ def tournament_learners(names: Sequence[str]) -> tuple[LearnerConfig, ...]:
     return tuple(known[name] for name in names)
 
 
+#: The options of a battlefield tournament's protocol (``tournament`` and ``readings``).
+AlgorithmsOption = Annotated[str, typer.Option(help="Comma list of the algorithms that play.")]
+LearnEpisodesOption = Annotated[
+    str, typer.Option(help="Learning episodes of each match (100k allowed).")
+]
+EvalEpisodesOption = Annotated[
+    str, typer.Option(help="Greedy evaluation episodes of each match (100k allowed).")
+]
+RoundsSeedBatchOption = Annotated[
+    int,
+    typer.Option(help="Rounds of a pairing with VDN/QMIX that learn together (one model)."),
+]
+ALL_ALGORITHMS = ",".join(tour.battlefield_learners())
+
+
 def _unit_text(unit: battlefield.Unit) -> str:
     """A unit as the options write it: ``HP,DAMAGE,HIT_RATE``."""
     return f"{unit.hp},{unit.damage},{unit.hit_rate:g}"
@@ -54,18 +69,12 @@ def _unit_text(unit: battlefield.Unit) -> str:
 @fails_cleanly
 @with_execution
 def tournament(
-    algorithms: Annotated[
-        str, typer.Option(help="Comma list of the algorithms that play.")
-    ] = ",".join(tour.battlefield_learners()),
+    algorithms: AlgorithmsOption = ALL_ALGORITHMS,
     rounds: Annotated[int, typer.Option(help="Rounds; each plays every pairing once.")] = (
         tour.PAPER_ROUNDS
     ),
-    learn_episodes: Annotated[
-        str, typer.Option(help="Learning episodes of each match (500k allowed).")
-    ] = str(tour.PAPER_LEARN_EPISODES),
-    eval_episodes: Annotated[
-        str, typer.Option(help="Greedy evaluation episodes of each match (500k allowed).")
-    ] = str(tour.PAPER_EVAL_EPISODES),
+    learn_episodes: LearnEpisodesOption = str(tour.PAPER_LEARN_EPISODES),
+    eval_episodes: EvalEpisodesOption = str(tour.PAPER_EVAL_EPISODES),
     seed: SeedOption = 0,
     gamma: Annotated[
         float | None,
@@ -96,10 +105,7 @@ def tournament(
     gunner: Annotated[str, typer.Option(help="The gunner's HP,DAMAGE,HIT_RATE.")] = _unit_text(
         battlefield.GUNNER
     ),
-    seed_batch: Annotated[
-        int,
-        typer.Option(help="Rounds of a pairing with VDN/QMIX that learn together (one model)."),
-    ] = tour.SEED_BATCH,
+    seed_batch: RoundsSeedBatchOption = tour.SEED_BATCH,
     *,
     run: Execution,
 ) -> None:
