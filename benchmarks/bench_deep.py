@@ -35,10 +35,17 @@ def steps_per_second(mixer: str, seeds: int, episodes: int) -> tuple[float, int]
         [np.random.SeedSequence(k) for k in range(seeds)],
         episodes,
     )
+    steps, td_step = [0], batch.model.td_step
+
+    def counted(sample):
+        steps[0] += 1
+        return td_step(sample)
+
+    batch.model.td_step = counted
     start = time.perf_counter()
     batch.train([], lambda *args: None)
     elapsed = time.perf_counter() - start
-    return batch.env_steps / elapsed, batch.steps // batch.config.train_every
+    return batch.env_steps / elapsed, steps[0]
 
 
 def parallel_env_rate(mixer: str, episodes: int) -> float:
@@ -64,7 +71,7 @@ def main() -> None:
         sequences = [np.random.SeedSequence(k) for k in range(seeds)]
         warm = DeepBatch(dsn.SPEC, DeepConfig(), sequences, 2)
         warm.train([], lambda *a: None)
-        warm.sample()
+        warm.group.sample()
     for mixer in ("vdn", "qmix"):
         single, _ = steps_per_second(mixer, 1, args.episodes)
         for seeds in args.seeds:

@@ -4,7 +4,10 @@ Timings (a run's ``seconds`` and ``*_seconds``, wall times) are left out. Used t
 restructuring changed no number: run the same command with the old and the new code
 into two fresh stores, then compare them.
 
-Usage: python benchmarks/compare_stores.py OLD.sqlite NEW.sqlite
+Usage: python benchmarks/compare_stores.py OLD.sqlite NEW.sqlite [--ignore METRIC ...]
+
+``--ignore`` leaves named metrics out as well (e.g. ``memory_megabytes`` when a change
+shrinks what a run holds), and the output says which were left out.
 """
 
 from __future__ import annotations
@@ -13,18 +16,20 @@ import argparse
 import json
 import sqlite3
 import sys
+from collections.abc import Sequence
 from typing import Any
 
 
-def load(path: str) -> dict[tuple, dict[str, Any]]:
-    """Every run of a store: its key and its metrics without timings."""
+def load(path: str, ignore: Sequence[str] = ()) -> dict[tuple, dict[str, Any]]:
+    """Every run of a store: its key and its metrics without timings (nor ``ignore``)."""
     query = "SELECT experiment, algorithm, config, root_seed, run_index, metrics FROM runs"
     with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as conn:
         rows = conn.execute(query).fetchall()
     runs = {}
     for *key, metrics in rows:
         values = json.loads(metrics)
-        for name in [k for k in values if k == "seconds" or k.endswith("_seconds")]:
+        timings = [k for k in values if k == "seconds" or k.endswith("_seconds")]
+        for name in timings + [k for k in ignore if k in values]:
             del values[name]
         runs[tuple(key)] = values
     return runs
@@ -34,8 +39,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("old")
     parser.add_argument("new")
+    parser.add_argument("--ignore", nargs="*", default=[], metavar="METRIC")
     args = parser.parse_args()
-    old, new = load(args.old), load(args.new)
+    old, new = load(args.old, args.ignore), load(args.new, args.ignore)
+    if args.ignore:
+        print(f"left out besides timings: {', '.join(args.ignore)}")
     only_old, only_new = set(old) - set(new), set(new) - set(old)
     differ = sorted(k for k in set(old) & set(new) if old[k] != new[k])
     print(f"{len(old)} runs in {args.old}, {len(new)} in {args.new}")

@@ -42,12 +42,12 @@ def test_gradient_and_target_cadence(monkeypatch) -> None:
     seeds = [np.random.SeedSequence(0)]
     run = DeepBatch(dsn.SPEC, SMALL, seeds, total_episodes=60)
     trained, synced = [], []
-    monkeypatch.setattr(run.model, "td_step", lambda batch: trained.append(run.steps))
-    monkeypatch.setattr(run.model, "sync_target", lambda: synced.append(run.steps))
+    monkeypatch.setattr(run.model, "td_step", lambda batch: trained.append(run.env_steps))
+    monkeypatch.setattr(run.model, "sync_target", lambda: synced.append(run.env_steps))
     run.train([], lambda *args: None)
     # a gradient step every 50 env steps once 100 transitions exist; a target copy every 200
     assert trained[0] == 100 and set(np.diff(trained)) == {50}
-    assert synced == list(range(200, run.steps + 1, 200))
+    assert synced == list(range(200, run.env_steps + 1, 200))
 
 
 def test_every_seed_stops_at_its_episode_budget() -> None:
@@ -62,7 +62,7 @@ def test_deep_agent_learns_on_the_parallel_env() -> None:
     agent = DeepAgent(dsn.ACTION_COUNTS, SMALL, 20, n_states=dsn.N_STATE_INDICES, seed=0)
     stats = play_episodes(dsn.SensorNetworkEnv(), agent, 20, seed=1)
     assert agent.steps == stats.lengths.sum() and agent.episode == 20
-    assert len(agent.transitions) == min(agent.steps, SMALL.buffer_size)
+    assert agent.stored == min(agent.steps, SMALL.buffer_size)
     greedy = play_episodes(dsn.SensorNetworkEnv(), agent, 3, learn=False, seed=2)
     assert greedy.lengths.min() >= 1
 
@@ -136,7 +136,7 @@ def test_a_greedy_action_is_legal_from_the_first_visit_of_a_state() -> None:
     for seed in range(10):
         run = DeepBatch(TRAP, greedy, [np.random.SeedSequence(seed)], 20)
         run.train([], lambda *args: None)
-        assert run.envs[0][0][1] == 0, f"seed {seed}: an illegal action was played"
+        assert run.plays[0].env[0][1] == 0, f"seed {seed}: an illegal action was played"
 
 
 def test_exploration_draws_only_legal_actions() -> None:
@@ -147,4 +147,4 @@ def test_exploration_draws_only_legal_actions() -> None:
     )  # fmt: skip
     run = DeepBatch(TRAP, explore, [np.random.SeedSequence(3)], 200)
     run.train([], lambda *args: None)
-    assert run.envs[0][0][1] == 0, "an illegal action was explored"
+    assert run.plays[0].env[0][1] == 0, "an illegal action was explored"

@@ -15,8 +15,9 @@ from cmarlcd.games import battlefield  # noqa: E402
 from cmarlcd.learners.automata import AutomatonConfig  # noqa: E402
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD  # noqa: E402
 from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig  # noqa: E402
-from cmarlcd.training import deep_side, match  # noqa: E402
-from cmarlcd.training.match import Match, SideKernels  # noqa: E402
+from cmarlcd.training import deep_kernels, loop, match  # noqa: E402
+from cmarlcd.training.match import Match  # noqa: E402
+from cmarlcd.training.protocol import SideKernels  # noqa: E402
 
 SMALL = dict(BATTLEFIELD_DEEP, buffer_size=500, batch_size=32, train_every=24, target_every=96)
 
@@ -40,7 +41,7 @@ def test_compiled_greedy_action_is_the_networks_argmax(mixer) -> None:
     hidden = np.zeros(side.config.hidden)
     for n in range(200):
         for i in range(6):
-            action = deep_side.greedy_agent(
+            action = deep_kernels.greedy_agent(
                 side.data.weights, i, features[n], legal[n, i], 6, hidden
             )
             assert action == int(expected[0, n, i])
@@ -53,19 +54,19 @@ def test_gradient_steps_and_target_copies_follow_the_schedule() -> None:
     side = played.sides[0]
     real_step, real_sync = side.model.td_step, side.model.sync_target
     side.model.td_step = lambda batch: (
-        steps.append(int(side.data.counters[deep_side.TURNS])) or (real_step(batch))
+        steps.append(int(side.data.counters[deep_kernels.TURNS])) or (real_step(batch))
     )
     side.model.sync_target = lambda: (
-        syncs.append(int(side.data.counters[deep_side.TURNS])) or (real_sync())
+        syncs.append(int(side.data.counters[deep_kernels.TURNS])) or (real_sync())
     )
     played.learn()
-    turns = int(side.data.counters[deep_side.TURNS])
+    turns = int(side.data.counters[deep_kernels.TURNS])
     assert turns > 10 * config.train_every
     # one step at every multiple of train_every once a batch is stored; copies every 96
     first = -(-config.batch_size // config.train_every) * config.train_every
     assert steps == list(range(first, turns + 1, config.train_every))
     assert syncs == list(range(config.target_every, turns + 1, config.target_every))
-    assert int(side.data.counters[deep_side.SIZE]) == min(turns, config.buffer_size)
+    assert int(side.data.replay.size[0]) == min(turns, config.buffer_size)
 
 
 @kernel
@@ -85,7 +86,7 @@ def test_a_match_stopped_after_every_turn_learns_what_an_unbroken_one_learns(mon
         side = self.sides[0]
         side.kernels = SideKernels(*side.kernels[:5], always_pause, side.kernels[6])
         bound = {"game": self.spec.kernels, "first": side.kernels, "second": self.sides[1].kernels}
-        self._learn = match.specialise(match.learn_match, **bound)
+        self._learn = loop.specialise(loop.learn_turns, **bound)
 
     monkeypatch.setattr(match.Match, "__init__", pausing)
     calls = []
@@ -110,10 +111,22 @@ def test_same_seeds_same_deep_match() -> None:
     assert sum(results[0].wins) + results[0].ties == 50
 
 
-def test_a_deep_side_needs_state_features() -> None:
+def test_a_deep_side_reads_state_indices_where_a_game_has_no_features() -> None:
+    from cmarlcd.testing import DUEL
+
+    featureless = dataclasses.replace(DUEL, n_features=0)
+    played = new_match_on(featureless, (DeepConfig(mixer="qmix", **SMALL), AutomatonConfig()), 60)
+    played.learn()
+    side = played.sides[0]
+    assert side.group.inputs == "index" and side.model.optimizer.state
+    result = played.evaluate(50, np.random.default_rng(1))
+    assert sum(result.wins) + result.ties == 50
+
+
+def test_a_deep_side_without_features_needs_a_game_small_enough_for_one_hot_states() -> None:
     featureless = dataclasses.replace(battlefield.SPEC, n_features=0)
     rng = np.random.default_rng(0)
-    with pytest.raises(ConfigError, match="state features"):
+    with pytest.raises(ConfigError, match="no state features and 802,816 states"):
         Match(featureless, (DeepConfig(), AutomatonConfig()), rng, (rng, rng), 5)
 
 
@@ -154,16 +167,18 @@ def test_a_turn_goes_into_the_replay_ring_as_a_hand_built_transition() -> None:
     side.legal[1, 1, 2] = False  # turn 1: agent 1 may not play action 2
     side.joints[:2] = [[0, 0], [2, 1]]
     side.rewards[:2] = [0.0, 5.0]
-    start = int(side.counters[deep_side.POSITION])
-    deep_side.deep_observe(side, 0, 1, False)
-    deep_side.deep_observe(side, 1, 2, True)
+    start = int(side.replay.position[0])
+    deep_kernels.features_observe(side, 0, 1, False)
+    deep_kernels.features_observe(side, 1, 2, True)
     ring = side.replay
     first, second = start, (start + 1) % 4
-    assert ring.obs[first].tolist() == [0.0, 0.0] and ring.next_obs[first].tolist() == [0.5, 0.0]
+    assert ring.state[first].tolist() == [0.0, 0.0]
+    assert ring.next_state[first].tolist() == [0.5, 0.0]
     assert ring.actions[first].tolist() == [0, 0] and ring.reward[first] == 0.0
     assert not ring.terminal[first]
     assert ring.next_legal[first].tolist() == [[True, True, True], [True, True, False]]
-    assert ring.obs[second].tolist() == [0.5, 0.0] and ring.next_obs[second].tolist() == [0, 0]
+    assert ring.state[second].tolist() == [0.5, 0.0]
+    assert ring.next_state[second].tolist() == [0, 0]
     assert ring.actions[second].tolist() == [2, 1] and ring.reward[second] == 5.0
     assert ring.terminal[second] and ring.next_legal[second].all()
 
@@ -186,6 +201,6 @@ def test_a_deep_side_explores_only_legal_actions() -> None:
     rng = np.random.default_rng(0)
     seen = set()
     for _ in range(300):
-        deep_side.deep_act(side, 0, rng, joint)
+        deep_kernels.features_act(side, 0, rng, joint)
         seen.add(int(joint[1]))
     assert seen == {0, 1}

@@ -9,7 +9,7 @@ from cmarlcd.errors import ConfigError
 from cmarlcd.games import battlefield, sensor_network
 from cmarlcd.learners.automata import LAOCA, AutomatonConfig
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD, CMARLCDStochastic
-from cmarlcd.training import sides as sides_module
+from cmarlcd.training import tabular_side as sides_module
 from cmarlcd.training.match import Match
 
 SIDE_AGENTS = 6

@@ -46,7 +46,7 @@ from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.training.match import Match, MatchBatch
-from cmarlcd.training.sides import UNSEEN_MODES, check_unseen
+from cmarlcd.training.tabular_side import UNSEEN_MODES, check_unseen
 
 EXPERIMENT = "tournament"
 PAPER_ROUNDS = 30

@@ -13,8 +13,9 @@ import numpy as np
 import torch
 
 from cmarlcd.errors import require
-from cmarlcd.learners.deep_config import DeepConfig, epsilon
+from cmarlcd.learners.deep_config import DeepConfig, epsilon, scheduled_work
 from cmarlcd.learners.value_decomposition import ValueDecomposition
+from cmarlcd.training.replay import new_ring, push, push_row, sample, seed_view
 
 
 class DeepAgent:
@@ -47,9 +48,17 @@ class DeepAgent:
         self.model = ValueDecomposition(self.counts, n_states or state_dim, config, [init])
         self.act_rng, self.replay_rng = np.random.default_rng(act), np.random.default_rng(replay)
         self.episode, self.steps = 0, 0
-        self.transitions: list[tuple] = []  # the replay buffer (a ring of buffer_size)
-        self.position = 0
+        self.ring = new_ring(
+            1, config.buffer_size, len(self.counts), self.width, n_states or 1, state_dim or 0,
+            masks=True,
+        )  # fmt: skip
+        self._view = seed_view(self.ring, 0)
         self._pending: tuple | None = None
+
+    @property
+    def stored(self) -> int:
+        """Transitions in the replay ring."""
+        return int(self.ring.size[0])
 
     def _encode(self, state) -> torch.Tensor:
         return self._encode_many([state])
@@ -103,30 +112,23 @@ class DeepAgent:
         self._pending = None
         if terminal or next_state is None:
             next_state, terminal = state, True
-        item = (state, joint, reward, next_state, self._legal(next_masks), terminal)
-        if len(self.transitions) < self.config.buffer_size:
-            self.transitions.append(item)
+        legal = self._legal(next_masks).numpy()
+        joint_array = np.array(joint, dtype=np.int64)
+        if self.integer_states:
+            row = int(self._view.position[0])
+            push(self._view, int(state), joint_array, reward, int(next_state), terminal)
+            self._view.next_legal[row] = legal
         else:
-            self.transitions[self.position] = item
-        self.position = (self.position + 1) % self.config.buffer_size
+            obs, next_obs = (np.asarray(x, dtype=np.float32).ravel() for x in (state, next_state))
+            push_row(self._view, obs, next_obs, legal, joint_array, reward, terminal)
         self._step()
 
     def _step(self) -> None:
-        cfg = self.config
+        """The schedule of every deep learner, one environment step at a time."""
         self.steps += 1
-        if self.steps % cfg.train_every == 0 and len(self.transitions) >= cfg.batch_size:
-            picks = self.replay_rng.integers(0, len(self.transitions), cfg.batch_size)
-            self.model.td_step(self._batch([self.transitions[k] for k in picks]))
-        if self.steps % cfg.target_every == 0:
+        step, copy = scheduled_work(self.steps - 1, self.steps, self.stored, self.config)
+        if step:
+            batch = sample(self.ring, [self.replay_rng], self.config.batch_size)
+            self.model.td_step({key: torch.from_numpy(a) for key, a in batch.items()})
+        if copy:
             self.model.sync_target()
-
-    def _batch(self, items: list[tuple]) -> dict[str, torch.Tensor]:
-        states, joints, rewards, nexts, legal, terminal = zip(*items, strict=True)
-        return {
-            "state": self._encode_many(states),
-            "actions": torch.tensor([joints]),
-            "reward": torch.tensor([rewards], dtype=torch.float32),
-            "next_state": self._encode_many(nexts),
-            "next_legal": torch.stack(legal)[None],
-            "terminal": torch.tensor([terminal]),
-        }

@@ -93,3 +93,14 @@ def epsilon(episode: int, total_episodes: int, config: DeepConfig) -> float:
 def epsilon_schedule(config: DeepConfig) -> tuple[float, float, float, float]:
     """(start, end, anneal fraction, after) for :func:`annealed_epsilon`."""
     return (config.eps_start, config.eps_end, config.anneal_fraction, config.eps_after)
+
+
+def scheduled_work(before: int, after: int, stored: int, config: DeepConfig) -> tuple[bool, bool]:
+    """The schedule of every deep learner: once its environment steps have gone from
+    ``before`` to ``after``, (take a gradient step, copy the target networks). A gradient
+    step is due at every multiple of ``train_every`` crossed, once ``batch_size``
+    transitions are stored (``stored``); a target copy at every multiple of
+    ``target_every`` crossed."""
+    step = after // config.train_every > before // config.train_every
+    copy = after // config.target_every > before // config.target_every
+    return step and stored >= config.batch_size, copy

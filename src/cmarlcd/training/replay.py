@@ -1,41 +1,41 @@
-"""Replay buffers of B independent seeds, stored compactly and sampled in compiled code.
+"""The replay ring of B independent seeds, and its sampling with each seed's own stream.
 
 Each seed has its own ring of ``capacity`` transitions (state, joint action, reward, next
-state, terminal) in arrays with a leading seed axis. States and actions are stored in
-the smallest integer type that holds them (43 DSN states and 5 actions fit in int8), so
-the random reads of replay sampling stay in cache.
+state, the next state's legal actions where they are stored per transition, terminal) in
+arrays with a leading seed axis. A side's view of its seed (:func:`seed_view`) is what its
+compiled ``observe`` writes into (:func:`push` and :func:`push_row`). Integer states and
+actions are stored in the smallest integer type that holds them (43 DSN states and 5
+actions fit in int8), so the rows stay small.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
+from cmarlcd.compiled import kernel
 
-class ReplayBuffers(NamedTuple):
-    """Ring buffers of B seeds; row ``k`` of seed ``b`` is one transition."""
+
+class Replay(NamedTuple):
+    """Ring buffers of B seeds (or, as a seed's view, of one seed without the seed axis);
+    row ``k`` of seed ``b`` is one transition."""
 
     state: np.ndarray
+    """(B, capacity) integer states, or (B, capacity, n_features) feature vectors."""
     actions: np.ndarray
     reward: np.ndarray
     next_state: np.ndarray
+    next_legal: np.ndarray
+    """(B, capacity, n_agents, width), or (B, 0, 0, 0) where the learner keeps each
+    state's masks itself (integer states)."""
     terminal: np.ndarray
     position: np.ndarray
     """Next row to write, per seed."""
     size: np.ndarray
     """Rows stored, per seed (at most the capacity)."""
-
-
-class Batch(NamedTuple):
-    """Sampled transitions, ``(B, batch_size, ...)``, as the TD step reads them."""
-
-    state: np.ndarray
-    actions: np.ndarray
-    reward: np.ndarray
-    next_state: np.ndarray
-    terminal: np.ndarray
 
 
 def compact_int(largest: int) -> type:
@@ -46,55 +46,125 @@ def compact_int(largest: int) -> type:
     return np.int64
 
 
-def new_buffers(
-    seeds: int, capacity: int, n_agents: int, n_states: int, width: int
-) -> ReplayBuffers:
-    """Empty buffers for ``seeds`` seeds of ``n_agents`` agents."""
-    states, actions = compact_int(n_states - 1), compact_int(width - 1)
-    return ReplayBuffers(
-        np.zeros((seeds, capacity), states),
-        np.zeros((seeds, capacity, n_agents), actions),
+def new_ring(
+    seeds: int,
+    capacity: int,
+    n_agents: int,
+    width: int,
+    n_states: int,
+    n_features: int = 0,
+    masks: bool | None = None,
+) -> Replay:
+    """Empty rings for ``seeds`` seeds: of feature vectors when ``n_features`` > 0, else
+    of integer states in ``[0, n_states)``; with each transition's next masks when
+    ``masks`` (default: for feature vectors only)."""
+    actions = np.zeros((seeds, capacity, n_agents), compact_int(width - 1))
+    if n_features:
+        shape, dtype = (seeds, capacity, n_features), np.float32
+    else:
+        shape, dtype = (seeds, capacity), compact_int(n_states - 1)
+    per_row = bool(n_features) if masks is None else masks
+    next_legal = np.zeros((seeds, capacity, n_agents, width) if per_row else (seeds, 0, 0, 0), bool)
+    return Replay(
+        np.zeros(shape, dtype),
+        actions,
         np.zeros((seeds, capacity), np.float32),
-        np.zeros((seeds, capacity), states),
+        np.zeros(shape, dtype),
+        next_legal,
         np.zeros((seeds, capacity), np.bool_),
         np.zeros(seeds, np.int64),
         np.zeros(seeds, np.int64),
     )
 
 
-def new_batch(seeds: int, batch_size: int, n_agents: int) -> Batch:
-    """Room for one sampled batch per seed."""
-    return Batch(
-        np.empty((seeds, batch_size), np.int64),
-        np.empty((seeds, batch_size, n_agents), np.int64),
-        np.empty((seeds, batch_size), np.float32),
-        np.empty((seeds, batch_size), np.int64),
-        np.empty((seeds, batch_size), np.bool_),
+def seed_view(ring: Replay, b: int) -> Replay:
+    """Seed ``b``'s ring, as views (``position`` and ``size`` of one entry)."""
+    return Replay(*(array[b] for array in ring[:6]), ring.position[b : b + 1], ring.size[b : b + 1])
+
+
+@kernel
+def push(ring, state: int, joint, reward: float, next_state: int, terminal: bool) -> None:
+    """Append one transition of integer states to a seed's ring (the oldest overwritten
+    when full)."""
+    p = ring.position[0]
+    ring.state[p], ring.next_state[p] = state, next_state
+    ring.reward[p], ring.terminal[p] = reward, terminal
+    for i in range(joint.shape[0]):
+        ring.actions[p, i] = joint[i]
+    ring.position[0] = (p + 1) % ring.state.shape[0]
+    ring.size[0] = min(ring.size[0] + 1, ring.state.shape[0])
+
+
+@kernel
+def push_row(ring, obs, next_obs, next_legal, joint, reward: float, terminal: bool) -> None:
+    """Append one transition of feature vectors to a seed's ring. A terminal
+    transition's next state is never bootstrapped from: its features are stored as zeros
+    and its masks all legal, so the target's maximum stays finite."""
+    p = ring.position[0]
+    for f in range(obs.shape[0]):
+        ring.state[p, f] = obs[f]
+        ring.next_state[p, f] = next_obs[f] if not terminal else 0.0
+    for i in range(joint.shape[0]):
+        ring.actions[p, i] = joint[i]
+        for a in range(next_legal.shape[1]):
+            ring.next_legal[p, i, a] = next_legal[i, a] if not terminal else True
+    ring.reward[p], ring.terminal[p] = reward, terminal
+    ring.position[0] = (p + 1) % ring.state.shape[0]
+    ring.size[0] = min(ring.size[0] + 1, ring.state.shape[0])
+
+
+def new_batch(ring: Replay, batch_size: int) -> Replay:
+    """Room for one sampled batch of ``batch_size`` transitions per seed of ``ring``, in
+    the types the TD step reads (integer states and actions as int64)."""
+    seeds = ring.state.shape[0]
+    state = (seeds, batch_size, *ring.state.shape[2:])
+    integer = ring.state.ndim == 2
+    masks = ring.next_legal.shape[2:] if ring.next_legal.shape[1] else (0, 0)
+    return Replay(
+        np.zeros(state, np.int64 if integer else ring.state.dtype),
+        np.zeros((seeds, batch_size, ring.actions.shape[2]), np.int64),
+        np.zeros((seeds, batch_size), np.float32),
+        np.zeros(state, np.int64 if integer else ring.state.dtype),
+        np.zeros((seeds, batch_size if ring.next_legal.shape[1] else 0, *masks), np.bool_),
+        np.zeros((seeds, batch_size), np.bool_),
+        np.zeros(seeds, np.int64),
+        np.zeros(seeds, np.int64),
     )
 
 
 @njit(cache=True)
-def store(
-    buffer, b: int, state: int, joint, reward: float, next_state: int, terminal: bool
-) -> None:
-    """Append one transition to seed ``b``'s ring (overwriting the oldest when full)."""
-    p = buffer.position[b]
-    buffer.state[b, p], buffer.reward[b, p], buffer.terminal[b, p] = state, reward, terminal
-    buffer.actions[b, p] = joint
-    buffer.next_state[b, p] = next_state
-    buffer.position[b] = (p + 1) % buffer.state.shape[1]
-    buffer.size[b] = min(buffer.size[b] + 1, buffer.state.shape[1])
-
-
-@njit(cache=True)
-def replay_sample(buffer, rngs, batch_size: int, out) -> None:
-    """Draw ``batch_size`` stored transitions per seed, uniformly with replacement, with
-    seed b's generator ``rngs[b]`` (the same draws as ``rngs[b].integers(0, size,
-    batch_size)`` in NumPy), into ``out`` (a :class:`Batch`)."""
-    for b in range(buffer.state.shape[0]):
-        picks = rngs[b].integers(0, buffer.size[b], batch_size)
+def replay_sample(ring, rngs, out) -> None:
+    """Draw ``out``'s batch size of stored transitions per seed, uniformly with
+    replacement, with seed b's generator ``rngs[b]`` (the same draws as
+    ``rngs[b].integers(0, stored, batch_size)`` in NumPy; a seed with nothing stored draws
+    nothing and gets row 0: its step is discarded), into ``out``."""
+    batch_size = out.reward.shape[1]
+    masks = out.next_legal.shape[1] > 0
+    for b in range(out.reward.shape[0]):
+        stored = ring.size[b]
+        picks = (
+            rngs[b].integers(0, stored, batch_size) if stored else np.zeros(batch_size, np.int64)
+        )
         for n in range(batch_size):
             k = picks[n]
-            out.state[b, n], out.next_state[b, n] = buffer.state[b, k], buffer.next_state[b, k]
-            out.reward[b, n], out.terminal[b, n] = buffer.reward[b, k], buffer.terminal[b, k]
-            out.actions[b, n] = buffer.actions[b, k]
+            out.state[b, n] = ring.state[b, k]
+            out.next_state[b, n] = ring.next_state[b, k]
+            out.actions[b, n] = ring.actions[b, k]
+            out.reward[b, n], out.terminal[b, n] = ring.reward[b, k], ring.terminal[b, k]
+            if masks:
+                out.next_legal[b, n] = ring.next_legal[b, k]
+
+
+#: The fields of a sampled batch, as the TD step reads them.
+BATCH_FIELDS = ("state", "actions", "reward", "next_state", "next_legal", "terminal")
+
+
+def sample(ring: Replay, rngs: Sequence[np.random.Generator], batch_size: int) -> dict:
+    """A batch of ``batch_size`` stored transitions per seed (:func:`replay_sample`),
+    keyed as the TD step reads them (``next_legal`` only where the ring stores masks)."""
+    out = new_batch(ring, batch_size)
+    replay_sample(ring, tuple(rngs), out)
+    batch = dict(zip(BATCH_FIELDS, out[:6], strict=True))
+    if not ring.next_legal.shape[1]:
+        del batch["next_legal"]
+    return batch

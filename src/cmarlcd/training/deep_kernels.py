@@ -1,0 +1,275 @@
+"""The compiled side kernels of VDN and QMIX (``[deep]`` extra, no PyTorch here): what the
+loop of :mod:`cmarlcd.training.loop` calls on a deep side
+(:mod:`cmarlcd.training.deep_side`), for its two kinds of input.
+
+* **features**: the agent networks' forward pass, compiled over a copy of their weights
+  (:func:`greedy_agent`), on the game's feature vector of each turn;
+* **index**: a copy of the networks' Q-values of every state, looked up by state index.
+
+Either way the side acts ε-greedily (eq. 18, annealed over its learning episodes),
+appends each turn to its replay ring, and pauses the loop every ``train_every`` turns.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from cmarlcd.compiled import Unbound, kernel, specialise
+from cmarlcd.errors import require
+from cmarlcd.games.spec import GameSpec
+from cmarlcd.learners.policy import (
+    annealed_epsilon,
+    epsilon_greedy,
+    greedy_action,
+    uniform_legal_action,
+)
+from cmarlcd.training.protocol import SideKernels
+from cmarlcd.training.replay import Replay, push, push_row
+
+game = Unbound("game")
+
+#: Entries of a deep side's ``counters``: turns observed, episodes finished, the turns
+#: observed when the loop last paused for it, and whether it met a state for the first
+#: time since its group last looked (index inputs).
+TURNS, EPISODES, PAUSED_AT, NEW_STATES = range(4)
+#: The inputs a deep side can read, by name.
+INPUTS = ("features", "index")
+#: [choice] The most states a deep side reads as one-hot indices (its Q-table copy holds
+#: every state): a larger game needs state features.
+MAX_INDEX_STATES = 100_000
+
+
+class Weights(NamedTuple):
+    """A copy of the agent networks' parameters, agent-major (float32)."""
+
+    w1: np.ndarray
+    """(n_agents, n_features, hidden)"""
+    b1: np.ndarray
+    """(n_agents, hidden)"""
+    w2: np.ndarray
+    """(n_agents, hidden, width)"""
+    b2: np.ndarray
+    """(n_agents, width)"""
+
+
+class FeatureData(NamedTuple):
+    """A deep side reading feature vectors: its arrays, as its kernels read them."""
+
+    counts: np.ndarray
+    weights: Weights
+    hidden: np.ndarray
+    """Scratch: one agent's hidden layer."""
+    obs: np.ndarray
+    """The episode so far: each turn's features, (max_steps + 1, n_features) ..."""
+    legal: np.ndarray
+    """... its legal actions, (max_steps + 1, n_agents, width) ..."""
+    joints: np.ndarray
+    rewards: np.ndarray
+    replay: Replay
+    counters: np.ndarray
+    schedule: np.ndarray
+    """ε schedule (start, end, anneal fraction, after), learning episodes, train_every."""
+
+
+class IndexData(NamedTuple):
+    """A deep side reading state indices: its arrays, as its kernels read them."""
+
+    counts: np.ndarray
+    values: np.ndarray
+    """(n_states, n_agents, width): the agent networks' Q-values of every state."""
+    legal: np.ndarray
+    """(n_states, n_agents, width): each state's masks, read on its first visit (every
+    action legal before)."""
+    seen: np.ndarray
+    """The states met so far."""
+    obs: np.ndarray
+    """The episode so far: each turn's state ..."""
+    joints: np.ndarray
+    rewards: np.ndarray
+    replay: Replay
+    counters: np.ndarray
+    schedule: np.ndarray
+
+
+# ------------------------------------------------------------ shared kernels
+
+
+@kernel
+def deep_fits(side, max_steps: int) -> bool:
+    """A deep side's memory does not grow with the states it sees."""
+    return True
+
+
+@kernel
+def deep_end_episode(side, length: int) -> None:
+    side.counters[EPISODES] += 1
+
+
+@kernel
+def deep_pause(side) -> bool:
+    """Stop the loop every ``train_every`` turns, for the gradient step."""
+    return side.counters[TURNS] - side.counters[PAUSED_AT] >= side.schedule[5]
+
+
+@kernel
+def exploration(side) -> float:
+    """ε of the side's current learning episode (eq. 18)."""
+    s = side.schedule
+    return annealed_epsilon(side.counters[EPISODES] + 1, int(s[4]), s[0], s[1], s[2], s[3])
+
+
+# ---------------------------------------------------------- feature inputs
+
+
+@kernel
+def hidden_layer(weights, agent: int, x, hidden) -> None:
+    """``hidden`` := ReLU(x W1 + b1) of agent ``agent``."""
+    w1, b1 = weights[0], weights[1]
+    for h in range(hidden.shape[0]):
+        z = b1[agent, h]
+        for f in range(x.shape[0]):
+            z += x[f] * w1[agent, f, h]
+        hidden[h] = z if z > 0.0 else 0.0
+
+
+@kernel
+def greedy_agent(weights, agent: int, x, legal_row, count: int, hidden) -> int:
+    """The agent's legal action of largest Q at ``x`` (lowest index on ties)."""
+    hidden_layer(weights, agent, x, hidden)
+    w2, b2 = weights[2], weights[3]
+    best, best_q = -1, 0.0
+    for a in range(count):
+        if not legal_row[a]:
+            continue
+        q = b2[agent, a]
+        for h in range(hidden.shape[0]):
+            q += hidden[h] * w2[agent, h, a]
+        if best < 0 or q > best_q:
+            best, best_q = a, q
+    return best
+
+
+def features_enter(side, env, team, offset, legal, length, terminal) -> int:
+    """Template: turn ``length``'s features and legal actions into the episode record
+    (a terminal state's are never read)."""
+    if terminal:
+        return length
+    game.features(env, team, side.obs[length])
+    game.legal(env, legal)
+    for i in range(side.counts.shape[0]):
+        for a in range(legal.shape[1]):
+            side.legal[length, i, a] = legal[offset + i, a]
+    return length
+
+
+@kernel
+def features_act(side, key: int, rng, joint) -> None:
+    """ε-greedy (eq. 18): each agent independently a uniform legal action with
+    probability ε, else its greedy legal action."""
+    eps = exploration(side)
+    x, legal = side.obs[key], side.legal[key]
+    for i in range(side.counts.shape[0]):
+        count = side.counts[i]
+        if rng.random() < eps:
+            joint[i] = uniform_legal_action(legal[i], count, rng.random())
+        else:
+            joint[i] = greedy_agent(side.weights, i, x, legal[i], count, side.hidden)
+
+
+@kernel
+def features_observe(side, t: int, next_key: int, terminal: bool) -> None:
+    """Append turn ``t`` to the ring."""
+    push_row(
+        side.replay,
+        side.obs[t],
+        side.obs[t + 1],
+        side.legal[t + 1],
+        side.joints[t],
+        side.rewards[t],
+        terminal,
+    )
+    side.counters[TURNS] += 1
+
+
+def features_greedy(side, env, team, offset, legal, rng, joint) -> None:
+    """Template: every agent's greedy legal action at the side's features (``rng`` is not
+    drawn from: a network has a greedy action in every state)."""
+    x = side.obs[0]
+    game.features(env, team, x)
+    game.legal(env, legal)
+    for i in range(joint.shape[0]):
+        joint[i] = greedy_agent(side.weights, i, x, legal[offset + i], side.counts[i], side.hidden)
+
+
+# ------------------------------------------------------------- index inputs
+
+
+def index_enter(side, env, team, offset, legal, length, terminal) -> int:
+    """Template: the state index, its masks read on the side's first visit (a terminal
+    state's too: they bound the TD target's maximum)."""
+    s = game.state(env, team)
+    if not side.seen[s]:
+        game.legal(env, legal)
+        for i in range(side.counts.shape[0]):
+            for a in range(legal.shape[1]):
+                side.legal[s, i, a] = legal[offset + i, a]
+        side.seen[s] = True
+        side.counters[NEW_STATES] = 1
+    side.obs[length] = s
+    return s
+
+
+@kernel
+def index_act(side, s: int, rng, joint) -> None:
+    """ε-greedy (eq. 18) on the Q-table of state ``s``."""
+    epsilon_greedy(side.values[s], side.legal[s], side.counts, exploration(side), rng, joint)
+
+
+@kernel
+def index_observe(side, t: int, next_s: int, terminal: bool) -> None:
+    """Append turn ``t`` to the ring."""
+    push(side.replay, side.obs[t], side.joints[t], side.rewards[t], next_s, terminal)
+    side.counters[TURNS] += 1
+
+
+def index_greedy(side, env, team, offset, legal, rng, joint) -> None:
+    """Template: every agent's greedy legal action in the state's Q-table."""
+    s = game.state(env, team)
+    game.legal(env, legal)
+    for i in range(joint.shape[0]):
+        joint[i] = greedy_action(side.values[s, i], legal[offset + i], side.counts[i])
+
+
+def deep_kernels(spec: GameSpec, inputs: str) -> SideKernels:
+    """The side kernels of a deep learner on ``spec`` reading ``inputs``."""
+    bound = {"game": spec.kernels}
+    if inputs == "features":
+        enter, act, observe = features_enter, features_act, features_observe
+        greedy = features_greedy
+    else:
+        enter, act, observe, greedy = index_enter, index_act, index_observe, index_greedy
+    return SideKernels(
+        deep_fits,
+        specialise(enter, **bound),
+        act,
+        observe,
+        deep_end_episode,
+        deep_pause,
+        specialise(greedy, **bound),
+    )
+
+
+def inputs_of(spec: GameSpec) -> str:
+    """What a deep side reads on ``spec``: its features where it has them, else its
+    state indices (one-hot)."""
+    if spec.n_features > 0:
+        return "features"
+    require(
+        spec.n_states <= MAX_INDEX_STATES,
+        "game",
+        f"{spec.name} has no state features and {spec.n_states:,} states, more than the "
+        f"{MAX_INDEX_STATES:,} a deep learner reads as one-hot indices",
+    )
+    return "index"
