@@ -4,16 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-from rich import box
-from rich.table import Table
 
 from cmarlcd import registry
 from cmarlcd.experiments import compare
 from cmarlcd.experiments.compare import CompareCell
-from cmarlcd.report import Output, figure_line, figure_name, percent, show, versions
+from cmarlcd.report import figure_name, new_section, percent
+from cmarlcd.section import Cell, FigureBlock, Section, TableBlock
 from cmarlcd.store import RunRecord
 
 TITLE = "Comparison: CMARL-CD and the classic independent learners"
@@ -49,7 +47,7 @@ def _grid(cells: Sequence[CompareCell]) -> tuple[list[str], list[str], dict]:
     return learners, games, {(c.learner, c.game): c for c in cells}
 
 
-def comparison_tables(cells: Sequence[CompareCell], caption: str) -> list[Table]:
+def comparison_tables(cells: Sequence[CompareCell], caption: str) -> list[TableBlock]:
     """Two tables, learners × games: % of runs ending on an optimal joint action, and
     the median games until the greedy joint action settled."""
     learners, games, at = _grid(cells)
@@ -58,21 +56,13 @@ def comparison_tables(cells: Sequence[CompareCell], caption: str) -> list[Table]
         ("% of runs ending on an optimal joint action", lambda c: f"{100 * c.optimal_rate:.0f}"),
         ("median games until the greedy joint action settled", _median),
     ):
-        table = Table(
-            title=f"{TITLE}: {what}",
-            caption=caption,
-            box=box.SIMPLE_HEAD,
-            padding=(0, 0),
-            pad_edge=False,
-            show_edge=False,
-        )
-        table.add_column("learner", no_wrap=True)
-        for game in games:
-            table.add_column(_short(game), justify="right", no_wrap=True, min_width=5)
-        for learner in learners:
-            row = [at.get((learner, g)) for g in games]
-            table.add_row(_display(learner), *("—" if c is None else value(c) for c in row))
-        tables.append(table)
+        rows = [
+            [Cell(_display(learner))]
+            + [Cell("—" if (c := at.get((learner, g))) is None else value(c)) for g in games]
+            for learner in learners
+        ]
+        columns = ["learner", *(_short(g) for g in games)]
+        tables.append(TableBlock(f"{TITLE}: {what}", columns, rows, caption, layout="compact"))
     return tables
 
 
@@ -108,10 +98,8 @@ def settings_text(records: Sequence[RunRecord]) -> str:
     )
 
 
-def compare_report(
-    records: Sequence[RunRecord], figures: Path, console: Output | None
-) -> dict[str, Any]:
-    """The comparison table and heatmap from the stored runs of one comparison."""
+def compare_section(records: Sequence[RunRecord], figures: Path) -> Section:
+    """The comparison tables and heatmap from the stored runs of one comparison."""
     from cmarlcd import figures as figs
 
     cells = compare.summarize(records)
@@ -133,16 +121,15 @@ def compare_report(
         f"greedy joint action settled (bottom); {runs_text(records)}",
         figures / name,
     )
-    if console is not None:
-        for table in comparison_tables(cells, settings):
-            show(console, table)
-        figure_line(console, path, f"comparison heatmap, {runs_text(records)}")
-    return {
-        "experiment": compare.EXPERIMENT,
-        "title": TITLE,
-        "settings": settings,
-        "versions": versions(records, console),
-        "seed": seed,
-        "figure": str(path),
-        "cells": [c.to_dict() for c in cells],
-    }
+    section = new_section(
+        TITLE,
+        settings,
+        records,
+        experiment=compare.EXPERIMENT,
+        seed=seed,
+        figure=str(path),
+        cells=[c.to_dict() for c in cells],
+    )
+    section.add(*comparison_tables(cells, settings))
+    section.add(FigureBlock(path, f"comparison heatmap, {runs_text(records)}"))
+    return section

@@ -1,11 +1,8 @@
-"""One self-contained report of a results store, as Markdown or HTML.
+"""Sections (:mod:`cmarlcd.section`) as one self-contained report: Markdown or HTML.
 
-The report functions of :mod:`cmarlcd.report` print to a rich console. Handed a
-:class:`Recorder` instead, they record the same tables, lines and figures as *blocks*; a
-:class:`Section` holds one group's blocks with what the reader needs to trust them: the
-settings, the code version(s) that computed the runs and how many runs there are. The
-renderers here turn sections into a Markdown file (figures linked) or an HTML page
-(figures inlined as base64 PNG, styles inline: it opens with no other file).
+Each section shows what the reader needs to trust it: the settings, the code version(s)
+that computed the runs and how many runs there are. The Markdown links its figures; the
+HTML page inlines them as base64 PNG, styles inline: it opens with no other file.
 """
 
 from __future__ import annotations
@@ -13,100 +10,10 @@ from __future__ import annotations
 import base64
 import html
 import os
-from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
-from rich.table import Table
-from rich.text import Text
-
-
-def plain(cell: Any) -> str:
-    """The text of a rich cell, without its markup (``[dim](98)[/]`` -> ``(98)``)."""
-    if isinstance(cell, Text):
-        return cell.plain
-    return Text.from_markup(str(cell)).plain
-
-
-@dataclass(frozen=True)
-class TableBlock:
-    title: str
-    columns: list[str]
-    rows: list[list[str]]
-    caption: str = ""
-
-    @classmethod
-    def of(cls, table: Table) -> TableBlock:
-        """The content of a rich table, as plain text."""
-        columns = [plain(column.header) for column in table.columns]
-        cells = [[plain(cell) for cell in column.cells] for column in table.columns]
-        rows = [list(row) for row in zip(*cells, strict=True)]
-        return cls(plain(table.title or ""), columns, rows, plain(table.caption or ""))
-
-
-@dataclass(frozen=True)
-class TextBlock:
-    text: str
-    warning: bool = False
-
-
-@dataclass(frozen=True)
-class FigureBlock:
-    path: Path
-    caption: str
-
-
-Block = TableBlock | TextBlock | FigureBlock
-
-
-@dataclass
-class Recorder:
-    """Takes the place of a console: collects what a report function would print."""
-
-    blocks: list[Block] = field(default_factory=list)
-
-    def table(self, table: Table) -> None:
-        self.blocks.append(TableBlock.of(table))
-
-    def text(self, text: str, warning: bool = False) -> None:
-        self.blocks.append(TextBlock(plain(text), warning))
-
-    def figure(self, path: Path, caption: str) -> None:
-        self.blocks.append(FigureBlock(Path(path), caption))
-
-
-@dataclass
-class Section:
-    """One group of runs in the report."""
-
-    title: str
-    settings: str
-    versions: Counter
-    """Runs per package version."""
-    runs: int
-    blocks: list[Block]
-
-    def facts(self) -> str:
-        """``"120 stored runs, computed by cmarl-cd 0.3.0"``."""
-        versions = ", ".join(
-            f"{version or 'unknown'} ({count} runs)"
-            for version, count in sorted(self.versions.items())
-        )
-        if len(self.versions) == 1:
-            versions = next(iter(self.versions)) or "an unknown version"
-        runs = "1 stored run" if self.runs == 1 else f"{self.runs} stored runs"
-        return f"{runs}, computed by cmarl-cd {versions}"
-
-
-def version_warning(versions: Counter) -> str | None:
-    """A warning when runs of one group come from several package versions."""
-    if len(versions) <= 1:
-        return None
-    names = ", ".join(sorted(v or "unknown" for v in versions))
-    return f"warning: these runs mix package versions ({names}); compare with care"
-
+from cmarlcd.section import Block, FigureBlock, Section, TableBlock
 
 # ------------------------------------------------------------------ Markdown
 
@@ -119,7 +26,7 @@ def _md_table(block: TableBlock) -> list[str]:
     lines = [f"**{block.title}**", ""] if block.title else []
     lines.append("| " + " | ".join(_md_cell(c) for c in block.columns) + " |")
     lines.append("|" + "---|" * len(block.columns))
-    lines += ["| " + " | ".join(_md_cell(c) for c in row) + " |" for row in block.rows]
+    lines += ["| " + " | ".join(_md_cell(c) for c in row) + " |" for row in block.plain_rows()]
     if block.caption:
         lines += ["", f"*{block.caption}*"]
     return [*lines, ""]
@@ -133,6 +40,9 @@ def render_markdown(
     lines = [f"# {title}", "", *[f"{line}  " for line in preamble], ""]
     for section in sections:
         lines += [f"## {section.title}", "", f"{section.settings}. {section.facts()}.", ""]
+        warning = section.warning()
+        if warning is not None:
+            lines += [f"> **{warning}**", ""]
         for block in section.blocks:
             if isinstance(block, TableBlock):
                 lines += _md_table(block)
@@ -141,9 +51,8 @@ def render_markdown(
                 lines += [f"![{block.caption}]({link})", "", f"*{block.caption}*", ""]
             elif block.warning:
                 lines += [f"> **{block.text}**", ""]
-            else:  # an indented line is an item of the list above it
-                item = block.text.startswith("  ")
-                lines += [f"- {block.text.strip()}" if item else block.text, ""]
+            else:
+                lines += [f"- {block.text}" if block.item else block.text, ""]
     return "\n".join(lines)
 
 
@@ -174,7 +83,8 @@ def _html_text(text: str) -> str:
 def _html_table(block: TableBlock) -> str:
     head = "".join(f"<th>{_html_text(c)}</th>" for c in block.columns)
     body = "".join(
-        "<tr>" + "".join(f"<td>{_html_text(c)}</td>" for c in row) + "</tr>" for row in block.rows
+        "<tr>" + "".join(f"<td>{_html_text(c)}</td>" for c in row) + "</tr>"
+        for row in block.plain_rows()
     )
     caption = f"<caption>{_html_text(block.title)}</caption>" if block.title else ""
     note = f'<p class="note">{_html_text(block.caption)}</p>' if block.caption else ""
@@ -196,7 +106,8 @@ def _html_block(block: Block) -> str:
     if isinstance(block, FigureBlock):
         return _html_figure(block)
     css = "warning" if block.warning else "text"
-    return f'<p class="{css}">{_html_text(block.text)}</p>'
+    text = f"• {block.text}" if block.item else block.text
+    return f'<p class="{css}">{_html_text(text)}</p>'
 
 
 def render_html(title: str, preamble: Sequence[str], sections: Sequence[Section]) -> str:
@@ -213,6 +124,9 @@ def render_html(title: str, preamble: Sequence[str], sections: Sequence[Section]
         parts.append(
             f'<p class="facts">{_html_text(section.settings)}. {_html_text(section.facts())}.</p>'
         )
+        warning = section.warning()
+        if warning is not None:
+            parts.append(f'<p class="warning">{_html_text(warning)}</p>')
         parts += [_html_block(block) for block in section.blocks]
     parts.append("</body></html>")
     return "\n".join(parts)

@@ -6,16 +6,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
-
-from rich.table import Table
 
 from cmarlcd import registry
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.experiments.readings import Outcome, dialled, stored_studies
-from cmarlcd.report import Output, figure_line, figure_name, say, show, versions
+from cmarlcd.report import figure_name, new_section
+from cmarlcd.section import Cell, FigureBlock, Section, TableBlock, TextBlock
 from cmarlcd.store import RunRecord
 
 TITLE = "Figs. 6-7 under each reading of Section V-B: which choices decide the claims"
@@ -56,31 +54,27 @@ def margin_text(claim: claim_checks.Claim, scale: float) -> str:
     return f"{claim.verdict}: " + "; ".join(parts)
 
 
-def study_table(outcomes: Sequence[Outcome], caption: str) -> Table:
+def study_table(outcomes: Sequence[Outcome], caption: str) -> TableBlock:
     """Reading × claim: each claim's verdict and margins (± two standard errors)."""
-    table = Table(
-        title="The paper's claims under each reading: verdict, then each margin ± 2 standard "
-        "errors over rounds (win rates in points, win steps in turns; > 0: as the paper says)",
-        caption=caption,
-    )
-    table.add_column("reading", overflow="fold")
-    table.add_column("CMARL-CD's mean margin", justify="right")
-    for heading in SHORT:
-        table.add_column(heading, overflow="fold")
+    rows = []
     for found in outcomes:
         claims = {c.claim: c for c in found.claims}
-        cells = [
-            margin_text(claims[text], scale)
+        margins = [
+            Cell(margin_text(claims[text], scale))
             for text, scale in zip(claim_checks.CLAIMS, SCALES, strict=True)
         ]
         score = "—" if math.isnan(found.score) else f"{100 * found.score:+.1f}"
-        table.add_row(found.reading.name, score, *cells)
-    return table
+        rows.append([Cell(found.reading.name), Cell(score), *margins])
+    return TableBlock(
+        "The paper's claims under each reading: verdict, then each margin ± 2 standard "
+        "errors over rounds (win rates in points, win steps in turns; > 0: as the paper says)",
+        ["reading", "CMARL-CD's mean margin", *SHORT],
+        rows,
+        caption,
+    )
 
 
-def readings_report(
-    outcomes: Sequence[Outcome], figures: Path, console: Output | None
-) -> dict[str, Any]:
+def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
     """The study's table, its hit-rate figure (when two or more hit rates were played)
     and its JSON, from its tournaments' stored matches."""
     from cmarlcd import figures as figs
@@ -103,21 +97,12 @@ def readings_report(
         paths["hit_rates"] = figs.hit_rate_dial(
             dial, names, title, figures / figure_name(stem, group)
         )
-    if console is not None:
-        show(console, study_table(outcomes, settings))
-        say(
-            console,
-            "CMARL-CD's mean margin: its win rate minus its opponent's, averaged over the "
-            f"other algorithms (points). The defaults: {defaults_text()}.",
-        )
-        for path in paths.values():
-            figure_line(console, path, f"win rate against hit rate, {settings}")
-    return {
-        "experiment": "tournament-readings",
-        "title": TITLE,
-        "settings": settings,
-        "versions": versions(records, console),
-        "readings": [
+    section = new_section(
+        TITLE,
+        settings,
+        records,
+        experiment="tournament-readings",
+        readings=[
             {
                 "name": o.reading.name,
                 "kind": o.reading.kind,
@@ -130,8 +115,17 @@ def readings_report(
             }
             for o in outcomes
         ],
-        "figures": {key: str(path) for key, path in paths.items()},
-    }
+        figures={key: str(path) for key, path in paths.items()},
+    )
+    section.add(
+        study_table(outcomes, settings),
+        TextBlock(
+            "CMARL-CD's mean margin: its win rate minus its opponent's, averaged over the "
+            f"other algorithms (points). The defaults: {defaults_text()}."
+        ),
+    )
+    section.add(*(FigureBlock(p, f"win rate against hit rate, {settings}") for p in paths.values()))
+    return section
 
 
 def defaults_text() -> str:
@@ -147,13 +141,11 @@ def defaults_text() -> str:
     )
 
 
-def stored_readings_report(
-    records: Sequence[RunRecord], figures: Path, console: Output | None
-) -> dict[str, Any]:
-    """:func:`readings_report` of one study found in the store (its tournaments'
+def stored_readings_section(records: Sequence[RunRecord], figures: Path) -> Section:
+    """:func:`readings_section` of one study found in the store (its tournaments'
     matches, :func:`cmarlcd.experiments.readings.stored_studies`)."""
     (outcomes,) = stored_studies(match_results.tournaments(records))
-    return readings_report(outcomes, figures, console)
+    return readings_section(outcomes, figures)
 
 
 def _order(outcomes: Sequence[Outcome]) -> list[str]:

@@ -1,14 +1,13 @@
-"""Reports rendered from stored runs: paper-style tables, their figures, their JSON.
+"""Reports of stored runs as data: paper-style tables, their figures, their JSON.
 
-Each ``*_report`` function takes the stored records of one group of runs (one table's
-worth), draws its figures into a folder, prints its tables to a rich console (or
-nothing, for ``--json``; or records them in a :class:`~cmarlcd.document.Recorder`, for a
-Markdown or HTML report) and returns the JSON document of the group, with its title, its
-settings and the package versions its runs were computed by (a warning is shown when
-they differ). Figure files are named by
-what they show: a readable stem and a digest of the group's settings, so groups with
-other settings never overwrite each other; the printed line after each figure says
-which settings it shows.
+Each ``*_section`` function takes the stored records of one group of runs (one table's
+worth), draws its figures into a folder (:mod:`cmarlcd.figures`) and returns a
+:class:`~cmarlcd.section.Section`: title, settings, the package versions its runs were
+computed by, tables whose cells hold our values beside the paper's, notes, figures and
+the group's JSON fields. :mod:`cmarlcd.render` prints a section on a terminal,
+:mod:`cmarlcd.document` writes it as Markdown or HTML. Figure files are named by what
+they show: a readable stem and a digest of the group's settings, so groups with other
+settings never overwrite each other; each figure's caption says which settings it shows.
 """
 
 from __future__ import annotations
@@ -22,17 +21,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rich.console import Console
-from rich.table import Table
-from rich.text import Text
 
-from cmarlcd.document import Recorder, version_warning
 from cmarlcd.experiments import episodic
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.experiments.episodic import EpisodicGame, Row
 from cmarlcd.experiments.repeated import CellSummary
+from cmarlcd.section import BAD, GOOD, Cell, FigureBlock, Section, TableBlock, TextBlock, cells
 from cmarlcd.store import RunRecord
 
 #: Success rates below this are shown in red (the acceptance bar for Tables 1-2).
@@ -47,50 +43,15 @@ def percent(rate: float | None) -> str:
     return f"{value:.0f}" if abs(value - round(value)) < 1e-9 else f"{value:.1f}"
 
 
-Output = Console | Recorder
+def versions(records: Sequence[RunRecord]) -> Counter:
+    """Runs per package version."""
+    return Counter(rec.version for rec in records)
 
 
-def show(console: Output, table: Table) -> None:
-    """Print ``table`` with its title and caption as lines of their own: a narrow table
-    would wrap them to its width."""
-    if isinstance(console, Recorder):
-        console.table(table)
-        return
-    title, caption = table.title, table.caption
-    table.title = table.caption = None
-    if title:
-        console.print(Text(str(title), style="bold"), soft_wrap=True)
-    console.print(table)
-    if caption:
-        console.print(Text(str(caption), style="dim"), soft_wrap=True)
-
-
-def say(console: Output, text: str) -> None:
-    """One line of plain text (paths stay whole: no wrapping)."""
-    if isinstance(console, Recorder):
-        console.text(text)
-        return
-    console.print(Text(text), soft_wrap=True)
-
-
-def figure_line(console: Output, path: Path, what: str) -> None:
-    """Where a figure was drawn and what it shows."""
-    if isinstance(console, Recorder):
-        console.figure(path, what)
-        return
-    say(console, f"figure: {path} ({what})")
-
-
-def versions(records: Sequence[RunRecord], console: Output | None) -> dict[str, int]:
-    """Runs per package version; warns when a group mixes versions."""
-    counts = Counter(rec.version for rec in records)
-    warning = version_warning(counts)
-    if warning is not None and console is not None:
-        if isinstance(console, Recorder):
-            console.text(warning, warning=True)
-        else:
-            console.print(Text(warning, style="bold yellow"), soft_wrap=True)
-    return dict(counts)
+def new_section(title: str, settings: str, records: Sequence[RunRecord], **data: Any) -> Section:
+    """An empty section of ``records`` (their versions and count) with JSON fields."""
+    unique = {rec.key: rec for rec in records}
+    return Section(title, settings, versions(list(unique.values())), len(unique), data=data)
 
 
 def figure_name(stem: str, settings: Any) -> str:
@@ -109,80 +70,72 @@ def runs_text(counts: Sequence[int], unit: str) -> str:
 
 
 def _grid_table(
-    cells: Sequence[CellSummary],
+    cells_: Sequence[CellSummary],
     title: str,
-    render: Callable[[CellSummary], str],
-    caption: str | None = None,
-) -> Table:
+    render: Callable[[CellSummary], Cell],
+    caption: str = "",
+) -> TableBlock:
     """The paper's layout: one row per action count m, one column per agent count n."""
-    agents = sorted({c.agents for c in cells})
-    actions = sorted({c.actions for c in cells})
-    by_cell = {(c.agents, c.actions): c for c in cells}
-    table = Table(title=title, caption=caption)
-    table.add_column("", no_wrap=True)
-    for n in agents:
-        table.add_column(f"n={n}", justify="right", no_wrap=True)
-    for m in actions:
-        row = [f"m={m}"]
-        for n in agents:
-            cell = by_cell.get((n, m))
-            row.append("" if cell is None else render(cell))
-        table.add_row(*row)
-    return table
+    agents = sorted({c.agents for c in cells_})
+    actions = sorted({c.actions for c in cells_})
+    by_cell = {(c.agents, c.actions): c for c in cells_}
+    rows = [
+        [Cell(f"m={m}")]
+        + [Cell("") if (n, m) not in by_cell else render(by_cell[(n, m)]) for n in agents]
+        for m in actions
+    ]
+    return TableBlock(title, ["", *(f"n={n}" for n in agents)], rows, caption)
 
 
-def _success(cell: CellSummary) -> str:
-    style = "green" if cell.success_rate >= SUCCESS_BAR else "red"
-    ours = f"[{style}]{percent(cell.success_rate)}[/]"
-    if cell.paper_success_rate is None:
-        return ours
-    return f"{ours} [dim]({percent(cell.paper_success_rate)})[/]"
+def _success(cell: CellSummary) -> Cell:
+    tone = GOOD if cell.success_rate >= SUCCESS_BAR else BAD
+    paper = None if cell.paper_success_rate is None else percent(cell.paper_success_rate)
+    return Cell(percent(cell.success_rate), paper, tone)
 
 
-def _median_games(cell: CellSummary) -> str:
-    return "—" if cell.median_games is None else f"{cell.median_games:,.0f}"
+def _median_games(cell: CellSummary) -> Cell:
+    return Cell("—" if cell.median_games is None else f"{cell.median_games:,.0f}")
 
 
-def success_table(cells: Sequence[CellSummary], title: str) -> Table:
+def success_table(cells_: Sequence[CellSummary], title: str) -> TableBlock:
     """Success rate per cell, beside the paper's when the settings are the paper's."""
-    paper = any(c.paper_success_rate is not None for c in cells)
+    paper = any(c.paper_success_rate is not None for c in cells_)
     what = "ours (the paper's)" if paper else "ours (settings differ from the paper's)"
     caption = f"success % per cell: {what}; rows: actions m, columns: agents n"
-    return _grid_table(cells, title, _success, caption)
+    return _grid_table(cells_, title, _success, caption)
 
 
-def games_table(cells: Sequence[CellSummary], title: str) -> Table:
+def games_table(cells_: Sequence[CellSummary], title: str) -> TableBlock:
     """Median games to convergence per cell (the paper does not report it)."""
-    return _grid_table(cells, title, _median_games)
+    return _grid_table(cells_, title, _median_games)
 
 
-def repeated_report(
-    records: Sequence[RunRecord], figures: Path, console: Output | None
-) -> dict[str, Any]:
+def repeated_section(records: Sequence[RunRecord], figures: Path) -> Section:
     """Table 1 or 2 and its heatmap from the records of one group of runs."""
     from cmarlcd import figures as figs
 
-    cells = rep.summarize(records)
+    summary = rep.summarize(records)
     title = rep.table_title(records)
     case, seed = records[0].config["case"], records[0].key.root_seed
-    settings = rep.group_key(records[0].config, seed)
-    name = figure_name(f"repeated-case{case}-seed{seed}", settings)
-    path = figs.repeated_heatmap(cells, title, figures / name)
+    name = figure_name(f"repeated-case{case}-seed{seed}", rep.group_key(records[0].config, seed))
+    path = figs.repeated_heatmap(summary, title, figures / name)
     settings = rep.settings_text(records)
-    if console is not None:
-        show(console, success_table(cells, title))
-        show(console, games_table(cells, f"Median games to convergence ({settings})"))
-        figure_line(console, path, settings)
-    return {
-        "experiment": rep.EXPERIMENT,
-        "title": f"Table {case}: random cooperative repeated games, case {case}",
-        "settings": settings,
-        "versions": versions(records, console),
-        "case": case,
-        "seed": seed,
-        "figure": str(path),
-        "cells": [c.to_dict() for c in cells],
-    }
+    section = new_section(
+        f"Table {case}: random cooperative repeated games, case {case}",
+        settings,
+        records,
+        experiment=rep.EXPERIMENT,
+        case=case,
+        seed=seed,
+        figure=str(path),
+        cells=[c.to_dict() for c in summary],
+    )
+    section.add(
+        success_table(summary, title),
+        games_table(summary, f"Median games to convergence ({settings})"),
+        FigureBlock(path, settings),
+    )
+    return section
 
 
 # ----------------------------------------------------------------- Tables 3 to 7
@@ -203,9 +156,9 @@ def _format(value: float | None, fmt: str) -> str:
     return f"{100 * value:.2f}" if fmt == "pct" else format(value, fmt)
 
 
-def dsn_tables(rows: Sequence[Row], protocol: str = "") -> list[Table]:
+def dsn_tables(rows: Sequence[Row], protocol: str = "") -> list[TableBlock]:
     """Tables 3-7 in the paper's layout: algorithms by row, L by column; ours, and the
-    paper's in brackets for the rows run with the paper's settings."""
+    paper's under it for the rows run with the paper's settings."""
     budgets = sorted({r.episodes for r in rows})
     labels = list(dict.fromkeys(r.label for r in rows))
     by_cell = {(r.label, r.episodes): r for r in rows}
@@ -213,27 +166,26 @@ def dsn_tables(rows: Sequence[Row], protocol: str = "") -> list[Table]:
     suffix = f" ({protocol})" if protocol else ""
     tables = []
     for number, title, metrics, fmt in DSN_TABLES:
-        table = Table(title=f"Table {number}. {title}{suffix}", show_lines=True)
-        table.add_column("ours\n(paper)" if paper else "ours", no_wrap=True)
-        for budget in budgets:
-            table.add_column(f"L = {budget:,}", justify="right", no_wrap=True)
+        body = []
         for label in labels:
-            cells = [label]
+            row = [Cell(label)]
             for budget in budgets:
-                row = by_cell.get((label, budget))
-                if row is None:
-                    cells.append("")
+                found = by_cell.get((label, budget))
+                if found is None:
+                    row.append(Cell(""))
                     continue
-                ours = " | ".join(_format(getattr(row, m), fmt) for m in metrics)
-                if any(row.paper[m] is not None for m in metrics):
-                    ours += (
-                        "\n[dim]("
-                        + " | ".join(_format(row.paper[m], fmt) for m in metrics)
-                        + ")[/]"
-                    )
-                cells.append(ours)
-            table.add_row(*cells)
-        tables.append(table)
+                ours = " | ".join(_format(getattr(found, m), fmt) for m in metrics)
+                theirs = None
+                if any(found.paper[m] is not None for m in metrics):
+                    theirs = " | ".join(_format(found.paper[m], fmt) for m in metrics)
+                row.append(Cell(ours, theirs))
+            body.append(row)
+        columns = ["ours\n(paper)" if paper else "ours", *(f"L = {b:,}" for b in budgets)]
+        tables.append(
+            TableBlock(
+                f"Table {number}. {title}{suffix}", columns, body, paper_below=True, layout="lines"
+            )
+        )
     return tables
 
 
@@ -251,9 +203,7 @@ def protocol_text(records: Sequence[RunRecord], rows: Sequence[Row]) -> str:
     return f"seed {records[0].key.root_seed}, {runs}, {cfg['eval_episodes']:,} evaluation episodes"
 
 
-def dsn_report(
-    game: EpisodicGame, records: Sequence[RunRecord], figures: Path, console: Output | None
-) -> dict[str, Any]:
+def dsn_section(game: EpisodicGame, records: Sequence[RunRecord], figures: Path) -> Section:
     """Tables 3-7, the learning curves and Fig. 4 of one group of DSN runs."""
     from cmarlcd import figures as figs
 
@@ -277,59 +227,54 @@ def dsn_report(
             )
             key = f"fig4_{rec.key.algorithm}_L{largest}"
             paths[key], shown[key] = str(path), f"Fig. 4, {what}"
-    if console is not None:
-        say(console, TRAIN_ONCE_NOTE)
-        for table in dsn_tables(rows, protocol):
-            show(console, table)
-        for key, path in paths.items():
-            figure_line(console, Path(path), shown[key])
-    return {
-        "experiment": game.experiment,
-        "title": "Tables 3-7 and Fig. 4: the distributed sensor network task",
-        "settings": protocol,
-        "versions": versions(records, console),
-        "seed": seed,
-        "note": TRAIN_ONCE_NOTE,
-        "rows": [r.to_dict() for r in rows],
-        "figures": paths,
-    }
+    section = new_section(
+        "Tables 3-7 and Fig. 4: the distributed sensor network task",
+        protocol,
+        records,
+        experiment=game.experiment,
+        seed=seed,
+        note=TRAIN_ONCE_NOTE,
+        rows=[r.to_dict() for r in rows],
+        figures=paths,
+    )
+    section.add(TextBlock(TRAIN_ONCE_NOTE), *dsn_tables(rows, protocol))
+    section.add(*(FigureBlock(Path(path), shown[key]) for key, path in paths.items()))
+    return section
 
 
 # ------------------------------------------------------------------- Theorem 1
 
 
-def theory_report(doc: dict[str, Any], console: Output) -> None:
-    """Where the ODE starts went, and the Jacobian's eigenvalues against eq. (13)."""
-    n, m, t = doc["n_agents"], doc["n_optima"], doc["temperature"]
-    if not isinstance(console, Recorder):
-        console.print(f"[bold]Theorem 1[/]: {n} agents, {m} optimal joint actions, T = {t:g}")
-    reached = ", ".join(f"optimum {j}: {k}" for j, k in enumerate(doc["converged_to"]))
-    say(
-        console,
-        f"ODE (8) from {doc['starts']} random interior starts -> {reached}; "
-        f"elsewhere: {doc['unconverged']}",
-    )
-    table = Table(
-        title="Jacobian of the reduced system (12) at each optimum, by finite differences"
-    )
-    for column in ("optimum", "eigenvalues (min .. max)", "paper, eq. (13)"):
-        table.add_column(column, justify="right")
-    for j, values in enumerate(doc["eigenvalues_real"]):
-        table.add_row(
-            str(j), f"{min(values):.8f} .. {max(values):.8f}", f"{doc['expected_eigenvalue']:g}"
-        )
-    show(console, table)
-    verdict = "confirmed" if doc["confirmed"] else "NOT confirmed"
-    say(console, f"max |eigenvalue + 2/T| = {doc['max_eigen_error']:.2e}: {verdict}")
-    if "figure" in doc:
-        figure_line(console, Path(doc["figure"]), f"phase portrait of system (12), T = {t:g}")
-
-
-def theory_title(doc: dict[str, Any]) -> tuple[str, str]:
-    """The title and settings of one Theorem 1 check."""
+def theory_section(doc: dict[str, Any], records: Sequence[RunRecord] = ()) -> Section:
+    """Where the ODE starts went, and the Jacobian's eigenvalues against eq. (13), of one
+    Theorem 1 check (``records``: the stored run it comes from, if any)."""
+    t = doc["temperature"]
     title = f"Theorem 1: {doc['n_agents']} agents, {doc['n_optima']} optimal joint actions"
-    settings = f"T = {doc['temperature']:g}, {doc['starts']} random starts, seed {doc['seed']}"
-    return title, settings
+    settings = f"T = {t:g}, {doc['starts']} random starts, seed {doc['seed']}"
+    section = new_section(title, settings, records, **doc)
+    reached = ", ".join(f"optimum {j}: {k}" for j, k in enumerate(doc["converged_to"]))
+    section.add(
+        TextBlock(
+            f"ODE (8) from {doc['starts']} random interior starts -> {reached}; "
+            f"elsewhere: {doc['unconverged']}"
+        )
+    )
+    rows = [
+        cells(str(j), f"{min(v):.8f} .. {max(v):.8f}", f"{doc['expected_eigenvalue']:g}")
+        for j, v in enumerate(doc["eigenvalues_real"])
+    ]
+    section.add(
+        TableBlock(
+            "Jacobian of the reduced system (12) at each optimum, by finite differences",
+            ["optimum", "eigenvalues (min .. max)", "paper, eq. (13)"],
+            rows,
+        )
+    )
+    verdict = "confirmed" if doc["confirmed"] else "NOT confirmed"
+    section.add(TextBlock(f"max |eigenvalue + 2/T| = {doc['max_eigen_error']:.2e}: {verdict}"))
+    if "figure" in doc:
+        section.add(FigureBlock(Path(doc["figure"]), f"phase portrait of system (12), T = {t:g}"))
+    return section
 
 
 # ------------------------------------------------------------- the tournament
@@ -350,44 +295,49 @@ def _pm(mean: float, spread: float, fmt: str) -> str:
     return "—" if np.isnan(mean) else f"{mean:{fmt}} ± {spread:{fmt}}"
 
 
-def tournament_tables(cells: Sequence[Any], names: dict[str, str], caption: str) -> list[Table]:
+def tournament_tables(
+    cells_: Sequence[Any], names: dict[str, str], caption: str
+) -> list[TableBlock]:
     """Fig. 6 and Fig. 7 as tables: rows the algorithm, columns its opponent."""
-    table = {(c.algorithm, c.opponent): c for c in cells}
-    order = [n for n in names if any(c.algorithm == n for c in cells)]
-    rates = Table(
-        title="Fig. 6 — win rate (%) of each algorithm (row) against each opponent "
-        "(column): win | loss | tie, mean ± spread over rounds",
-        caption=caption,
-    )
-    steps = Table(
-        title="Fig. 7 — win steps: mean turns of the won episodes, mean ± spread over rounds",
-        caption=caption,
-    )
-    for t in (rates, steps):
-        t.add_column("algorithm")
-        for opponent in order:
-            t.add_column(f"vs {names[opponent]}", justify="right")
+    table = {(c.algorithm, c.opponent): c for c in cells_}
+    order = [n for n in names if any(c.algorithm == n for c in cells_)]
+    rate_rows, step_rows = [], []
     for algorithm in order:
-        rate_row, step_row = [names[algorithm]], [names[algorithm]]
+        rate_row, step_row = [Cell(names[algorithm])], [Cell(names[algorithm])]
         for opponent in order:
             c = table.get((algorithm, opponent))
             if c is None:
-                rate_row.append("—")
-                step_row.append("—")
+                rate_row.append(Cell("—"))
+                step_row.append(Cell("—"))
                 continue
             rate_row.append(
-                f"{_pm(100 * c.win_rate, 100 * c.win_rate_std, '.1f')} | "
-                f"{100 * c.loss_rate:.1f} | {100 * c.tie_rate:.1f}"
+                Cell(
+                    f"{_pm(100 * c.win_rate, 100 * c.win_rate_std, '.1f')} | "
+                    f"{100 * c.loss_rate:.1f} | {100 * c.tie_rate:.1f}"
+                )
             )
-            step_row.append(_pm(c.win_steps, c.win_steps_std, ".2f"))
-        rates.add_row(*rate_row)
-        steps.add_row(*step_row)
-    return [rates, steps]
+            step_row.append(Cell(_pm(c.win_steps, c.win_steps_std, ".2f")))
+        rate_rows.append(rate_row)
+        step_rows.append(step_row)
+    columns = ["algorithm", *(f"vs {names[o]}" for o in order)]
+    return [
+        TableBlock(
+            "Fig. 6 — win rate (%) of each algorithm (row) against each opponent "
+            "(column): win | loss | tie, mean ± spread over rounds",
+            columns,
+            rate_rows,
+            caption,
+        ),
+        TableBlock(
+            "Fig. 7 — win steps: mean turns of the won episodes, mean ± spread over rounds",
+            columns,
+            step_rows,
+            caption,
+        ),
+    ]
 
 
-def tournament_report(
-    records: Sequence[RunRecord], figures: Path, console: Output | None
-) -> dict[str, Any]:
+def tournament_section(records: Sequence[RunRecord], figures: Path) -> Section:
     """Figs. 6-7 (tables and PNGs) and the check of the paper's claims, from one
     tournament's stored matches."""
     from cmarlcd import figures as figs
@@ -401,8 +351,8 @@ def tournament_report(
     known = list(tour.battlefield_learners())
     order = sorted(present, key=lambda n: (known.index(n) if n in known else len(known), n))
     names = {name: _label(name, present[name]) for name in order}
-    cells = match_results.summarize(records, list(names))
-    claims = claim_checks.check_claims(records, cells)
+    summary = match_results.summarize(records, list(names))
+    claims = claim_checks.check_claims(records, summary)
     first = records[0]
     rounds = sorted({r.key.run_index for r in records})
     reading = match_results.match_reading(records)
@@ -421,28 +371,27 @@ def tournament_report(
         title = f"Fig. {fig} — {label} ({settings})"
         unit = " (turns)" if metric == "win_steps" else ""
         paths[f"fig{fig}"] = figs.tournament_bars(
-            cells, metric, label + unit, title, figures / figure_name(stem, group), names
+            summary, metric, label + unit, title, figures / figure_name(stem, group), names
         )
-    if console is not None:
-        for table in tournament_tables(cells, names, settings):
-            show(console, table)
-        say(console, "The paper's claims (Section V-B) against these matches:")
-        for claim in claims:
-            say(console, f"  {claim.claim}: {claim.verdict.upper()} — {claim.evidence}")
-        for key, path in paths.items():
-            figure_line(console, path, f"Fig. {key[3:]}, {settings}")
-    return {
-        "experiment": tour.EXPERIMENT,
-        "title": "Figs. 6-7: the blood battlefield tournament"
+    section = new_section(
+        "Figs. 6-7: the blood battlefield tournament"
         + ("" if reading_text == "defaults" else f" ({reading_text})"),
-        "settings": settings,
-        "readings": reading,
-        "versions": versions(records, console),
-        "seed": seed,
-        "rounds": len(rounds),
-        "learn_episodes": first.config["learn_episodes"],
-        "eval_episodes": first.config["eval_episodes"],
-        "cells": [c.to_dict() for c in cells],
-        "claims": [c.to_dict() for c in claims],
-        "figures": {key: str(path) for key, path in paths.items()},
-    }
+        settings,
+        records,
+        experiment=tour.EXPERIMENT,
+        readings=reading,
+        seed=seed,
+        rounds=len(rounds),
+        learn_episodes=first.config["learn_episodes"],
+        eval_episodes=first.config["eval_episodes"],
+        cells=[c.to_dict() for c in summary],
+        claims=[c.to_dict() for c in claims],
+        figures={key: str(path) for key, path in paths.items()},
+    )
+    section.add(*tournament_tables(summary, names, settings))
+    section.add(TextBlock("The paper's claims (Section V-B) against these matches:"))
+    section.add(
+        *(TextBlock(f"{c.claim}: {c.verdict.upper()} — {c.evidence}", item=True) for c in claims)
+    )
+    section.add(*(FigureBlock(p, f"Fig. {key[3:]}, {settings}") for key, p in paths.items()))
+    return section

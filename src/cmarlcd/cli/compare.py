@@ -16,8 +16,15 @@ from cmarlcd.cli.options import (
     parse_names,
 )
 from cmarlcd.cli.reproduce import bar_name
-from cmarlcd.cli.sweeps import Execution, compute_runs, print_results, run_counts, with_execution
-from cmarlcd.compare_report import compare_report
+from cmarlcd.cli.sweeps import (
+    Execution,
+    compute_runs,
+    present,
+    print_results,
+    run_counts,
+    with_execution,
+)
+from cmarlcd.compare_report import compare_section
 from cmarlcd.experiments import compare as cmp
 
 #: Every game of the comparison, the DSN last.
@@ -41,7 +48,7 @@ def run_comparison(
     records, done = compute_runs(
         sweep.specs(), run, "compare", section=lambda spec: bar_name("compare", spec)
     )
-    doc = compare_report(records, run.figures, console)
+    doc = present(compare_section(records, run.figures), console)
     skipped = [{"learner": learner, "game": game} for learner, game in sweep.skipped()]
     if skipped and console is not None:
         pairs = ", ".join(f"{s['learner']} on {s['game']}" for s in skipped)

@@ -24,6 +24,7 @@ from cmarlcd.cli.sweeps import (
     compute_runs,
     has_torch,
     needs_torch,
+    present,
     print_results,
     run_counts,
     with_execution,
@@ -145,5 +146,5 @@ def run_dsn(
 ) -> dict[str, Any]:
     """Run (or resume) a DSN sweep and report it; return its JSON document."""
     records, done = compute_runs(sweep.specs(), run, "DSN", seed_batch)
-    doc = report.dsn_report(dsn_exp.DSN_GAME, records, run.figures, console)
+    doc = present(report.dsn_section(dsn_exp.DSN_GAME, records, run.figures), console)
     return {**doc, **run_counts(done, run.store, console)}

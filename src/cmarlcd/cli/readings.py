@@ -15,7 +15,14 @@ from cmarlcd.cli.options import (
     parse_count,
     parse_names,
 )
-from cmarlcd.cli.sweeps import Execution, compute_runs, print_results, run_counts, with_execution
+from cmarlcd.cli.sweeps import (
+    Execution,
+    compute_runs,
+    present,
+    print_results,
+    run_counts,
+    with_execution,
+)
 from cmarlcd.cli.tournament import (
     ALL_ALGORITHMS,
     AlgorithmsOption,
@@ -28,7 +35,7 @@ from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import readings as study_module
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.limits import check_seed_batch
-from cmarlcd.readings_report import readings_report
+from cmarlcd.readings_report import readings_section
 from cmarlcd.runner import SweepResult
 
 
@@ -64,7 +71,7 @@ def run_study(
         tally.append(extra)
     elif console is not None:
         console.print("fewer than two changes raise CMARL-CD's margin: no combination played")
-    doc = readings_report(outcomes, run.figures, console)
+    doc = present(readings_section(outcomes, run.figures), console)
     return {**doc, **run_counts(_total(tally), run.store, console)}
 
 

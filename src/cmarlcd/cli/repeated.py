@@ -14,7 +14,14 @@ from cmarlcd.cli.options import (
     fails_cleanly,
     parse_range,
 )
-from cmarlcd.cli.sweeps import Execution, compute_runs, print_results, run_counts, with_execution
+from cmarlcd.cli.sweeps import (
+    Execution,
+    compute_runs,
+    present,
+    print_results,
+    run_counts,
+    with_execution,
+)
 from cmarlcd.errors import require
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.games.matrix import MAX_JOINT_ACTIONS
@@ -43,7 +50,7 @@ def run_repeated(
 def repeated_document(
     sweep: rep.RepeatedSweep, records: list[RunRecord], run: Execution, console: Console | None
 ) -> dict[str, Any]:
-    doc = report.repeated_report(records, run.figures, console)
+    doc = present(report.repeated_section(records, run.figures), console)
     return {**doc, "learner": asdict(sweep.learner)}
 
 

@@ -21,8 +21,8 @@ from cmarlcd.cli.options import (
     check_outputs,
     fails_cleanly,
 )
-from cmarlcd.cli.theory import theorem_documents
-from cmarlcd.compare_report import compare_report
+from cmarlcd.cli.theory import theorem_sections
+from cmarlcd.compare_report import compare_section
 from cmarlcd.errors import require
 from cmarlcd.experiments import compare as cmp
 from cmarlcd.experiments import episodic, theorem
@@ -30,6 +30,8 @@ from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_results as match_results
+from cmarlcd.render import say, show_section
+from cmarlcd.section import Section, version_warning
 from cmarlcd.store import DEFAULT_STORE, ResultStore, RunRecord
 from cmarlcd.version import __version__
 
@@ -90,7 +92,8 @@ def report_command(
         print(f"report: {output} ({len(groups)} sections from {store})", file=sys.stderr)
 
 
-Renderer = Callable[[Sequence[RunRecord], Path, Any], dict[str, Any]]
+#: Makes the section of one stored group of runs, drawing its figures into a folder.
+Renderer = Callable[[Sequence[RunRecord], Path], Section]
 
 
 def _report_groups(
@@ -99,17 +102,17 @@ def _report_groups(
     """The stored groups of runs the filters keep, in the paper's order: (kind, renderer,
     records)."""
 
-    def dsn(records: Sequence[RunRecord], figures: Path, out: Any) -> dict[str, Any]:
-        return report.dsn_report(dsn_exp.DSN_GAME, records, figures, out)
+    def dsn(records: Sequence[RunRecord], figures: Path) -> Section:
+        return report.dsn_section(dsn_exp.DSN_GAME, records, figures)
 
     found: list[tuple[str, Renderer, list[RunRecord]]] = []
     for records in rep.stored_tables(db.records(rep.EXPERIMENT)).values():
         if case in (None, records[0].config["case"]):
-            found.append(("repeated", report.repeated_report, records))
+            found.append(("repeated", report.repeated_section, records))
     if case is None:
         kinds = (
             ("dsn", dsn, dsn_exp.EXPERIMENT, episodic.protocol_key),
-            ("theorem1", _theorem_report, theorem.EXPERIMENT, _theorem_key),
+            ("theorem1", _theorem_section, theorem.EXPERIMENT, _theorem_key),
         )
         dsn_runs = [r for r in db.records(dsn_exp.EXPERIMENT) if cmp.is_comparison_dsn_run(r)]
         compared = {r.key for r in dsn_runs}  # reported with the comparison
@@ -121,7 +124,7 @@ def _report_groups(
                 found += _battlefield_groups(db.records(tour.EXPERIMENT))
         for seed_, records in _groups(db.records(cmp.EXPERIMENT), _seed_key).items():
             ours = [r for r in dsn_runs if r.key.root_seed == seed_]
-            found.append(("compare", compare_report, records + ours))
+            found.append(("compare", compare_section, records + ours))
     return [g for g in found if seed in (None, g[2][0].key.root_seed)]
 
 
@@ -129,15 +132,15 @@ def _battlefield_groups(records: list[RunRecord]) -> list[tuple[str, Renderer, l
     """Each stored tournament, then each readings study (two or more readings with the
     same seed and budgets) as one more section."""
     from cmarlcd.experiments.readings import stored_studies
-    from cmarlcd.readings_report import stored_readings_report
+    from cmarlcd.readings_report import stored_readings_section
 
     groups = match_results.tournaments(records)
     found: list[tuple[str, Renderer, list[RunRecord]]] = [
-        ("tournament", report.tournament_report, g) for g in groups
+        ("tournament", report.tournament_section, g) for g in groups
     ]
     for study in stored_studies(groups):
         every = list({rec.key: rec for o in study for rec in o.records}.values())
-        found.append(("readings", stored_readings_report, every))
+        found.append(("readings", stored_readings_section, every))
     return found
 
 
@@ -149,27 +152,27 @@ def _theorem_key(rec: RunRecord) -> tuple[str, int]:
     return rec.key.config, rec.key.root_seed
 
 
-def _theorem_report(records: Sequence[RunRecord], figures: Path, out: Any) -> dict[str, Any]:
-    (doc,) = theorem_documents(records, figures, out)
-    title, settings = report.theory_title(doc)
-    return {
-        **doc,
-        "title": title,
-        "settings": settings,
-        "versions": report.versions(records, out),
-    }
+def _theorem_section(records: Sequence[RunRecord], figures: Path) -> Section:
+    (section,) = theorem_sections(records, figures)
+    return section
+
+
+def _sections(
+    groups: list[tuple[str, Renderer, list[RunRecord]]], figures: Path
+) -> list[tuple[str, Section]]:
+    return [(kind, render(records, figures)) for kind, render, records in groups]
 
 
 def _text_report(
     groups: list[tuple[str, Renderer, list[RunRecord]]], store: Path, figures: Path
 ) -> None:
     console = Console()
-    for _, render, records in groups:
-        render(records, figures, console)
+    for _, section in _sections(groups, figures):
+        show_section(console, section)
     if not groups:
         print(f"the store {store} holds no finished runs matching the filters")
     else:
-        report.say(console, f"results: read from {store}, figures in {figures}/")
+        say(console, f"results: read from {store}, figures in {figures}/")
 
 
 def _document(
@@ -184,28 +187,12 @@ def _document(
 
     from cmarlcd import document
 
-    sections: list = []
+    sections = _sections(groups, figures)
     docs: dict[str, list] = {
-        "repeated": [],
-        "dsn": [],
-        "tournament": [],
-        "readings": [],
-        "theorem1": [],
-        "compare": [],
+        kind: [] for kind in ("repeated", "dsn", "tournament", "readings", "theorem1", "compare")
     }
-    for kind, render, records in groups:
-        recorder = document.Recorder()
-        doc = render(records, figures, recorder)
-        docs[kind].append({**doc, "runs": len(records)})
-        sections.append(
-            document.Section(
-                doc["title"],
-                doc["settings"],
-                Counter(doc["versions"]),
-                len(records),
-                recorder.blocks,
-            )
-        )
+    for kind, section in sections:
+        docs[kind].append({**section.document(), "runs": section.runs})
     unique = {rec.key: rec for _, _, records in groups for rec in records}  # a run may
     every = Counter(rec.version for rec in unique.values())  # be in two sections
     preamble = [
@@ -214,15 +201,16 @@ def _document(
         "Our numbers come first; the paper's, where it reports them for the same "
         "settings, follow in brackets.",
     ]
-    warning = document.version_warning(every)
+    warning = version_warning(every)
     if warning is not None:
         preamble.append(warning)
     title = "CMARL-CD: reproduction report"
     if output_format == "json":
         return json.dumps({"store": str(store), "versions": dict(every), **docs}, indent=2)
+    only = [section for _, section in sections]
     if output_format == "markdown":
-        return document.render_markdown(title, preamble, sections, output)
-    return document.render_html(title, preamble, sections)
+        return document.render_markdown(title, preamble, only, output)
+    return document.render_html(title, preamble, only)
 
 
 def _groups(records: Iterable[Any], key: Callable[[Any], Any]) -> dict[Any, list]:

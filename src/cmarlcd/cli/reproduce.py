@@ -21,13 +21,14 @@ from cmarlcd.cli.sweeps import (
     console_for,
     has_torch,
     needs_torch,
+    present,
     run_counts,
     where,
     with_execution,
 )
 from cmarlcd.cli.theory import theorem_documents
 from cmarlcd.cli.tournament import tournament_learners
-from cmarlcd.compare_report import compare_report
+from cmarlcd.compare_report import compare_section
 from cmarlcd.errors import require
 from cmarlcd.experiments import compare as cmp
 from cmarlcd.experiments import repeated as rep
@@ -164,11 +165,12 @@ def reproduce(
         repeated_document(table, part[f"Table {table.case}"], run, console)
         for table in _paper_sweeps(chosen, seed)
     ]
-    doc["dsn"] = report.dsn_report(dsn_exp.DSN_GAME, part["Tables 3-7"], run.figures, console)
-    doc["tournament"] = report.tournament_report(part["Figs. 6-7"], run.figures, console)
+    dsn = report.dsn_section(dsn_exp.DSN_GAME, part["Tables 3-7"], run.figures)
+    doc["dsn"] = present(dsn, console)
+    doc["tournament"] = present(report.tournament_section(part["Figs. 6-7"], run.figures), console)
     doc["theorem1"] = theorem_documents(part["Theorem 1"], run.figures, console)
     if COMPARISON in part:
-        doc["compare"] = compare_report(part[COMPARISON], run.figures, console)
+        doc["compare"] = present(compare_section(part[COMPARISON], run.figures), console)
     doc.update(run_counts(done, run.store, console))
     if console is None:
         print(json.dumps(doc, indent=2))

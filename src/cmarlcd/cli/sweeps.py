@@ -16,7 +16,6 @@ from typing import Any, TypeVar
 
 from rich.console import Console
 
-from cmarlcd import report
 from cmarlcd.backends import check_backend, ray_cluster
 from cmarlcd.cli.options import (
     DEFAULT_FIGURES,
@@ -32,8 +31,10 @@ from cmarlcd.cli.options import (
 )
 from cmarlcd.cli.progress import RichSweepView
 from cmarlcd.limits import check_workers
+from cmarlcd.render import say, show_section
 from cmarlcd.runner import SweepResult, run_sweep
 from cmarlcd.runs import RunSpec
+from cmarlcd.section import Section
 from cmarlcd.store import DEFAULT_STORE, ResultStore, RunRecord, discard_if_empty
 from cmarlcd.version import __version__
 
@@ -132,10 +133,17 @@ def compute_runs(
         ray_cluster.on_lost = watching
 
 
+def present(section: Section, console: Console | None) -> dict[str, Any]:
+    """Show ``section`` on the console (if any); return its JSON document."""
+    if console is not None:
+        show_section(console, section)
+    return section.document()
+
+
 def run_counts(done: SweepResult, store_path: Path, console: Console | None) -> dict[str, Any]:
     if console is not None:
         shared = f", {done.shared} by another sweep on the same store" if done.shared else ""
-        report.say(
+        say(
             console,
             f"{done.computed} runs computed, {done.reused} from the store{shared} in "
             f"{done.wall_seconds:.1f} s",
@@ -152,7 +160,7 @@ def run_counts(done: SweepResult, store_path: Path, console: Console | None) -> 
 def where(store: Path, figures: Path, console: Console | None) -> None:
     """The last line of a command: where its results went."""
     if console is not None:
-        report.say(console, f"results: runs in {store}, figures in {figures}/")
+        say(console, f"results: runs in {store}, figures in {figures}/")
 
 
 def console_for(as_json: bool) -> Console | None:

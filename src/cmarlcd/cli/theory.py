@@ -20,6 +20,8 @@ from cmarlcd.cli.options import (
     check_outputs,
     fails_cleanly,
 )
+from cmarlcd.render import say, show_section
+from cmarlcd.section import Section
 from cmarlcd.store import RunRecord
 
 
@@ -49,22 +51,33 @@ def theory(
     if as_json:
         print(json.dumps(doc, indent=2))
         return
-    report.theory_report(doc, Console())
+    console = Console()
+    section = report.theory_section(doc)
+    say(console, f"{section.title}, T = {temperature:g}", "bold")
+    show_section(console, section, title=False)
 
 
-def theorem_documents(
-    records: Sequence[RunRecord], figures: Path, console: Console | None
-) -> list[dict[str, Any]]:
+def theorem_sections(records: Sequence[RunRecord], figures: Path) -> list[Section]:
     """The stored Theorem 1 checks, with the phase portrait beside the 2-agent one."""
     from cmarlcd.figures import phase_portrait
 
-    docs = []
+    sections = []
     for rec in records:
         doc = dict(rec.metrics)
         if (doc["n_agents"], doc["n_optima"]) == (2, 2):
             path = figures / f"theorem1-phase-T{doc['temperature']:g}.png"
             doc["figure"] = str(phase_portrait(path, doc["temperature"], rec.key.root_seed))
+        sections.append(report.theory_section(doc, [rec]))
+    return sections
+
+
+def theorem_documents(
+    records: Sequence[RunRecord], figures: Path, console: Console | None
+) -> list[dict[str, Any]]:
+    """The stored Theorem 1 checks as JSON documents (shown on ``console`` if any)."""
+    docs = []
+    for section in theorem_sections(records, figures):
         if console is not None:
-            report.theory_report(doc, console)
-        docs.append(doc)
+            show_section(console, section)
+        docs.append(section.data)
     return docs

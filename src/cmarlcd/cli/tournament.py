@@ -23,6 +23,7 @@ from cmarlcd.cli.sweeps import (
     compute_runs,
     has_torch,
     needs_torch,
+    present,
     print_results,
     run_counts,
     with_execution,
@@ -139,5 +140,5 @@ def run_tournament(
 ) -> dict[str, Any]:
     """Run (or resume) a tournament and report it; return its JSON document."""
     records, done = compute_runs(contest.specs(), run, "battlefield", seed_batch)
-    doc = report.tournament_report(records, run.figures, console)
+    doc = present(report.tournament_section(records, run.figures), console)
     return {**doc, **run_counts(done, run.store, console)}
