@@ -33,3 +33,13 @@ ORDER = (
     "report",
 )
 app.registered_commands.sort(key=lambda c: ORDER.index(c.name or c.callback.__name__))
+
+
+def __getattr__(name: str):
+    """``click_app``: the app as a click command (the documentation's CLI reference is
+    generated from it)."""
+    if name == "click_app":
+        import typer.main
+
+        return typer.main.get_command(app)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

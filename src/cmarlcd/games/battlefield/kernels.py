@@ -19,7 +19,7 @@ mixed-radix, opponents' HP first, own alive flags last; a live unit sees one of
 and a side's index ranges over twice that, ``802,816``, since it also says which unit is
 alive.
 
-Choices the paper leaves open (the README's interpretation choices):
+Choices the paper leaves open (the documentation's interpretation choices, docs/choices.md):
 
 * [choice] unit stats (Fig. 5 is not in the text): marine HP 3, damage 1, hit rate 0.8;
   gunner HP 6, damage 2, hit rate 0.6 (:data:`MARINE`, :data:`GUNNER`);
@@ -87,7 +87,7 @@ class Unit:
         object.__setattr__(self, "hit_rate", float(rate))
 
 
-#: [choice] The marine (see the README's interpretation choices).
+#: [choice] The marine (see the documentation's interpretation choices, docs/choices.md).
 MARINE = Unit(hp=3, damage=1, hit_rate=0.8)
 #: [choice] The gunner.
 GUNNER = Unit(hp=6, damage=2, hit_rate=0.6)
