@@ -1,16 +1,19 @@
 """Every learner and game by name, in one place (the command line and the experiments
-look them up here). Adding a learner is one file plus one line below; adding a game is
+look them up here). Adding a learner is one file plus one entry below; adding a game is
 one package plus one line.
 
-Learners are registered by their default config (the paper's DSN settings): the config
-names its learner and carries its compiled functions (or, for the deep learners, its
-network settings), and any other setting is ``dataclasses.replace(default, ...)``.
+A learner is registered once (:class:`Learner`): its name, its kind (tabular or deep),
+its form for stochastic games and its form for repeated games (each a frozen config of
+its paper's settings, or None where it has none), and its settings on games where they
+differ (``presets``: the battlefield's, Section V-B). A config names its learner and
+carries its compiled functions (or, for the deep learners, its network settings); any
+other setting is ``dataclasses.replace(default, ...)``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 from cmarlcd.errors import require
@@ -18,8 +21,8 @@ from cmarlcd.games import battlefield, sensor_network
 from cmarlcd.games.matrix import climbing_game, penalty_game
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.automata import AutomatonConfig
-from cmarlcd.learners.coordination import RepeatedConfig, StochasticConfig
-from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD, RepeatedConfig, StochasticConfig
+from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig
 from cmarlcd.learners.distributed_q import DistributedQConfig, DistributedQStochasticConfig
 from cmarlcd.learners.fmq import FMQConfig
 from cmarlcd.learners.hysteretic import HystereticConfig, HystereticStochasticConfig
@@ -29,25 +32,6 @@ from cmarlcd.learners.q_learning import IQLConfig, IQLStochasticConfig
 from cmarlcd.learners.tabular import TabularConfig
 
 LearnerConfig = TabularConfig | DeepConfig
-
-#: Learners for stochastic games, by name: the paper's (with its DSN settings) and the
-#: classic independent learners (with their papers' settings).
-LEARNERS: dict[str, LearnerConfig] = {
-    config.name: config
-    for config in (
-        StochasticConfig(),
-        AutomatonConfig(),
-        DeepConfig(mixer="vdn"),
-        DeepConfig(mixer="qmix"),
-        IQLStochasticConfig(),
-        DistributedQStochasticConfig(),
-        HystereticStochasticConfig(),
-        LenientStochasticConfig(),
-    )
-}
-
-#: The learners of the paper's DSN tables (the others are compared beyond the paper).
-PAPER_LEARNERS = ("cmarl-cd", "la-oca", "vdn", "qmix")
 
 RepeatedLearnerConfig = (
     RepeatedConfig
@@ -60,21 +44,87 @@ RepeatedLearnerConfig = (
     | CentralQConfig
 )
 
+#: The kinds of learner: a table per state (compiled kernels), or networks (``[deep]``).
+TABULAR, DEEP = "tabular", "deep"
+#: The game whose learners have settings of their own (Section V-B).
+BATTLEFIELD = "battlefield"
+
+
+@dataclass(frozen=True)
+class Learner:
+    """One learner: its name, its kind, and the forms it takes."""
+
+    name: str
+    kind: str
+    stochastic: LearnerConfig | None = None
+    """Its form for stochastic games (the DSN's settings for the paper's learners)."""
+    repeated: RepeatedLearnerConfig | None = None
+    """Its form for repeated games (``cmarl-cd repeated``, ``compare``)."""
+    presets: Mapping[str, LearnerConfig] = field(default_factory=dict)
+    """Its settings on a game, by game name, where it plays that game with settings of
+    its own (the battlefield's)."""
+
+    @property
+    def display_name(self) -> str:
+        config = self.stochastic if self.stochastic is not None else self.repeated
+        return config.display_name if config is not None else self.name.upper()
+
+    @property
+    def needs_torch(self) -> bool:
+        """Whether it needs the ``[deep]`` extra (PyTorch)."""
+        return self.kind == DEEP
+
+
+def _tabular(stochastic: Any = None, repeated: Any = None, **presets: Any) -> Learner:
+    name = (stochastic or repeated).name
+    return Learner(name, TABULAR, stochastic, repeated, presets)
+
+
+def _deep(mixer: str) -> Learner:
+    battle = DeepConfig(mixer=mixer, **BATTLEFIELD_DEEP)
+    return Learner(mixer, DEEP, DeepConfig(mixer=mixer), None, {BATTLEFIELD: battle})
+
+
+#: Every learner, in the order tables list them: the paper's four, then the classic
+#: coordination learners (with their papers' settings).
+REGISTRY: dict[str, Learner] = {
+    learner.name: learner
+    for learner in (
+        _tabular(StochasticConfig(), RepeatedConfig(), battlefield=BATTLEFIELD_CMARLCD),
+        _tabular(AutomatonConfig(), battlefield=AutomatonConfig()),
+        _deep("vdn"),
+        _deep("qmix"),
+        _tabular(IQLStochasticConfig(), IQLConfig()),
+        _tabular(DistributedQStochasticConfig(), DistributedQConfig()),
+        _tabular(HystereticStochasticConfig(), HystereticConfig()),
+        _tabular(repeated=FMQConfig()),
+        _tabular(LenientStochasticConfig(), LenientConfig()),
+        _tabular(repeated=JointActionConfig()),
+        _tabular(repeated=CentralQConfig()),
+    )
+}
+
+#: Learners for stochastic games, by name, with their DSN settings.
+LEARNERS: dict[str, LearnerConfig] = {
+    name: learner.stochastic for name, learner in REGISTRY.items() if learner.stochastic
+}
+
 #: Learners for repeated games, by name, with their papers' settings: CMARL-CD
 #: (Algorithm 1) and the classic learners it is compared with (``cmarl-cd compare``).
 REPEATED_LEARNERS: dict[str, RepeatedLearnerConfig] = {
-    config.name: config
-    for config in (
-        RepeatedConfig(),
-        IQLConfig(),
-        DistributedQConfig(),
-        HystereticConfig(),
-        FMQConfig(),
-        LenientConfig(),
-        JointActionConfig(),
-        CentralQConfig(),
-    )
+    name: learner.repeated for name, learner in REGISTRY.items() if learner.repeated
 }
+
+#: The learners of the paper's DSN tables (the others are compared beyond the paper).
+PAPER_LEARNERS = ("cmarl-cd", "la-oca", "vdn", "qmix")
+
+
+def learners_on(game: str) -> dict[str, LearnerConfig]:
+    """The learners with settings of their own on ``game``, with those settings."""
+    return {
+        name: learner.presets[game] for name, learner in REGISTRY.items() if game in learner.presets
+    }
+
 
 #: Games by name: each a function returning its spec.
 GAMES: dict[str, Callable[[], GameSpec]] = {
@@ -109,13 +159,19 @@ def is_paper_setting(config: LearnerConfig) -> bool:
 
 def display_name(name: str) -> str:
     """A learner's name in tables and figures (``"cmarl-cd"`` -> ``"CMARL-CD"``)."""
-    config = LEARNERS.get(name)
-    return config.display_name if config is not None else name.upper()
+    learner = REGISTRY.get(name)
+    return learner.display_name if learner is not None else name.upper()
 
 
 def needs_torch(name: str) -> bool:
     """Whether learner ``name`` needs the ``[deep]`` extra (PyTorch)."""
-    return isinstance(LEARNERS.get(name), DeepConfig)
+    learner = REGISTRY.get(name)
+    return learner is not None and learner.needs_torch
+
+
+def kind_of(config: Any) -> str:
+    """A learner config's kind: :data:`TABULAR` or :data:`DEEP`."""
+    return DEEP if isinstance(config, DeepConfig) else TABULAR
 
 
 def repeated_learner_names() -> str:

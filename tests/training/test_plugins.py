@@ -153,3 +153,28 @@ def test_a_plug_in_s_types_never_reach_a_shared_on_disk_cache(tmp_path) -> None:
         [sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True
     )
     assert done.returncode == 0, done.stderr[-2000:]
+
+
+PLUG_IN_FIRST = """
+import importlib.util, sys
+import numpy as np
+spec = importlib.util.spec_from_file_location("plug_in", sys.argv[1])
+module = importlib.util.module_from_spec(spec)
+sys.modules["plug_in"] = module
+spec.loader.exec_module(module)
+from cmarlcd.testing import CHAIN
+from cmarlcd.training import TabularRun
+run = TabularRun(CHAIN, module.QConfig(), np.random.default_rng(1), np.random.default_rng(2))
+print(run.train(200))
+"""
+
+
+def test_a_plug_in_whose_kernels_allocate_trains_in_the_compiled_loop_first() -> None:
+    """The plug-in's observe calls ``.max()`` (numba allocates for it) under plain
+    ``@njit``: the loop must compile it as such even when no object API compiled it
+    before (a fresh process whose first call is the compiled loop)."""
+    done = subprocess.run(
+        [sys.executable, "-c", PLUG_IN_FIRST, __file__], capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert int(done.stdout) >= 200

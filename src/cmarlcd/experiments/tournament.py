@@ -38,10 +38,7 @@ from cmarlcd import registry
 from cmarlcd.errors import check_discount, check_tolerance, require
 from cmarlcd.games import battlefield
 from cmarlcd.games.battlefield import GUNNER, MARINE, Battlefield, Unit
-from cmarlcd.learners.automata import AutomatonConfig
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD
-from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig
-from cmarlcd.learners.tabular import TabularConfig
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec
@@ -61,17 +58,13 @@ STD_DDOF = 0
 
 def is_tabular(config: LearnerConfig) -> bool:
     """Whether a learner keeps tables (CMARL-CD, LA-OCA) rather than networks."""
-    return isinstance(config, TabularConfig)
+    return registry.kind_of(config) == registry.TABULAR
 
 
 def battlefield_learners() -> dict[str, LearnerConfig]:
-    """The paper's settings of each learner on the battlefield (Section V-B)."""
-    return {
-        "cmarl-cd": BATTLEFIELD_CMARLCD,
-        "la-oca": AutomatonConfig(),
-        "vdn": DeepConfig(mixer="vdn", **BATTLEFIELD_DEEP),
-        "qmix": DeepConfig(mixer="qmix", **BATTLEFIELD_DEEP),
-    }
+    """The paper's settings of each learner on the battlefield (Section V-B), from the
+    registry's battlefield presets."""
+    return registry.learners_on(registry.BATTLEFIELD)
 
 
 #: The tabular learners of the battlefield (their loops are compiled once before workers

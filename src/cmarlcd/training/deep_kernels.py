@@ -16,7 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from cmarlcd.compiled import Unbound, kernel, specialise
+from cmarlcd.compiled import Unbound, kernel, specialise_kernel
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.policy import (
@@ -252,12 +252,12 @@ def deep_kernels(spec: GameSpec, inputs: str) -> SideKernels:
         enter, act, observe, greedy = index_enter, index_act, index_observe, index_greedy
     return SideKernels(
         deep_fits,
-        specialise(enter, **bound),
+        specialise_kernel(enter, **bound),
         act,
         observe,
         deep_end_episode,
         deep_pause,
-        specialise(greedy, **bound),
+        specialise_kernel(greedy, **bound),
     )
 
 

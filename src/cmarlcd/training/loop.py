@@ -8,8 +8,8 @@ or ``game.features`` for the deep learners) and learns from its own reward
 (``rewards[k]``).
 
 Two compiled templates (:mod:`cmarlcd.compiled`), bound to the game's kernels and the two
-sides' kernels (``first``, ``second``; a one-team game's second side is :data:`NO_SIDE`,
-which has no agents):
+sides' kernels (``first``, ``second``; a one-team game's second side is :class:`NoSide`,
+which has no agents and does nothing):
 
 * :func:`learn_turns` -- the learning stage. It can stop in the middle of an episode and
   go on where it stopped (its place is kept in ``clock``): when a side's memory might
@@ -36,15 +36,7 @@ from cmarlcd.compiled import Unbound, shared_kernel, specialise
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.progress import report_progress
-from cmarlcd.training.protocol import (
-    ENDED,
-    EPISODES,
-    LENGTH,
-    PENDING,
-    TURNS,
-    Side,
-    SideKernels,
-)
+from cmarlcd.training.protocol import ENDED, EPISODES, IDLE, LENGTH, PENDING, TURNS, Side
 
 game = Unbound("game")
 first = Unbound("first")
@@ -65,45 +57,48 @@ def learn_turns(env, a, b, width, episodes, max_steps, env_rng, rng_a, rng_b, cl
     previous turn is handed to ``observe``, and it acts; then the game steps on both
     sides' actions at once. After each episode (terminated, or cut at ``max_steps``),
     each side's ``end_episode``. A pause comes right after the ``observe`` that asked for
-    it; ``clock[ENDED]`` then says whether that turn was the episode's last.
+    it; ``clock[ENDED]`` then says whether that turn was the episode's last. The clock is
+    read into locals on entry and written back on every return.
     """
     n_a, n_b = a.counts.shape[0], b.counts.shape[0]
     legal = np.zeros((n_a + n_b, width), dtype=np.bool_)
     joint = np.zeros(n_a + n_b, dtype=np.int64)
     team_rewards = np.zeros(2)
-    clock[ENDED] = 0
-    while clock[EPISODES] < episodes:
-        if clock[LENGTH] < 0:
+    done, length, pending, turns = clock[EPISODES], clock[LENGTH], clock[PENDING], clock[TURNS]
+    ended = 0
+    while done < episodes:
+        if length < 0:
             if not (first.fits(a, max_steps) and second.fits(b, max_steps)):
-                return
+                break
             game.reset(env, env_rng)
-            clock[LENGTH] = 0
-        length = clock[LENGTH]
+            length = 0
         terminal = length > 0 and game.done(env)
         over = terminal or length == max_steps
         key_a = first.enter(a, env, 0, 0, legal, length, terminal)
         key_b = second.enter(b, env, 1, n_a, legal, length, terminal)
-        if clock[PENDING]:
+        if pending:
             first.observe(a, length - 1, key_a, terminal)
             second.observe(b, length - 1, key_b, terminal)
-            clock[PENDING] = 0
+            pending = 0
             if first.pause(a) or second.pause(b):
-                clock[ENDED] = over
-                return
+                ended = 1 if over else 0
+                break
         if over:
             first.end_episode(a, length)
             second.end_episode(b, length)
-            clock[EPISODES] += 1
-            clock[LENGTH] = -1
+            done += 1
+            length = -1
             continue
         first.act(a, key_a, rng_a, joint[:n_a])
         second.act(b, key_b, rng_b, joint[n_a:])
         game.step(env, joint, env_rng, team_rewards)
         record_turn(a, length, joint[:n_a], team_rewards[0])
         record_turn(b, length, joint[n_a:], team_rewards[1])
-        clock[LENGTH] = length + 1
-        clock[PENDING] = 1
-        clock[TURNS] += 1
+        length += 1
+        pending = 1
+        turns += 1
+    clock[EPISODES], clock[LENGTH], clock[PENDING], clock[TURNS] = done, length, pending, turns
+    clock[ENDED] = ended
 
 
 @shared_kernel  # takes a plug-in's tables: see cmarlcd.compiled.shared_kernel
@@ -153,57 +148,10 @@ class NoSideData(NamedTuple):
     rewards: np.ndarray
 
 
-@shared_kernel
-def _fits_always(side, max_steps: int) -> bool:
-    return True
-
-
-@shared_kernel
-def _enter_nothing(side, env, team, offset, legal, length, terminal) -> int:
-    return 0
-
-
-@shared_kernel
-def _act_nothing(side, key, rng, joint) -> None:
-    pass
-
-
-@shared_kernel
-def _observe_nothing(side, t, next_key, terminal) -> None:
-    pass
-
-
-@shared_kernel
-def _end_nothing(side, length) -> None:
-    pass
-
-
-@shared_kernel
-def _never_pause(side) -> bool:
-    return False
-
-
-@shared_kernel
-def _greedy_nothing(side, env, team, offset, legal, rng, joint) -> None:
-    pass
-
-
-#: The kernels of the absent second side of a one-team game.
-NO_SIDE = SideKernels(
-    _fits_always,
-    _enter_nothing,
-    _act_nothing,
-    _observe_nothing,
-    _end_nothing,
-    _never_pause,
-    _greedy_nothing,
-)
-
-
 class NoSide(Side):
     """The absent second side of a one-team game."""
 
-    kernels = NO_SIDE
+    kernels = IDLE
 
     def __init__(self, max_steps: int) -> None:
         self.data = NoSideData(

@@ -10,9 +10,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from cmarlcd.compiled import Unbound, shared_kernel, specialise
+from cmarlcd.compiled import Unbound, specialise_kernel
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.training.protocol import Side, SideKernels
+from cmarlcd.training.protocol import IDLE, Side
 
 game = Unbound("game")
 
@@ -27,36 +27,6 @@ class PolicyData(NamedTuple):
     """``checked[s]``: ``playing[s]`` has been checked against the state's masks."""
     joints: np.ndarray
     rewards: np.ndarray
-
-
-@shared_kernel  # takes a plug-in's tables: see cmarlcd.compiled.shared_kernel
-def _fits(side, max_steps: int) -> bool:
-    return True
-
-
-@shared_kernel
-def _enter(side, env, team, offset, legal, length, terminal) -> int:
-    return 0
-
-
-@shared_kernel
-def _act(side, key, rng, joint) -> None:
-    pass
-
-
-@shared_kernel
-def _observe(side, t, next_key, terminal) -> None:
-    pass
-
-
-@shared_kernel
-def _end_episode(side, length) -> None:
-    pass
-
-
-@shared_kernel
-def _pause(side) -> bool:
-    return False
 
 
 def policy_greedy(side, env, team, offset, legal, rng, joint) -> None:
@@ -83,15 +53,7 @@ class PolicySide(Side):
     def __init__(self, spec: GameSpec, team: int, policy: np.ndarray) -> None:
         counts = spec.action_counts[list(spec.teams[team])].copy()
         steps = spec.max_steps
-        self.kernels = SideKernels(
-            _fits,
-            _enter,
-            _act,
-            _observe,
-            _end_episode,
-            _pause,
-            specialise(policy_greedy, game=spec.kernels),
-        )
+        self.kernels = IDLE._replace(greedy=specialise_kernel(policy_greedy, game=spec.kernels))
         self.data = PolicyData(
             counts,
             np.array(policy, dtype=np.int64),  # a copy: made legal in place

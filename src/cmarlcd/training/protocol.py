@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from typing import Any, NamedTuple
 
+from cmarlcd.compiled import shared_kernel
+
 #: Entries of a learning stage's ``clock``: episodes finished, turns into the current
 #: episode (-1 between episodes), whether its last turn still awaits ``observe``, the
 #: turns played so far, and whether the episode in play has ended (its last turn
@@ -70,3 +72,56 @@ class Side:
 
     def freeze(self) -> None:
         """Learning has finished (a side trained in a group keeps its values)."""
+
+
+# ------------------------------------------------ the kernels of a side that does nothing
+
+
+@shared_kernel  # takes a plug-in's tables: see cmarlcd.compiled.shared_kernel
+def fits_always(side, max_steps: int) -> bool:
+    """``fits``: the side's memory does not grow."""
+    return True
+
+
+@shared_kernel
+def enter_nothing(side, env, team, offset, legal, length, terminal) -> int:
+    return 0
+
+
+@shared_kernel
+def act_nothing(side, key, rng, joint) -> None:
+    pass
+
+
+@shared_kernel
+def observe_nothing(side, t, next_key, terminal) -> None:
+    pass
+
+
+@shared_kernel
+def end_nothing(side, length) -> None:
+    pass
+
+
+@shared_kernel
+def never_pause(side) -> bool:
+    """``pause``: a side that learns inside the loop (or not at all) never stops it."""
+    return False
+
+
+@shared_kernel
+def greedy_nothing(side, env, team, offset, legal, rng, joint) -> None:
+    pass
+
+
+#: A side that never learns nor acts: the absent second side of a one-team game; a fixed
+#: policy replaces its ``greedy``.
+IDLE = SideKernels(
+    fits_always,
+    enter_nothing,
+    act_nothing,
+    observe_nothing,
+    end_nothing,
+    never_pause,
+    greedy_nothing,
+)

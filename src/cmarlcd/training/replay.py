@@ -133,20 +133,12 @@ def new_batch(ring: Replay, batch_size: int) -> Replay:
 
 
 @njit(cache=True)
-def replay_sample(ring, rngs, out) -> None:
-    """Draw ``out``'s batch size of stored transitions per seed, uniformly with
-    replacement, with seed b's generator ``rngs[b]`` (the same draws as
-    ``rngs[b].integers(0, stored, batch_size)`` in NumPy; a seed with nothing stored draws
-    nothing and gets row 0: its step is discarded), into ``out``."""
-    batch_size = out.reward.shape[1]
+def gather(ring, picks, out) -> None:
+    """``out[b, n]`` := row ``picks[b, n]`` of seed b's ring, for every field."""
     masks = out.next_legal.shape[1] > 0
-    for b in range(out.reward.shape[0]):
-        stored = ring.size[b]
-        picks = (
-            rngs[b].integers(0, stored, batch_size) if stored else np.zeros(batch_size, np.int64)
-        )
-        for n in range(batch_size):
-            k = picks[n]
+    for b in range(picks.shape[0]):
+        for n in range(picks.shape[1]):
+            k = picks[b, n]
             out.state[b, n] = ring.state[b, k]
             out.next_state[b, n] = ring.next_state[b, k]
             out.actions[b, n] = ring.actions[b, k]
@@ -155,15 +147,27 @@ def replay_sample(ring, rngs, out) -> None:
                 out.next_legal[b, n] = ring.next_legal[b, k]
 
 
+def draw(ring: Replay, rngs: Sequence[np.random.Generator], batch_size: int) -> np.ndarray:
+    """``batch_size`` stored rows per seed, uniformly with replacement, with seed b's
+    generator ``rngs[b]`` (a seed with nothing stored draws nothing and gets row 0: its
+    step is discarded)."""
+    picks = np.zeros((len(rngs), batch_size), np.int64)
+    for b, rng in enumerate(rngs):
+        stored = int(ring.size[b])
+        if stored:
+            picks[b] = rng.integers(0, stored, batch_size)
+    return picks
+
+
 #: The fields of a sampled batch, as the TD step reads them.
 BATCH_FIELDS = ("state", "actions", "reward", "next_state", "next_legal", "terminal")
 
 
 def sample(ring: Replay, rngs: Sequence[np.random.Generator], batch_size: int) -> dict:
-    """A batch of ``batch_size`` stored transitions per seed (:func:`replay_sample`),
+    """A batch of ``batch_size`` stored transitions per seed (:func:`draw`, :func:`gather`),
     keyed as the TD step reads them (``next_legal`` only where the ring stores masks)."""
     out = new_batch(ring, batch_size)
-    replay_sample(ring, tuple(rngs), out)
+    gather(ring, draw(ring, rngs, batch_size), out)
     batch = dict(zip(BATCH_FIELDS, out[:6], strict=True))
     if not ring.next_legal.shape[1]:
         del batch["next_legal"]

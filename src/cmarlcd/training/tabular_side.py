@@ -20,12 +20,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from cmarlcd.compiled import Unbound, shared_kernel, specialise
+from cmarlcd.compiled import Unbound, shared_kernel, specialise_kernel
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.policy import uniform_legal_action
 from cmarlcd.learners.tabular import TabularConfig, greedy_policy, grow_tables, init_tables
-from cmarlcd.training.protocol import Side, SideKernels
+from cmarlcd.training.protocol import Side, SideKernels, never_pause
 
 game = Unbound("game")
 learner = Unbound("learner")
@@ -119,12 +119,6 @@ def tabular_end_episode(side, length) -> None:
     )
 
 
-@shared_kernel  # takes a plug-in's tables: see cmarlcd.compiled.shared_kernel
-def never_pause(side) -> bool:
-    """A tabular side learns inside the loop: it never needs to stop it."""
-    return False
-
-
 def tabular_greedy(side, env, team, offset, legal, rng, joint) -> None:
     """Template: the learner's greedy joint action. [choice] In a state the side never
     visited while learning, each agent plays its lowest legal action (LOWEST, the default:
@@ -148,12 +142,12 @@ def tabular_kernels(spec: GameSpec, config: TabularConfig) -> SideKernels:
     bound: dict[str, Any] = {"game": spec.kernels, "learner": config.kernels}
     return SideKernels(
         tabular_fits,
-        specialise(tabular_enter, **bound),
-        specialise(tabular_act, **bound),
-        specialise(tabular_observe, **bound),
-        specialise(tabular_end_episode, **bound),
+        specialise_kernel(tabular_enter, **bound),
+        specialise_kernel(tabular_act, **bound),
+        specialise_kernel(tabular_observe, **bound),
+        specialise_kernel(tabular_end_episode, **bound),
         never_pause,
-        specialise(tabular_greedy, **bound),
+        specialise_kernel(tabular_greedy, **bound),
     )
 
 
