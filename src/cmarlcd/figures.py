@@ -172,7 +172,7 @@ def tournament_bars(
     cells: Sequence, metric: str, ylabel: str, title: str, path: Path, names: dict[str, str]
 ) -> Path:
     """Figs. 6-7: per algorithm, one bar per opponent (``metric`` of each
-    :class:`cmarlcd.experiments.results.Cell`), error bars one spread over rounds.
+    :class:`cmarlcd.experiments.tournament_results.Cell`), error bars one spread over rounds.
     ``names`` maps the algorithms, in plotting order, to their display names."""
     plt = _pyplot()
     table = {(c.algorithm, c.opponent): c for c in cells}
@@ -235,7 +235,7 @@ def hit_rate_dial(
     """The battlefield's hit-rate dial: one panel per algorithm, its win rate against
     each opponent (one line each, error bars one spread over rounds) as the hit rate of
     both unit kinds runs over ``points`` (hit rate -> that tournament's
-    :class:`cmarlcd.experiments.results.Cell` list)."""
+    :class:`cmarlcd.experiments.tournament_results.Cell` list)."""
     plt = _pyplot()
     rates = sorted(points)
     tables = {rate: {(c.algorithm, c.opponent): c for c in points[rate]} for rate in rates}

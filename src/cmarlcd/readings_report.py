@@ -71,6 +71,7 @@ def study_table(outcomes: Sequence[Outcome], caption: str) -> TableBlock:
         ["reading", "CMARL-CD's mean margin", *SHORT],
         rows,
         caption,
+        prose=True,
     )
 
 

@@ -40,7 +40,9 @@ def rich_table(block: TableBlock) -> Table:
         table = Table(show_lines=block.layout == "lines")
     narrowest = 5 if block.layout == "compact" else None
     for k, heading in enumerate(block.columns):
-        if k == 0:
+        if block.prose:
+            table.add_column(heading, overflow="fold")
+        elif k == 0:
             table.add_column(heading, no_wrap=True)
         else:
             table.add_column(heading, justify="right", overflow="fold", min_width=narrowest)

@@ -13,7 +13,6 @@ else: rich text on a terminal (:mod:`cmarlcd.render`), Markdown and HTML
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -47,6 +46,8 @@ class TableBlock:
     """The paper's value goes under ours (else beside it)."""
     layout: str = "grid"
     """``"grid"``, ``"lines"`` (a rule between rows) or ``"compact"`` (no borders)."""
+    prose: bool = False
+    """The cells are sentences, not numbers: left-aligned and folded."""
 
     def plain_rows(self) -> list[list[str]]:
         """The cells as text, the paper's values in brackets."""
@@ -124,8 +125,3 @@ class Section:
 
     def add(self, *blocks: Block) -> None:
         self.blocks.extend(blocks)
-
-
-def figures_of(section: Section) -> Sequence[FigureBlock]:
-    """The figures a section shows."""
-    return [block for block in section.blocks if isinstance(block, FigureBlock)]

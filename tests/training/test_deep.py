@@ -148,3 +148,22 @@ def test_exploration_draws_only_legal_actions() -> None:
     run = DeepBatch(TRAP, explore, [np.random.SeedSequence(3)], 200)
     run.train([], lambda *args: None)
     assert run.plays[0].env[0][1] == 0, "an illegal action was explored"
+
+
+def test_a_seed_learns_what_it_learns_alone_when_another_seed_finishes_short_of_a_batch() -> None:
+    """Seeds finish their episodes at different turns. Here seed 5 finishes with 210
+    transitions stored, fewer than a batch of 220, while others go on: they take their
+    gradient steps as they would alone (a finished seed's ring does not hold them back)."""
+    config = DeepConfig(buffer_size=1_000, batch_size=220, train_every=10, target_every=50)
+    final: dict[tuple[str, int], np.ndarray] = {}
+
+    def keep(where: str, k0: int = 0):
+        return lambda k, budget, table: final.__setitem__((where, k0 + k), table.copy())
+
+    together = DeepBatch(dsn.SPEC, config, [np.random.SeedSequence(k) for k in range(6)], 6)
+    together.train([], keep("together"))
+    sizes = together.group.ring.size
+    assert sizes.min() < config.batch_size < sizes.max()  # the case arises
+    for k in range(6):
+        DeepBatch(dsn.SPEC, config, [np.random.SeedSequence(k)], 6).train([], keep("alone", k))
+        assert np.array_equal(final["together", k], final["alone", k]), f"seed {k}"

@@ -204,3 +204,16 @@ def test_a_deep_side_explores_only_legal_actions() -> None:
         deep_kernels.features_act(side, 0, rng, joint)
         seen.add(int(joint[1]))
     assert seen == {0, 1}
+
+
+def test_a_match_of_a_batch_refuses_to_learn_on_its_own() -> None:
+    """Its deep side waits for the batch's gradient step: learning it alone would stop
+    after every turn and never train, so it is refused in one line."""
+    deep = DeepConfig(mixer="vdn", **SMALL)
+    rngs = [np.random.default_rng(k) for k in range(6)]
+    batch = match.MatchBatch(
+        battlefield.SPEC, (deep, AutomatonConfig()), [(0, 1), (1, 0)], rngs[:2],
+        [(rngs[2], rngs[3]), (rngs[4], rngs[5])], 20,
+    )  # fmt: skip
+    with pytest.raises(ConfigError, match="learns in a batch"):
+        batch.matches[0].learn()

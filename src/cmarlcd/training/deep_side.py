@@ -126,11 +126,8 @@ class DeepGroup(Group):
         if not due:
             return
         learning = [view for view in self.views if not view.frozen]
-        require(
-            all(view.due() for view in learning),
-            "plays",
-            "the plays of one batch must pause together",
-        )
+        if not all(view.due() for view in learning):
+            raise RuntimeError("the plays of one batch must pause together")
         before, after = int(due[0].counters[PAUSED_AT]), int(due[0].counters[TURNS])
         for view in due:
             view.counters[PAUSED_AT] = view.counters[TURNS]

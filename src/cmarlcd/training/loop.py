@@ -238,6 +238,17 @@ class Play:
         takes its step between calls on its own)."""
         while self.episodes < goal:
             self.advance(goal)
+            self.require_alone()
+
+    def require_alone(self) -> None:
+        """Refuse to go on when a side waits for its group's step: a play whose deep
+        sides learn in a group learns through its :class:`PlayBatch`."""
+        require(
+            not self.due(),
+            "play",
+            "a side of this play learns in a batch with other plays: call the batch's "
+            "learn(), not the play's",
+        )
 
     def due(self) -> bool:
         """Whether a side waits for its group's gradient step."""

@@ -115,6 +115,7 @@ class Match(Play):
         while self.episodes < target:
             before = self.episodes
             self.advance(min(target, before + CHUNK_EPISODES))
+            self.require_alone()
             report_progress(float(self.episodes - before))
 
     def evaluate(self, episodes: int, rng: np.random.Generator) -> MatchResult:  # type: ignore[override]

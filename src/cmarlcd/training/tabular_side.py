@@ -54,14 +54,14 @@ class TabularData(NamedTuple):
     """One tabular side's arrays, as the side kernels read them."""
 
     tables: tuple
-    """The learner's tables, one row per visited state."""
+    """The learner's tables: one row per state index (dense), or per visited state."""
     params: tuple
     counts: np.ndarray
     """Action counts of the side's agents."""
     rows: np.ndarray
     """``rows[s]``: state ``s``'s row in ``tables``, -1 before its first visit."""
     used: np.ndarray
-    """``used[0]``: rows handed out so far."""
+    """``used[0]``: states visited so far (the rows handed out, when not dense)."""
     states: np.ndarray
     """The episode so far: the row of each turn's state, ..."""
     joints: np.ndarray
