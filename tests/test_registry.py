@@ -10,14 +10,14 @@ from cmarlcd.training import TabularRun, evaluate
 from cmarlcd.training.match import Match
 
 TABULAR = [name for name in registry.LEARNERS if not registry.needs_torch(name)]
-ONE_TEAM = [name for name, spec in registry.GAMES.items() if spec().n_teams == 1]
-TWO_TEAMS = [name for name, spec in registry.GAMES.items() if spec().n_teams == 2]
+ONE_TEAM = [name for name, spec in registry.stochastic_games().items() if spec().n_teams == 1]
+TWO_TEAMS = [name for name, spec in registry.stochastic_games().items() if spec().n_teams == 2]
 
 
 @pytest.mark.parametrize("game", ONE_TEAM)
 @pytest.mark.parametrize("learner", TABULAR)
 def test_every_tabular_learner_trains_and_plays_every_game(game: str, learner: str) -> None:
-    spec = registry.GAMES[game]()
+    spec = registry.stochastic_games()[game]()
     run = TabularRun(spec, registry.LEARNERS[learner], *np.random.default_rng([1, 2]).spawn(2))
     steps = run.train(50)
     assert 50 <= steps <= 50 * spec.max_steps
@@ -31,7 +31,7 @@ def test_every_tabular_learner_trains_and_plays_every_game(game: str, learner: s
 def test_every_tabular_learner_plays_both_sides_of_every_two_team_game(
     game: str, learner: str
 ) -> None:
-    spec, config = registry.GAMES[game](), registry.LEARNERS[learner]
+    spec, config = registry.stochastic_games()[game](), registry.LEARNERS[learner]
     rngs = np.random.default_rng([1, 2]).spawn(3)
     match = Match(spec, (config, config), rngs[0], rngs[1:], 50)
     match.learn()
@@ -47,3 +47,29 @@ def test_learners_are_found_by_their_own_names() -> None:
     assert registry.display_name("la-oca") == "LA-OCA" and registry.needs_torch("qmix")
     with pytest.raises(ValueError, match="unknown 'dqn'; available: cmarl-cd, la-oca"):
         registry.require_learner("dqn")
+
+
+def test_each_learner_is_registered_once_under_the_name_of_every_form_it_takes() -> None:
+    from cmarlcd.learners.deep_config import DeepConfig
+
+    for name, learner in registry.REGISTRY.items():
+        forms = [learner.stochastic, learner.repeated, *learner.presets.values()]
+        forms = [form for form in forms if form is not None]
+        assert forms, name
+        assert all(form.name == name for form in forms), name
+        assert learner.needs_torch == all(isinstance(form, DeepConfig) for form in forms)
+    battlefield_players = list(registry.learners_on(registry.BATTLEFIELD))
+    assert battlefield_players == ["cmarl-cd", "la-oca", "vdn", "qmix"]
+
+
+def test_each_game_is_registered_once_with_a_way_to_play_it() -> None:
+    from cmarlcd.experiments import compare
+
+    for name, game in registry.GAMES.items():
+        assert game.name == name and (game.spec is not None or game.make is not None)
+    assert registry.repeated_games() == compare.GAMES  # the comparison's columns
+    for game in registry.repeated_games().values():
+        for size in game.sizes or (None,):
+            config = {} if size is None else {"agents": size[0], "actions": size[1]}
+            made = game.make(config, np.random.default_rng(0))
+            assert int(np.prod(made.action_counts)) == game.joint_actions(size)

@@ -5,6 +5,10 @@ Transcribed from the paper's tables; never used by any learner.
 
 from __future__ import annotations
 
+#: The agents n and actions m of the cells of Table 1 (case 1) and Table 2 (case 2).
+TABLE_AGENTS = {1: (2, 3, 4, 5, 6, 7), 2: (4, 5, 6, 7)}
+TABLE_ACTIONS = {1: (2, 3, 4, 5), 2: (3, 4, 5)}
+
 #: Table 1 (case 1): success rate 100 % in every cell except n = 7 agents, m = 4 actions.
 _TABLE1_EXCEPTIONS = {(7, 4): 0.98}
 _TABLE1_AGENTS = range(2, 8)

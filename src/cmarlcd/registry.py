@@ -1,6 +1,6 @@
 """Every learner and game by name, in one place (the command line and the experiments
 look them up here). Adding a learner is one file plus one entry below; adding a game is
-one package plus one line.
+one package plus one entry.
 
 A learner is registered once (:class:`Learner`): its name, its kind (tabular or deep),
 its form for stochastic games and its form for repeated games (each a frozen config of
@@ -8,17 +8,31 @@ its paper's settings, or None where it has none), and its settings on games wher
 differ (``presets``: the battlefield's, Section V-B). A config names its learner and
 carries its compiled functions (or, for the deep learners, its network settings); any
 other setting is ``dataclasses.replace(default, ...)``.
+
+A game is registered once too (:class:`Game`): its name and, for each way the project
+plays it, how to make it: ``spec`` (a stochastic game of the compiled protocol, played by
+the training loop) and ``make`` (a repeated game of one run of ``cmarl-cd compare``,
+fixed or drawn at random at one of its ``sizes``).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
+from itertools import product
 from typing import Any
+
+import numpy as np
 
 from cmarlcd.errors import require
 from cmarlcd.games import battlefield, sensor_network
-from cmarlcd.games.matrix import climbing_game, penalty_game
+from cmarlcd.games.matrix import MatrixGame, climbing_game, penalty_game, random_game
+from cmarlcd.games.matrix.stochastic import (
+    StochasticMatrixGame,
+    fully_stochastic_climbing_game,
+    partially_stochastic_climbing_game,
+)
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.automata import AutomatonConfig
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD, RepeatedConfig, StochasticConfig
@@ -30,6 +44,7 @@ from cmarlcd.learners.joint_action import CentralQConfig, JointActionConfig
 from cmarlcd.learners.lenient import LenientConfig, LenientStochasticConfig
 from cmarlcd.learners.q_learning import IQLConfig, IQLStochasticConfig
 from cmarlcd.learners.tabular import TabularConfig
+from cmarlcd.paper import TABLE_ACTIONS, TABLE_AGENTS
 
 LearnerConfig = TabularConfig | DeepConfig
 
@@ -126,13 +141,92 @@ def learners_on(game: str) -> dict[str, LearnerConfig]:
     }
 
 
-#: Games by name: each a function returning its spec.
-GAMES: dict[str, Callable[[], GameSpec]] = {
-    "dsn": lambda: sensor_network.SPEC,
-    "climbing": lambda: climbing_game().spec(),
-    "penalty": lambda: penalty_game().spec(),
-    "battlefield": lambda: battlefield.SPEC,
+RepeatedGame = MatrixGame | StochasticMatrixGame
+Size = tuple[int, int]
+
+
+@dataclass(frozen=True)
+class Game:
+    """One game: its name, what it is, and how each way of playing it makes it.
+
+    Attributes:
+        name: its name on the command line and in the store.
+        title: what it is, in words (figures, JSON).
+        short: its column header in tables.
+        spec: the game as a stochastic game of the compiled protocol (None when the
+            project plays it only as a repeated game).
+        make: the repeated game of one run of ``compare``, from the run's config and a
+            generator (None when it is not a column of the comparison).
+        sizes: the (agents, actions) of its random games; empty for a fixed game.
+    """
+
+    name: str
+    title: str
+    short: str
+    spec: Callable[[], GameSpec] | None = None
+    make: Callable[[Mapping[str, Any], np.random.Generator], RepeatedGame] | None = None
+    sizes: tuple[Size, ...] = ()
+
+    def joint_actions(self, size: Size | None) -> int:
+        """Joint actions of its repeated game (at ``size`` for a random one)."""
+        if size is None:
+            assert self.make is not None
+            return math.prod(self.make({}, np.random.default_rng(0)).action_counts)
+        agents, actions = size
+        return actions**agents
+
+
+def _fixed(name: str, title: str, short: str, make: Callable[[], RepeatedGame], spec=None) -> Game:
+    return Game(name, title, short, spec, lambda config, rng: make())
+
+
+def _penalty(k: int) -> Game:
+    name = f"penalty{k}" if k else "penalty-0"
+    return _fixed(name, f"penalty k={k}", f"k={k}", lambda: penalty_game(k))
+
+
+def _random(case: int) -> Game:
+    sizes = tuple(product(TABLE_AGENTS[case], TABLE_ACTIONS[case]))
+
+    def make(config: Mapping[str, Any], rng: np.random.Generator) -> RepeatedGame:
+        return random_game(case, config["agents"], config["actions"], rng)
+
+    return Game(
+        f"case{case}", f"case {case} (Table {case} sizes)", f"case{case}", None, make, sizes
+    )
+
+
+#: Every game by name: the stochastic games first, then the comparison's columns in
+#: their order.
+GAMES: dict[str, Game] = {
+    game.name: game
+    for game in (
+        Game("dsn", "distributed sensor network", "DSN", lambda: sensor_network.SPEC),
+        Game("battlefield", "blood battlefield", "battlefield", lambda: battlefield.SPEC),
+        Game("penalty", "penalty k=-10", "penalty", lambda: penalty_game().spec()),
+        _fixed("climbing", "climbing", "climb", climbing_game, lambda: climbing_game().spec()),
+        *(_penalty(k) for k in (0, -10, -50, -100)),
+        _fixed(
+            "climbing-ps",
+            "climbing, partially stochastic",
+            "PS",
+            partially_stochastic_climbing_game,
+        ),
+        _fixed("climbing-fs", "climbing, fully stochastic", "FS", fully_stochastic_climbing_game),
+        _random(1),
+        _random(2),
+    )
 }
+
+
+def stochastic_games() -> dict[str, Callable[[], GameSpec]]:
+    """The games played as stochastic games, by name: each a function making its spec."""
+    return {name: game.spec for name, game in GAMES.items() if game.spec is not None}
+
+
+def repeated_games() -> dict[str, Game]:
+    """The games ``compare`` plays as repeated games, in column order."""
+    return {name: game for name, game in GAMES.items() if game.make is not None}
 
 
 def learner_names() -> str:

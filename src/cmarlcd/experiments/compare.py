@@ -20,12 +20,10 @@ learners keep their papers' exploration schedules, which were tuned on 3 × 3 ga
 
 from __future__ import annotations
 
-import math
 import statistics
 from collections import defaultdict
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass
-from itertools import product
 from typing import Any
 
 import numpy as np
@@ -34,14 +32,7 @@ from cmarlcd import registry
 from cmarlcd.compiled import specialise
 from cmarlcd.errors import require
 from cmarlcd.experiments import episodic
-from cmarlcd.experiments.repeated import PAPER_ACTIONS, PAPER_AGENTS
 from cmarlcd.experiments.sensor_network import DSN_GAME, DsnSweep
-from cmarlcd.games.matrix import MatrixGame, climbing_game, penalty_game, random_game
-from cmarlcd.games.matrix.stochastic import (
-    StochasticMatrixGame,
-    fully_stochastic_climbing_game,
-    partially_stochastic_climbing_game,
-)
 from cmarlcd.learners import joint_action
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.runs import Experiment, RunSpec
@@ -60,72 +51,14 @@ DSN_EVAL_EPISODES = 10_000
 #: The name of the DSN column.
 DSN = "dsn"
 
-Game = MatrixGame | StochasticMatrixGame
-Size = tuple[int, int]
+Game = registry.RepeatedGame
+Size = registry.Size
+#: A column of the comparison: a game of the registry that has a repeated form.
+CompareGame = registry.Game
 
-
-@dataclass(frozen=True)
-class CompareGame:
-    """A column of the comparison.
-
-    Attributes:
-        name: its name on the command line and in the store.
-        title: what it is, in words (figures, JSON).
-        short: its column header in tables.
-        sizes: the (agents, actions) of its random games; empty for a fixed game.
-        make: the game of one run, from the run's config and a generator.
-    """
-
-    name: str
-    title: str
-    short: str
-    make: Callable[[Mapping[str, Any], np.random.Generator], Game]
-    sizes: tuple[Size, ...] = ()
-
-    def joint_actions(self, size: Size | None) -> int:
-        if size is None:
-            return math.prod(self.make({}, np.random.default_rng(0)).action_counts)
-        agents, actions = size
-        return actions**agents
-
-
-def _fixed(name: str, title: str, short: str, make: Callable[[], Game]) -> CompareGame:
-    return CompareGame(name, title, short, lambda config, rng: make())
-
-
-def _penalty(k: int) -> CompareGame:
-    name = f"penalty{k}" if k else "penalty-0"
-    return _fixed(name, f"penalty k={k}", f"k={k}", lambda: penalty_game(k))
-
-
-def _random(case: int) -> CompareGame:
-    sizes = tuple(product(PAPER_AGENTS[case], PAPER_ACTIONS[case]))
-
-    def make(config: Mapping[str, Any], rng: np.random.Generator) -> Game:
-        return random_game(case, config["agents"], config["actions"], rng)
-
-    return CompareGame(
-        f"case{case}", f"case {case} (Table {case} sizes)", f"case{case}", make, sizes
-    )
-
-
-#: The games of the comparison, in column order.
-GAMES: dict[str, CompareGame] = {
-    game.name: game
-    for game in (
-        _fixed("climbing", "climbing", "climb", climbing_game),
-        *(_penalty(k) for k in (0, -10, -50, -100)),
-        _fixed(
-            "climbing-ps",
-            "climbing, partially stochastic",
-            "PS",
-            partially_stochastic_climbing_game,
-        ),
-        _fixed("climbing-fs", "climbing, fully stochastic", "FS", fully_stochastic_climbing_game),
-        _random(1),
-        _random(2),
-    )
-}
+#: The games of the comparison, in column order (the registry's games with a repeated
+#: form; the DSN column is :data:`DSN`).
+GAMES: dict[str, CompareGame] = registry.repeated_games()
 
 
 def budget(joint_actions: int) -> int:

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from cmarlcd import paper
 from cmarlcd.errors import require
 from cmarlcd.games.matrix import MatrixGame, check_size, climbing_game, random_game
 from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
@@ -27,8 +28,8 @@ from cmarlcd.training.repeated import fit
 EXPERIMENT = "repeated"
 ALGORITHM = "cmarl-cd"
 #: The paper's protocol: Table 1 (case 1) and Table 2 (case 2).
-PAPER_AGENTS = {1: (2, 3, 4, 5, 6, 7), 2: (4, 5, 6, 7)}
-PAPER_ACTIONS = {1: (2, 3, 4, 5), 2: (3, 4, 5)}
+PAPER_AGENTS = paper.TABLE_AGENTS
+PAPER_ACTIONS = paper.TABLE_ACTIONS
 PAPER_RUNS = 50
 
 _GRID_FIELDS = ("agents", "actions")
