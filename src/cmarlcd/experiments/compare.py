@@ -51,14 +51,9 @@ DSN_EVAL_EPISODES = 10_000
 #: The name of the DSN column.
 DSN = "dsn"
 
-Game = registry.RepeatedGame
-Size = registry.Size
-#: A column of the comparison: a game of the registry that has a repeated form.
-CompareGame = registry.Game
-
 #: The games of the comparison, in column order (the registry's games with a repeated
 #: form; the DSN column is :data:`DSN`).
-GAMES: dict[str, CompareGame] = registry.repeated_games()
+GAMES: dict[str, registry.Game] = registry.repeated_games()
 
 
 def budget(joint_actions: int) -> int:
