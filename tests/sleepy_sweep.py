@@ -12,26 +12,32 @@ import json
 import os
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from cmarlcd.experiments import register
 from cmarlcd.runner import run_sweep
-from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.runs import Experiment, RunSpec, Settings
 from cmarlcd.store import ResultStore
 
 
-def slow_draw(config: dict, seed: np.random.SeedSequence) -> dict:
-    time.sleep(config["seconds"])
+@dataclass(frozen=True)
+class Sleep(Settings):
+    seconds: float
+
+
+def slow_draw(sleep: Sleep, seed: np.random.SeedSequence) -> dict:
+    time.sleep(sleep.seconds)
     return {"value": float(np.random.default_rng(seed).random())}
 
 
-register(Experiment("sleepy", slow_draw))
+register(Experiment("sleepy", Sleep, slow_draw))
 
 
 def specs(runs: int, seconds: float) -> list[RunSpec]:
-    return [RunSpec.make("sleepy", "alg", {"seconds": seconds}, 0, i) for i in range(runs)]
+    return [RunSpec.make("sleepy", "alg", Sleep(seconds), 0, i) for i in range(runs)]
 
 
 def main() -> None:

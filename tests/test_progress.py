@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,7 @@ from cmarlcd.cli.reproduce import bar_name
 from cmarlcd.experiments import compare, register
 from cmarlcd.progress import report_progress
 from cmarlcd.runner import Section, SweepObserver, run_sweep
-from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.runs import Experiment, RunSpec, Settings
 from cmarlcd.store import ResultStore
 
 DATA = Path(__file__).parent / "data"
@@ -76,20 +77,25 @@ def test_every_bar_counts_one_unit_and_reaches_its_total_exactly(tmp_path, named
         assert tally.stored[name] == section_.runs
 
 
-def too_eager(config: dict, seed: np.random.SeedSequence) -> dict:
+@dataclass(frozen=True)
+class Eager(Settings):
+    work: int
+
+
+def too_eager(eager: Eager, seed: np.random.SeedSequence) -> dict:
     """A run that reports its work twice over, as a task that Ray retried would."""
-    report_progress(config["work"])
-    report_progress(config["work"])
+    report_progress(eager.work)
+    report_progress(eager.work)
     return {"ok": 1}
 
 
 register(
-    Experiment("too-eager", too_eager, work=lambda config: config["work"], work_unit="episodes")
+    Experiment("too-eager", Eager, too_eager, work=lambda eager: eager.work, work_unit="episodes")
 )
 
 
 def test_work_reported_twice_never_takes_a_bar_past_its_total(tmp_path) -> None:
-    specs = [RunSpec.make("too-eager", "x", {"work": 100}, 0, i) for i in range(4)]
+    specs = [RunSpec.make("too-eager", "x", Eager(100), 0, i) for i in range(4)]
     tally = Tally()
     with ResultStore(tmp_path / "s.sqlite") as store:
         run_sweep(specs, store, workers=1, observer=tally)

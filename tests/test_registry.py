@@ -70,6 +70,5 @@ def test_each_game_is_registered_once_with_a_way_to_play_it() -> None:
     assert registry.repeated_games() == compare.GAMES  # the comparison's columns
     for game in registry.repeated_games().values():
         for size in game.sizes or (None,):
-            config = {} if size is None else {"agents": size[0], "actions": size[1]}
-            made = game.make(config, np.random.default_rng(0))
+            made = game.make(size, np.random.default_rng(0))
             assert int(np.prod(made.action_counts)) == game.joint_actions(size)

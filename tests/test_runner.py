@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -16,27 +17,34 @@ import pytest
 from cmarlcd.experiments import register
 from cmarlcd.progress import Throttled
 from cmarlcd.runner import SweepInterrupted, SweepObserver, run_sweep
-from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.runs import Experiment, RunSpec, Settings
 from cmarlcd.store import ResultStore
 
 FAIL_AT: dict[str, int] = {}
 
 
-def draw(config: dict, seed: np.random.SeedSequence) -> dict:
+@dataclass(frozen=True)
+class Toy(Settings):
+    scale: int
+    x: int | None = None
+
+    def to_config(self) -> dict:
+        return {"scale": self.scale} if self.x is None else {"scale": self.scale, "x": self.x}
+
+
+def draw(toy: Toy, seed: np.random.SeedSequence) -> dict:
     """A toy experiment: a few numbers from the run's own stream."""
-    if FAIL_AT.get("index") == config["scale"] * 1000 + int(seed.spawn_key[-1]):
+    if FAIL_AT.get("index") == toy.scale * 1000 + int(seed.spawn_key[-1]):
         raise KeyboardInterrupt
     rng = np.random.default_rng(seed)
-    return {"values": (config["scale"] * rng.random(3)).tolist()}
+    return {"values": (toy.scale * rng.random(3)).tolist()}
 
 
-register(Experiment("toy", draw))
+register(Experiment("toy", Toy, draw))
 
 
 def specs(scales=(1, 2), runs=4, root_seed=0) -> list[RunSpec]:
-    return [
-        RunSpec.make("toy", "alg", {"scale": s}, root_seed, r) for s in scales for r in range(runs)
-    ]
+    return [RunSpec.make("toy", "alg", Toy(s), root_seed, r) for s in scales for r in range(runs)]
 
 
 def sweep(store: ResultStore, todo: list[RunSpec], workers: int = 1):
@@ -48,16 +56,16 @@ def stored(store: ResultStore, todo: list[RunSpec]) -> list:
 
 
 def test_seed_depends_on_root_config_and_index_only() -> None:
-    a = RunSpec.make("toy", "alg", {"scale": 1, "x": 2}, 7, 3)
-    same = RunSpec.make("toy", "other-alg", {"x": 2, "scale": 1}, 7, 3)
+    a = RunSpec.make("toy", "alg", Toy(1, 2), 7, 3)
+    same = RunSpec.make("toy", "other-alg", Toy(scale=1, x=2), 7, 3)
     assert (
         a.seed_sequence().generate_state(4).tolist()
         == same.seed_sequence().generate_state(4).tolist()
     )
     for other in (
-        RunSpec.make("toy", "alg", {"scale": 1, "x": 2}, 8, 3),
-        RunSpec.make("toy", "alg", {"scale": 1, "x": 2}, 7, 4),
-        RunSpec.make("toy", "alg", {"scale": 2, "x": 2}, 7, 3),
+        RunSpec.make("toy", "alg", Toy(1, 2), 8, 3),
+        RunSpec.make("toy", "alg", Toy(1, 2), 7, 4),
+        RunSpec.make("toy", "alg", Toy(2, 2), 7, 3),
     ):
         assert (
             other.seed_sequence().generate_state(4) != a.seed_sequence().generate_state(4)

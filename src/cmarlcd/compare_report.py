@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from cmarlcd import registry
-from cmarlcd.experiments import compare
+from cmarlcd.experiments import compare, episodic
 from cmarlcd.experiments.compare import CompareCell
 from cmarlcd.report import figure_name, new_section, percent
 from cmarlcd.section import Cell, FigureBlock, Section, TableBlock
@@ -70,9 +70,11 @@ def runs_text(records: Sequence[RunRecord]) -> str:
     """``"50 runs per learner and game (random games: per size), seed 0"``."""
     runs: dict[tuple, int] = {}
     for rec in records:
-        config = rec.config
-        game = config.get("game", compare.DSN)
-        key = (rec.key.algorithm, game, config.get("agents"), config.get("actions"))
+        if rec.key.experiment == compare.EXPERIMENT:
+            cell = compare.compare_run_of(rec)
+            key: tuple = (rec.key.algorithm, cell.game, cell.size)
+        else:
+            key = (rec.key.algorithm, compare.DSN, None)
         runs[key] = runs.get(key, 0) + 1
     low, high = min(runs.values()), max(runs.values())
     per = f"{low}" if low == high else f"{low}-{high}"
@@ -83,9 +85,9 @@ def runs_text(records: Sequence[RunRecord]) -> str:
 def settings_text(records: Sequence[RunRecord]) -> str:
     """The comparison's settings and what its column names mean."""
     dsn = ""
-    dsn_configs = [r.config for r in records if r.key.experiment != compare.EXPERIMENT]
-    if dsn_configs:
-        episodes, evaluations = dsn_configs[0]["checkpoints"][0], dsn_configs[0]["eval_episodes"]
+    dsn_runs = [episodic.run_of(r) for r in records if r.key.experiment != compare.EXPERIMENT]
+    if dsn_runs:
+        episodes, evaluations = dsn_runs[0].checkpoints[0], dsn_runs[0].eval_episodes
         dsn = (
             f"DSN: the greedy policy's success rate after L = {episodes:,} episodes (%, mean "
             f"over runs, {evaluations:,} evaluation episodes each); "

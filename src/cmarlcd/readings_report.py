@@ -81,10 +81,11 @@ def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
     from cmarlcd import figures as figs
 
     first = outcomes[0].records[0]
+    pairing = tour.pairing_of(first)
     rounds = max(len({r.key.run_index for r in o.records}) for o in outcomes)
     settings = (
         f"{len(outcomes)} tournaments of up to {rounds} rounds, "
-        f"{first.config['learn_episodes']:,} learning and {first.config['eval_episodes']:,} "
+        f"{pairing.learn_episodes:,} learning and {pairing.eval_episodes:,} "
         f"evaluation episodes per match, seed {first.key.root_seed}"
     )
     records = [rec for o in outcomes for rec in o.records]

@@ -155,8 +155,8 @@ class Game:
         short: its column header in tables.
         spec: the game as a stochastic game of the compiled protocol (None when the
             project plays it only as a repeated game).
-        make: the repeated game of one run of ``compare``, from the run's config and a
-            generator (None when it is not a column of the comparison).
+        make: the repeated game of one run of ``compare``, from its size (None for a
+            fixed game) and a generator (None when it is not a column of the comparison).
         sizes: the (agents, actions) of its random games; empty for a fixed game.
     """
 
@@ -164,20 +164,20 @@ class Game:
     title: str
     short: str
     spec: Callable[[], GameSpec] | None = None
-    make: Callable[[Mapping[str, Any], np.random.Generator], RepeatedGame] | None = None
+    make: Callable[[Size | None, np.random.Generator], RepeatedGame] | None = None
     sizes: tuple[Size, ...] = ()
 
     def joint_actions(self, size: Size | None) -> int:
         """Joint actions of its repeated game (at ``size`` for a random one)."""
         if size is None:
             assert self.make is not None
-            return math.prod(self.make({}, np.random.default_rng(0)).action_counts)
+            return math.prod(self.make(None, np.random.default_rng(0)).action_counts)
         agents, actions = size
         return actions**agents
 
 
 def _fixed(name: str, title: str, short: str, make: Callable[[], RepeatedGame], spec=None) -> Game:
-    return Game(name, title, short, spec, lambda config, rng: make())
+    return Game(name, title, short, spec, lambda size, rng: make())
 
 
 def _penalty(k: int) -> Game:
@@ -188,8 +188,9 @@ def _penalty(k: int) -> Game:
 def _random(case: int) -> Game:
     sizes = tuple(product(TABLE_AGENTS[case], TABLE_ACTIONS[case]))
 
-    def make(config: Mapping[str, Any], rng: np.random.Generator) -> RepeatedGame:
-        return random_game(case, config["agents"], config["actions"], rng)
+    def make(size: Size | None, rng: np.random.Generator) -> RepeatedGame:
+        assert size is not None, "a random game is drawn at a size"
+        return random_game(case, *size, rng)
 
     return Game(
         f"case{case}", f"case {case} (Table {case} sizes)", f"case{case}", None, make, sizes

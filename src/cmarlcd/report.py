@@ -16,7 +16,6 @@ import hashlib
 import json
 from collections import Counter
 from collections.abc import Callable, Sequence
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -116,8 +115,9 @@ def repeated_section(records: Sequence[RunRecord], figures: Path) -> Section:
 
     summary = rep.summarize(records)
     title = rep.table_title(records)
-    case, seed = records[0].config["case"], records[0].key.root_seed
-    name = figure_name(f"repeated-case{case}-seed{seed}", rep.group_key(records[0].config, seed))
+    cell, seed = rep.cell_of(records[0]), records[0].key.root_seed
+    case = cell.case
+    name = figure_name(f"repeated-case{case}-seed{seed}", rep.group_key(cell, seed))
     path = figs.repeated_heatmap(summary, title, figures / name)
     settings = rep.settings_text(records)
     section = new_section(
@@ -198,9 +198,9 @@ TRAIN_ONCE_NOTE = (
 
 def protocol_text(records: Sequence[RunRecord], rows: Sequence[Row]) -> str:
     """What the tables of a group show: seed, runs per cell, evaluation episodes."""
-    cfg = records[0].config
+    evaluations = episodic.run_of(records[0]).eval_episodes
     runs = runs_text([r.runs for r in rows], "cell")
-    return f"seed {records[0].key.root_seed}, {runs}, {cfg['eval_episodes']:,} evaluation episodes"
+    return f"seed {records[0].key.root_seed}, {runs}, {evaluations:,} evaluation episodes"
 
 
 def dsn_section(game: EpisodicGame, records: Sequence[RunRecord], figures: Path) -> Section:
@@ -217,8 +217,8 @@ def dsn_section(game: EpisodicGame, records: Sequence[RunRecord], figures: Path)
     shown = {"learning_curves": f"learning curves, {protocol}"}
     for rec in records:
         if rec.key.run_index == 0:
-            label = episodic.row_label(rec.key.algorithm, rec.config["learner"])
-            largest = max(rec.config["checkpoints"])
+            settings = episodic.run_of(rec)
+            label, largest = episodic.row_label(settings.learner), settings.largest
             what = f"{label}, L = {largest:,}, seed {seed}, run 0"
             title = f"Fig. 4 — greedy joint action of {what} in each of the 42 states"
             stem = f"dsn-fig4-{rec.key.algorithm}-L{largest}-seed{seed}"
@@ -280,14 +280,14 @@ def theory_section(doc: dict[str, Any], records: Sequence[RunRecord] = ()) -> Se
 # ------------------------------------------------------------- the tournament
 
 
-def _label(name: str, learner: dict[str, Any]) -> str:
+def _label(name: str, learner: Any) -> str:
     """The algorithm's name, marked * when its settings are not the paper's battlefield
     settings."""
     from cmarlcd import registry
     from cmarlcd.experiments.tournament import battlefield_learners
 
     paper = battlefield_learners().get(name)
-    same = paper is not None and asdict(paper) == learner
+    same = paper is not None and paper == learner
     return registry.display_name(name) + ("" if same else " *")
 
 
@@ -344,23 +344,21 @@ def tournament_section(records: Sequence[RunRecord], figures: Path) -> Section:
     from cmarlcd.experiments import tournament as tour
 
     present = {
-        name: learner
-        for rec in records
-        for name, learner in zip(rec.config["algorithms"], rec.config["learners"], strict=True)
+        learner.name: learner for rec in records for learner in tour.pairing_of(rec).learners
     }
     known = list(tour.battlefield_learners())
     order = sorted(present, key=lambda n: (known.index(n) if n in known else len(known), n))
     names = {name: _label(name, present[name]) for name in order}
     summary = match_results.summarize(records, list(names))
     claims = claim_checks.check_claims(records, summary)
-    first = records[0]
+    first, pairing = records[0], tour.pairing_of(records[0])
     rounds = sorted({r.key.run_index for r in records})
     reading = match_results.match_reading(records)
     reading_text = match_results.reading_label(reading)
     settings = (
         f"{len(rounds)} round{'s' if len(rounds) > 1 else ''}, "
-        f"{first.config['learn_episodes']:,} learning and "
-        f"{first.config['eval_episodes']:,} evaluation episodes per match, seed "
+        f"{pairing.learn_episodes:,} learning and "
+        f"{pairing.eval_episodes:,} evaluation episodes per match, seed "
         f"{first.key.root_seed}; readings: {reading_text}"
     )
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
@@ -382,8 +380,8 @@ def tournament_section(records: Sequence[RunRecord], figures: Path) -> Section:
         readings=reading,
         seed=seed,
         rounds=len(rounds),
-        learn_episodes=first.config["learn_episodes"],
-        eval_episodes=first.config["eval_episodes"],
+        learn_episodes=pairing.learn_episodes,
+        eval_episodes=pairing.eval_episodes,
         cells=[c.to_dict() for c in summary],
         claims=[c.to_dict() for c in claims],
         figures={key: str(path) for key, path in paths.items()},

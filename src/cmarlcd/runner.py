@@ -35,7 +35,7 @@ from typing import Any
 
 from cmarlcd.backends import check_backend, default_workers, make_backend
 from cmarlcd.claims import CLAIM_TIMEOUT, HEARTBEAT_SECONDS, Owner
-from cmarlcd.experiments import get_experiment
+from cmarlcd.experiments import get_experiment, settings_of
 from cmarlcd.limits import check_seed_batch, check_workers
 from cmarlcd.runs import RunSpec
 from cmarlcd.store import ResultStore, RunKey, StoreWriteError
@@ -122,16 +122,16 @@ class SweepInterrupted(RuntimeError):
 
 def work_of(spec: RunSpec) -> float:
     """The progress units of one run (the run itself, for an experiment that reports none)."""
-    work = get_experiment(spec.experiment).work(spec.config)
+    work = get_experiment(spec.experiment).work(settings_of(spec))
     return 1.0 if work is None else float(work)
 
 
 def cost_of(spec: RunSpec) -> float:
-    return float(get_experiment(spec.experiment).cost(spec.config))
+    return float(get_experiment(spec.experiment).cost(settings_of(spec)))
 
 
 def reports_work(spec: RunSpec) -> bool:
-    return get_experiment(spec.experiment).work(spec.config) is not None
+    return get_experiment(spec.experiment).work(settings_of(spec)) is not None
 
 
 def run_sweep(
@@ -427,7 +427,7 @@ def _batches(todo: list[RunSpec], seed_batch: int) -> list[list[RunSpec]]:
         groups.setdefault((spec.experiment, spec.config_json), []).append(spec)
     batches = []
     for specs in groups.values():
-        batchable = get_experiment(specs[0].experiment).batchable(specs[0].config)
+        batchable = get_experiment(specs[0].experiment).batchable(settings_of(specs[0]))
         limit = seed_batch if batchable else 1
         batches += [specs[i : i + limit] for i in range(0, len(specs), limit)]
     return sorted(batches, key=lambda batch: -sum(map(cost_of, batch)))

@@ -12,33 +12,69 @@ numbers).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import asdict, dataclass
+from typing import Any, Self
 
 import numpy as np
 
 from cmarlcd.store import RunKey, canonical_json
 
-RunFunction = Callable[[dict[str, Any], np.random.SeedSequence], dict[str, Any]]
-BatchFunction = Callable[[dict[str, Any], list[np.random.SeedSequence]], list[dict[str, Any]]]
+
+class Settings:
+    """Base of an experiment's typed settings of one run (a frozen dataclass).
+
+    Settings travel through sweeps, the runner, the backends and the reports as these
+    objects; only the store sees them as a dict, :meth:`to_config`, whose canonical JSON
+    is the run's identity. :meth:`from_config` reads a stored dict back, and
+    ``from_config(c).to_config() == c`` for every config the package stores (tested), so
+    a store written by an earlier version resumes. The defaults suit a flat dataclass
+    of JSON values; a settings type with nested parts overrides both.
+    """
+
+    def to_config(self) -> dict[str, Any]:
+        """The settings as the store keeps them."""
+        return asdict(self)  # type: ignore[call-overload]
+
+    @classmethod
+    def from_config(cls, config: Mapping[str, Any]) -> Self:
+        """Settings from a stored config."""
+        return cls(**config)
+
+    def stream(self) -> dict[str, Any] | None:
+        """The part of the config that seeds the run's random streams (None: all of it),
+        so that settings outside it (e.g. evaluation budgets) leave the streams as
+        they are."""
+        return None
+
+
+@functools.lru_cache(maxsize=8192)
+def parse_settings(kind: type[Settings], config_json: str) -> Settings:
+    """``kind`` read from a stored config's canonical JSON (cached: settings are
+    immutable, and a sweep asks for each config's many times)."""
+    return kind.from_config(json.loads(config_json))
+
+
+RunFunction = Callable[[Any, np.random.SeedSequence], dict[str, Any]]
+BatchFunction = Callable[[Any, list[np.random.SeedSequence]], list[dict[str, Any]]]
 
 
 def _nothing() -> None:
     """No warm-up."""
 
 
-def _unit_cost(config: Mapping[str, Any]) -> float:
+def _unit_cost(settings: Any) -> float:
     return 1.0
 
 
-def _not_batchable(config: Mapping[str, Any]) -> bool:
+def _not_batchable(settings: Any) -> bool:
     return False
 
 
-def _no_work_reported(config: Mapping[str, Any]) -> float | None:
+def _no_work_reported(settings: Any) -> float | None:
     return None
 
 
@@ -46,16 +82,19 @@ def _no_work_reported(config: Mapping[str, Any]) -> float | None:
 class Experiment:
     """What the runner needs to know about an experiment.
 
+    Every function takes the run's typed settings (an instance of ``settings``).
+
     Attributes:
         name: the store's experiment name.
-        run: computes one run's metrics from its config and seed sequence.
+        settings: the type of its runs' settings (:class:`Settings`).
+        run: computes one run's metrics from its settings and seed sequence.
         warm_up: compiles the kernels once in the parent before workers fork.
         cost: the estimated seconds of one run of a config on one core (rough, fitted to
             measured runs, benchmarks/fit_costs.py; a run that reports progress says what
             each unit costs, :func:`cmarlcd.progress.unit_cost`, so that its reports add
             up to this): expensive batches start first, and a sweep of several
             experiments weighs their progress by it for one overall ETA.
-        run_batch: optional; computes several runs of one config together (e.g. seeds
+        run_batch: optional; computes several runs of one settings together (e.g. seeds
             stacked in one model). It must give each run the metrics ``run`` would.
         batchable: whether runs of a config may share one ``run_batch`` call.
         work: the progress units (e.g. episodes) one run of a config reports with
@@ -65,13 +104,18 @@ class Experiment:
     """
 
     name: str
+    settings: type[Settings]
     run: RunFunction
     warm_up: Callable[[], None] = _nothing
-    cost: Callable[[Mapping[str, Any]], float] = _unit_cost
+    cost: Callable[[Any], float] = _unit_cost
     run_batch: BatchFunction | None = None
-    batchable: Callable[[Mapping[str, Any]], bool] = _not_batchable
-    work: Callable[[Mapping[str, Any]], float | None] = _no_work_reported
+    batchable: Callable[[Any], bool] = _not_batchable
+    work: Callable[[Any], float | None] = _no_work_reported
     work_unit: str = "runs"
+
+    def settings_of(self, config_json: str) -> Any:
+        """The typed settings of a run of this experiment, from its stored config."""
+        return parse_settings(self.settings, config_json)
 
 
 @dataclass(frozen=True)
@@ -88,17 +132,11 @@ class RunSpec:
 
     @classmethod
     def make(
-        cls,
-        experiment: str,
-        algorithm: str,
-        config: Mapping[str, Any],
-        root_seed: int,
-        index: int,
-        stream: Mapping[str, Any] | None = None,
+        cls, experiment: str, algorithm: str, settings: Settings, root_seed: int, index: int
     ) -> RunSpec:
-        """A run of ``config``; ``stream`` (a sub-config) seeds it when given, so settings
-        outside it (e.g. evaluation budgets) leave the run's random streams unchanged."""
-        config_json = canonical_json(config)
+        """Run ``index`` of ``settings``, seeded by their :meth:`Settings.stream`."""
+        config_json = canonical_json(settings.to_config())
+        stream = settings.stream()
         stream_json = config_json if stream is None else canonical_json(stream)
         return cls(experiment, algorithm, config_json, int(root_seed), int(index), stream_json)
 

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from cmarlcd.errors import ConfigError
+from cmarlcd.experiments import settings_of
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments import tournament_results as match_results
@@ -51,11 +52,12 @@ def test_the_tournament_gamma_and_tolerance_reach_the_tabular_learners_only() ->
     assert played["cmarl-cd"].gamma == played["la-oca"].gamma == 0.0
     assert played["cmarl-cd"].tolerance == played["la-oca"].tolerance == 0.5
     assert played["vdn"] == LEARNERS["vdn"]  # the deep learner keeps its own settings
-    stored = {spec.algorithm: spec.config for spec in contest.specs()}
+    stored = {spec.algorithm: spec.config for spec in contest.specs()}  # as the store keeps them
     pair = stored["cmarl-cd vs vdn"]
     learners = dict(zip(pair["algorithms"], pair["learners"], strict=True))
     assert learners["cmarl-cd"]["gamma"] == 0.0 and learners["vdn"]["gamma"] == 0.9
-    assert tour.learner_of(stored["la-oca vs la-oca"], 0).params().tolerance == 0.5
+    typed = {spec.algorithm: settings_of(spec) for spec in contest.specs()}
+    assert typed["la-oca vs la-oca"].learners[0].params().tolerance == 0.5
     # a match of two deep learners is the same match under every tabular reading
     default = {s.algorithm: s.key for s in tour.Tournament(contest.learners, rounds=1).specs()}
     assert {s.algorithm: s.key for s in contest.specs()}["vdn vs vdn"] == default["vdn vs vdn"]
@@ -124,8 +126,8 @@ def test_unseen_random_changes_the_evaluation_not_what_was_learned() -> None:
     assert random.config["unseen"] == "random" and "unseen" not in lowest.config
     assert lowest.seed_sequence().entropy == random.seed_sequence().entropy
     assert lowest.seed_sequence().spawn_key == random.seed_sequence().spawn_key
-    a = tour.play(lowest.config, lowest.seed_sequence(), 0)
-    b = tour.play(random.config, random.seed_sequence(), 0)
+    a = tour.play(settings_of(lowest), lowest.seed_sequence(), 0)
+    b = tour.play(settings_of(random), random.seed_sequence(), 0)
     assert a["learn_turns"] == b["learn_turns"] and a["visited_states"] == b["visited_states"]
     assert (a["wins"], a["turns"]) != (b["wins"], b["turns"])
 
@@ -140,7 +142,7 @@ def test_unit_stats_reach_the_game_s_damage_and_hit_draws() -> None:
         "marine": {"hp": 4, "damage": 2, "hit_rate": 1.0},
         "gunner": {"hp": 5, "damage": 3, "hit_rate": 1.0},
     }
-    rules = tour.rules_of(spec.config)
+    rules = settings_of(spec).rules
     assert rules.n_states == 5**4 * 6**2 * 2**6  # the state space follows the HP
     game = rules.spec()
     env = game.new_env()
@@ -207,7 +209,7 @@ def test_default_tournament_plays_the_matches_of_0_5_1() -> None:
     contest = tour.Tournament(TABULAR, rounds=2, learn_episodes=3000, eval_episodes=3000)
     played = []
     for spec in contest.specs():
-        metrics = tour.run(spec.config, spec.seed_sequence())
+        metrics = tour.run(settings_of(spec), spec.seed_sequence())
         kept = {k: v for k, v in metrics.items() if k in reference[0]["metrics"]}
         played.append(
             {

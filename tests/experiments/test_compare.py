@@ -5,9 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cmarlcd import registry
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import compare
-from cmarlcd.experiments.compare import GAMES, Comparison, budget, run_compare, summarize
+from cmarlcd.experiments.compare import (
+    GAMES,
+    CompareRun,
+    Comparison,
+    budget,
+    run_compare,
+    summarize,
+)
 from cmarlcd.games.matrix import climbing_game
 from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
 from cmarlcd.learners.q_learning import IQLConfig
@@ -21,8 +29,8 @@ from cmarlcd.training.repeated import fit
 def test_cmarlcd_through_the_comparison_plays_as_algorithm_1() -> None:
     """The watching loop consumes the learner's stream as fit does (deterministic games
     draw nothing): same games, same greedy joint action."""
-    config = {"game": "climbing", "budget": 10_000_000, "learner": "cmarl-cd"}
-    metrics = run_compare(dict(config), np.random.SeedSequence(5))
+    cell = CompareRun("climbing", RepeatedConfig(), 10_000_000)
+    metrics = run_compare(cell, np.random.SeedSequence(5))
     _, _, learner_seed = np.random.SeedSequence(5).spawn(3)
     game = climbing_game()
     result = fit(CMARLCD(game.action_counts, RepeatedConfig(), seed=learner_seed), game)
@@ -31,9 +39,9 @@ def test_cmarlcd_through_the_comparison_plays_as_algorithm_1() -> None:
 
 
 def test_a_run_is_determined_by_its_seed() -> None:
-    config = {"game": "climbing-fs", "budget": 3_000, "learner": "hysteretic"}
-    first = run_compare(dict(config), np.random.SeedSequence(1))
-    assert first == run_compare(dict(config), np.random.SeedSequence(1))
+    cell = CompareRun("climbing-fs", registry.repeated_learner("hysteretic"), 3_000)
+    first = run_compare(cell, np.random.SeedSequence(1))
+    assert first == run_compare(cell, np.random.SeedSequence(1))
 
 
 def test_every_learner_meets_the_same_random_games() -> None:
@@ -81,8 +89,9 @@ def test_bad_comparisons_are_rejected(kwargs, parameter) -> None:
 
 def test_summary_counts_runs_and_optimal_rates_per_learner_and_game() -> None:
     def record(learner: str, game: str, index: int, optimal: bool, settled: int, **size):
-        config = {"game": game, "learner": learner, **size}
-        spec = RunSpec.make(compare.EXPERIMENT, learner, config, 0, index)
+        where = (size["agents"], size["actions"]) if size else None
+        cell = compare.CompareRun(game, registry.repeated_learner(learner), 10, where)
+        spec = RunSpec.make(compare.EXPERIMENT, learner, cell, 0, index)
         return RunRecord(spec.key, {"optimal": optimal, "settled": settled}, 0.0, "test")
 
     records = [

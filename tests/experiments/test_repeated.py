@@ -6,6 +6,7 @@ import pytest
 
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import repeated as rep
+from cmarlcd.experiments import settings_of
 from cmarlcd.runner import run_sweep
 from cmarlcd.store import ResultStore
 
@@ -14,7 +15,7 @@ def test_paper_protocol_has_36_cells_of_50_runs() -> None:
     table1, table2 = rep.paper_sweep(1), rep.paper_sweep(2)
     assert len(table1.cells()) == 24 and len(table2.cells()) == 12
     assert len(table1.specs()) + len(table2.specs()) == 36 * 50
-    assert {(c["agents"], c["actions"]) for c in table2.cells()} == {
+    assert {(c.agents, c.actions) for c in table2.cells()} == {
         (n, m) for n in range(4, 8) for m in range(3, 6)
     }
 
@@ -36,10 +37,10 @@ def test_a_small_sweep_is_summarized_per_cell(tmp_path) -> None:
 
 def test_each_run_plays_a_fresh_game_of_its_case() -> None:
     specs = rep.RepeatedSweep(case=2, agents=(4,), actions=(3,), runs=2).specs()
-    metrics = [rep.run_cell(s.config, s.seed_sequence()) for s in specs]
+    metrics = [rep.run_cell(settings_of(s), s.seed_sequence()) for s in specs]
     assert [m["optima"] for m in metrics] == [8, 8]  # round(0.1 * 3^4)
     assert metrics[0] != metrics[1]
-    assert rep.run_cell(specs[0].config, specs[0].seed_sequence()) == metrics[0]
+    assert rep.run_cell(settings_of(specs[0]), specs[0].seed_sequence()) == metrics[0]
 
 
 @pytest.mark.parametrize(

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict
-
 import pytest
 
 from cmarlcd.errors import ConfigError
-from cmarlcd.experiments import episodic
+from cmarlcd.experiments import episodic, settings_of
 from cmarlcd.experiments import sensor_network as sn
 from cmarlcd.learners import AutomatonConfig, DeepConfig, StochasticConfig
 from cmarlcd.progress import progress_sink
@@ -17,15 +15,15 @@ from cmarlcd.store import ResultStore, RunKey, RunRecord, canonical_json
 
 def run(sweep: sn.DsnSweep, algorithm: str = "cmarl-cd", index: int = 0) -> dict:
     spec = next(s for s in sweep.specs() if s.algorithm == algorithm and s.run_index == index)
-    return episodic.run(sn.DSN_GAME, spec.config, spec.seed_sequence())
+    return episodic.run(sn.DSN_GAME, settings_of(spec), spec.seed_sequence())
 
 
 def test_paper_protocol_specs() -> None:
     sweep = sn.DsnSweep()
     assert len(sweep.specs()) == 2 * 50
     assert sweep.algorithms == ("cmarl-cd", "la-oca")
-    assert sweep.config(StochasticConfig())["checkpoints"] == [100_000, 300_000, 500_000]
-    assert sweep.config(AutomatonConfig())["eval_episodes"] == 50_000
+    assert sweep.settings(StochasticConfig()).checkpoints == (100_000, 300_000, 500_000)
+    assert sweep.settings(AutomatonConfig()).eval_episodes == 50_000
     deep = sn.DsnSweep(learners=(DeepConfig(mixer="qmix"),))
     assert [s.config["checkpoints"] for s in deep.specs()[::50]] == [
         [100_000],
@@ -45,10 +43,10 @@ def test_a_run_reports_exactly_its_work(learner) -> None:
     reported: list[tuple[float, float]] = []
     for spec in sweep.specs():
         with progress_sink(lambda amount, seconds: reported.append((amount, seconds))):
-            episodic.run(sn.DSN_GAME, spec.config, spec.seed_sequence())
+            episodic.run(sn.DSN_GAME, settings_of(spec), spec.seed_sequence())
     units, seconds = (sum(column) for column in zip(*reported, strict=True))
-    assert units == sum(episodic.run_work(s.config) for s in sweep.specs())
-    expected = sum(sn.DSN.cost(s.config) for s in sweep.specs())
+    assert units == sum(settings_of(s).work() for s in sweep.specs())
+    expected = sum(sn.DSN.cost(settings_of(s)) for s in sweep.specs())
     assert seconds == pytest.approx(expected, rel=1e-9)
 
 
@@ -73,8 +71,8 @@ def test_run_metrics_are_deterministic_and_well_formed() -> None:
 def record(algorithm: str, index: int, checkpoints: dict, learner=None) -> RunRecord:
     from cmarlcd.registry import LEARNERS
 
-    config = sn.DsnSweep().config(learner or LEARNERS[algorithm])
-    key = RunKey("dsn", algorithm, canonical_json(config), 0, index)
+    settings = sn.DsnSweep().settings(learner or LEARNERS[algorithm])
+    key = RunKey("dsn", algorithm, canonical_json(settings.to_config()), 0, index)
     return RunRecord(key, {"checkpoints": checkpoints, "curve": [], "policy": []}, 1.0)
 
 
@@ -94,7 +92,7 @@ def test_tables_3_to_7_aggregate_as_the_paper_defines_them() -> None:
 
 def test_non_default_settings_are_marked_and_have_no_paper_values() -> None:
     changed = StochasticConfig(delta=0.1)
-    assert episodic.row_label("cmarl-cd", asdict(changed)) == "CMARL-CD *"
+    assert episodic.row_label(changed) == "CMARL-CD *"
     result = {"100000": {"success_rate": 1.0, "mean_return": 42.0, "mean_steps": 3.0}}
     (row,) = episodic.summarize(sn.DSN_GAME, [record("cmarl-cd", 0, result, changed)])
     assert row.label == "CMARL-CD *" and set(row.paper.values()) == {None}

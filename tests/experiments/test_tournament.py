@@ -8,6 +8,7 @@ import math
 import pytest
 
 from cmarlcd.errors import ConfigError
+from cmarlcd.experiments import settings_of
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments import tournament_results as match_results
@@ -59,7 +60,7 @@ def test_sides_alternate_over_rounds_and_are_recorded() -> None:
     assert config.algorithm == "cmarl-cd vs la-oca"
     sides = []
     for round_index in (0, 1):
-        metrics = tour.play(config.config, config.seed_sequence(), round_index)
+        metrics = tour.play(settings_of(config), config.seed_sequence(), round_index)
         sides.append(metrics["sides"])
         assert sum(metrics["wins"]) + metrics["ties"] == metrics["episodes"] == 5
     assert sides == [["cmarl-cd", "la-oca"], ["la-oca", "cmarl-cd"]]
@@ -154,15 +155,17 @@ def test_rounds_learning_together_store_what_they_store_alone() -> None:
     learners = (tour.battlefield_learners()["vdn"], tour.battlefield_learners()["cmarl-cd"])
     contest = tour.Tournament(learners, rounds=2, learn_episodes=30, eval_episodes=30)
     specs = [s for s in contest.specs() if s.algorithm == "vdn vs cmarl-cd"]
-    together = tour.run_batch(specs[0].config, [s.seed_sequence() for s in specs])
-    alone = [tour.run(s.config, s.seed_sequence()) for s in specs]  # fresh seeds: spawn counts
+    together = tour.run_batch(settings_of(specs[0]), [s.seed_sequence() for s in specs])
+    alone = [
+        tour.run(settings_of(s), s.seed_sequence()) for s in specs
+    ]  # fresh seeds: spawn counts
     timing = {"seconds", "learn_seconds"}
     for a, b in zip(together, alone, strict=True):
         assert {k: v for k, v in a.items() if k not in timing} == {
             k: v for k, v in b.items() if k not in timing
         }
     assert [m["sides"] for m in together] == [["vdn", "cmarl-cd"], ["cmarl-cd", "vdn"]]
-    assert tour.has_deep_learner(specs[0].config)
+    assert settings_of(specs[0]).has_deep
 
 
 @pytest.mark.parametrize(

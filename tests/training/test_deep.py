@@ -8,7 +8,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from cmarlcd.compiled import kernel  # noqa: E402
-from cmarlcd.experiments import episodic  # noqa: E402
+from cmarlcd.experiments import episodic, settings_of  # noqa: E402
 from cmarlcd.experiments import sensor_network as sn  # noqa: E402
 from cmarlcd.games import sensor_network as dsn  # noqa: E402
 from cmarlcd.games.spec import GameKernels, GameSpec  # noqa: E402
@@ -30,8 +30,8 @@ def test_seed_b_of_a_batch_equals_that_seed_alone(algorithm: str) -> None:
     )
     specs = sweep.specs()
     seeds = [s.seed_sequence() for s in specs]
-    batch = episodic.run_batch(sn.DSN_GAME, specs[0].config, seeds)
-    alone = episodic.run(sn.DSN_GAME, specs[1].config, specs[1].seed_sequence())
+    batch = episodic.run_batch(sn.DSN_GAME, settings_of(specs[0]), seeds)
+    alone = episodic.run(sn.DSN_GAME, settings_of(specs[1]), specs[1].seed_sequence())
     assert batch[1]["policy"] == alone["policy"]
     assert batch[1]["checkpoints"] == alone["checkpoints"]
     assert [c[:2] for c in batch[1]["curve"]] == [c[:2] for c in alone["curve"]]

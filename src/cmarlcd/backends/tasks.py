@@ -24,7 +24,8 @@ ProgressCallback = Callable[[int, float, float], None]
 def execute(spec: RunSpec) -> Outcome:
     """Compute one run (in whatever process calls it)."""
     start = time.perf_counter()
-    metrics = get_experiment(spec.experiment).run(spec.config, spec.seed_sequence())
+    experiment = get_experiment(spec.experiment)
+    metrics = experiment.run(experiment.settings_of(spec.config_json), spec.seed_sequence())
     return spec, metrics, time.perf_counter() - start
 
 
@@ -34,7 +35,8 @@ def execute_batch(specs: list[RunSpec]) -> list[Outcome]:
     if len(specs) == 1 or experiment.run_batch is None:
         return [execute(spec) for spec in specs]
     start = time.perf_counter()
-    results = experiment.run_batch(specs[0].config, [s.seed_sequence() for s in specs])
+    settings = experiment.settings_of(specs[0].config_json)
+    results = experiment.run_batch(settings, [s.seed_sequence() for s in specs])
     seconds = (time.perf_counter() - start) / len(specs)
     return [(spec, metrics, seconds) for spec, metrics in zip(specs, results, strict=True)]
 

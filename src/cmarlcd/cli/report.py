@@ -107,7 +107,7 @@ def _report_groups(
 
     found: list[tuple[str, Renderer, list[RunRecord]]] = []
     for records in rep.stored_tables(db.records(rep.EXPERIMENT)).values():
-        if case in (None, records[0].config["case"]):
+        if case in (None, rep.cell_of(records[0]).case):
             found.append(("repeated", report.repeated_section, records))
     if case is None:
         kinds = (

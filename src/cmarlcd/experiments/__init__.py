@@ -10,8 +10,11 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from cmarlcd.experiments import compare, repeated, sensor_network, theorem, tournament
-from cmarlcd.runs import Experiment
+from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.store import RunRecord
 
 _REGISTRY: dict[str, Experiment] = {}
 
@@ -25,6 +28,13 @@ def register(experiment: Experiment) -> Experiment:
 def get_experiment(name: str) -> Experiment:
     """The registered experiment ``name``."""
     return _REGISTRY[name]
+
+
+def settings_of(run: RunSpec | RunRecord) -> Any:
+    """The typed settings of a run to compute or a stored run (each experiment's
+    :class:`~cmarlcd.runs.Settings`)."""
+    key = run.key
+    return get_experiment(key.experiment).settings_of(key.config)
 
 
 for _experiment in (
@@ -42,6 +52,7 @@ __all__ = [
     "register",
     "repeated",
     "sensor_network",
+    "settings_of",
     "theorem",
     "tournament",
 ]

@@ -24,7 +24,7 @@ import statistics
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -35,7 +35,7 @@ from cmarlcd.experiments import episodic
 from cmarlcd.experiments.sensor_network import DSN_GAME, DsnSweep
 from cmarlcd.learners import joint_action
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
-from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
 from cmarlcd.store import RunRecord
 from cmarlcd.training.repeated import play_watching_greedy
 
@@ -54,6 +54,40 @@ DSN = "dsn"
 #: The games of the comparison, in column order (the registry's games with a repeated
 #: form; the DSN column is :data:`DSN`).
 GAMES: dict[str, registry.Game] = registry.repeated_games()
+
+
+@dataclass(frozen=True)
+class CompareRun(Settings):
+    """One learner on one game of the comparison (a random game's size), for ``budget``
+    games; the learner's settings are stored flat beside the game's."""
+
+    game: str
+    learner: Any
+    """The learner's settings (a repeated-game learner of :mod:`cmarlcd.registry`)."""
+    budget: int
+    size: registry.Size | None = None
+    """(agents, actions) of a random game; None for a fixed one."""
+
+    def to_config(self) -> dict[str, Any]:
+        where = {} if self.size is None else {"agents": self.size[0], "actions": self.size[1]}
+        return {
+            "game": self.game,
+            **where,
+            "budget": self.budget,
+            "learner": self.learner.name,
+            **asdict(self.learner),
+        }
+
+    @classmethod
+    def from_config(cls, config: Mapping[str, Any]) -> Self:
+        size = (config["agents"], config["actions"]) if "agents" in config else None
+        learner = registry.repeated_learner(config["learner"], config)
+        return cls(config["game"], learner, config["budget"], size)
+
+
+def compare_run_of(record: RunRecord) -> CompareRun:
+    """The settings of a stored run of the comparison's repeated games."""
+    return parse_settings(CompareRun, record.key.config)  # type: ignore[return-value]
 
 
 def budget(joint_actions: int) -> int:
@@ -102,8 +136,8 @@ class Comparison:
         dsn = (DSN in self.games) * len(self.dsn_learners())
         return (len(self.cells()) + dsn) * self.runs
 
-    def cells(self) -> list[tuple[Any, dict[str, Any]]]:
-        """(learner, config) of every cell the learner plays."""
+    def cells(self) -> list[CompareRun]:
+        """Every cell a learner plays: (learner, game, size)."""
         out = []
         for name in self.games:
             if name == DSN:
@@ -111,25 +145,18 @@ class Comparison:
             game = GAMES[name]
             for size in game.sizes or (None,):
                 joint_actions = game.joint_actions(size)
-                where = {} if size is None else {"agents": size[0], "actions": size[1]}
-                for learner in self.learners:
-                    if not plays(learner.name, joint_actions):
-                        continue
-                    config = {
-                        "game": name,
-                        **where,
-                        "budget": budget(joint_actions),
-                        "learner": learner.name,
-                        **asdict(learner),
-                    }
-                    out.append((learner, config))
+                out += [
+                    CompareRun(name, learner, budget(joint_actions), size)
+                    for learner in self.learners
+                    if plays(learner.name, joint_actions)
+                ]
         return out
 
     def specs(self) -> list[RunSpec]:
         """Every run: the repeated games' and the DSN's (experiment ``dsn``)."""
         repeated = [
-            RunSpec.make(EXPERIMENT, learner.name, config, self.seed, r)
-            for learner, config in self.cells()
+            RunSpec.make(EXPERIMENT, cell.learner.name, cell, self.seed, r)
+            for cell in self.cells()
             for r in range(self.runs)
         ]
         sweep = self.dsn_sweep()
@@ -176,21 +203,18 @@ class Comparison:
 def is_comparison_dsn_run(record: RunRecord) -> bool:
     """Whether a stored DSN run is one of a comparison's: one L and no learning curve
     (the paper's protocol draws one)."""
-    config = record.config
-    return len(config["checkpoints"]) == 1 and config["curve_points"] == 0
+    settings = episodic.run_of(record)
+    return len(settings.checkpoints) == 1 and settings.curve_points == 0
 
 
-def learner_of(config: Mapping[str, Any]) -> Any:
-    """The learner config stored in a run's config."""
-    return registry.repeated_learner(config["learner"], config)
-
-
-def run_compare(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+def run_compare(cell: CompareRun, seed: np.random.SeedSequence) -> dict[str, Any]:
     """One run: the game (fresh if random), the learner, the budget; the greedy joint
     action's optimality and the game it settled at."""
     game_seed, env_seed, learner_seed = seed.spawn(3)
-    game = GAMES[config["game"]].make(config, np.random.default_rng(game_seed))
-    learner = learner_of(config)
+    make = GAMES[cell.game].make
+    assert make is not None
+    game = make(cell.size, np.random.default_rng(game_seed))
+    learner = cell.learner
     spec = game.spec()
     counts = spec.action_counts.copy()
     greedy = np.zeros(counts.shape[0], dtype=np.int64)
@@ -200,7 +224,7 @@ def run_compare(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[st
         learner.new_tables(counts),
         learner.params(),
         counts,
-        int(config["budget"]),
+        int(cell.budget),
         np.random.default_rng(env_seed),
         np.random.default_rng(learner_seed),
         greedy,
@@ -221,8 +245,8 @@ def _warm_up() -> None:
     each)."""
     for game in ("climbing", "climbing-ps"):
         for name in registry.REPEATED_LEARNERS:
-            config = {"game": game, "budget": 10, "learner": name}
-            run_compare(config, np.random.SeedSequence(0))
+            learner = registry.repeated_learner(name)
+            run_compare(CompareRun(game, learner, 10), np.random.SeedSequence(0))
 
 
 #: Estimated seconds per game and agent-action of each learner (CMARL-CD usually stops
@@ -240,18 +264,18 @@ SECONDS_PER_GAME_ACTION = {
 SECONDS_PER_JOINT_ACTION = {"jal": 1e-8, "central-q": 2e-9}
 
 
-def _cost(config: Mapping[str, Any]) -> float:
+def _cost(cell: CompareRun) -> float:
     """Estimated seconds of one run."""
-    size = (config["agents"], config["actions"]) if "agents" in config else (2, 3)
-    joint_actions = size[1] ** size[0]
-    learner = config["learner"]
-    per_game = SECONDS_PER_GAME_ACTION.get(learner, 2e-8) * size[0] * size[1]
+    agents, actions = cell.size or (2, 3)
+    joint_actions = actions**agents
+    learner = cell.learner.name
+    per_game = SECONDS_PER_GAME_ACTION.get(learner, 2e-8) * agents * actions
     if learner in JOINT_LEARNERS:
-        per_game = SECONDS_PER_JOINT_ACTION.get(learner, 1e-8) * joint_actions * size[0]
-    return 0.001 + per_game * config["budget"]
+        per_game = SECONDS_PER_JOINT_ACTION.get(learner, 1e-8) * joint_actions * agents
+    return 0.001 + per_game * cell.budget
 
 
-COMPARE = Experiment(EXPERIMENT, run_compare, _warm_up, _cost)
+COMPARE = Experiment(EXPERIMENT, CompareRun, run_compare, _warm_up, _cost)
 
 
 # ------------------------------------------------------------------------ summary
@@ -285,7 +309,7 @@ def summarize(records: Iterable[RunRecord]) -> list[CompareCell]:
     dsn_records = []
     for rec in records:
         if rec.key.experiment == EXPERIMENT:
-            groups[(rec.key.algorithm, rec.config["game"])].append(rec)
+            groups[(rec.key.algorithm, compare_run_of(rec).game)].append(rec)
         else:
             dsn_records.append(rec)
     learner_order = {name: i for i, name in enumerate(registry.REPEATED_LEARNERS)}
@@ -322,10 +346,9 @@ def _dsn_cells(records: Sequence[RunRecord]) -> list[CompareCell]:
 def _cell(learner: str, game: str, records: Sequence[RunRecord]) -> CompareCell:
     by_size: dict[str, list[bool]] = defaultdict(list)
     for rec in records:
-        if "agents" in rec.config:
-            by_size[f"n={rec.config['agents']},m={rec.config['actions']}"].append(
-                rec.metrics["optimal"]
-            )
+        size = compare_run_of(rec).size
+        if size is not None:
+            by_size[f"n={size[0]},m={size[1]}"].append(rec.metrics["optimal"])
     sizes = {
         size: {"runs": len(hits), "optimal_rate": sum(hits) / len(hits)}
         for size, hits in by_size.items()

@@ -19,7 +19,7 @@ import time
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -36,7 +36,7 @@ from cmarlcd.limits import (
 )
 from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
 from cmarlcd.store import RunRecord
 from cmarlcd.training.tabular import TabularRun, evaluate
 
@@ -87,6 +87,74 @@ def anneals_over_budget(config: LearnerConfig) -> bool:
 
 
 @dataclass(frozen=True)
+class EpisodicRun(Settings):
+    """One learner's runs: trained to the largest checkpoint, its greedy policy
+    evaluated for ``eval_episodes`` episodes at every checkpoint and for
+    ``curve_eval_episodes`` at ``curve_points`` evenly spaced budgets (the curve)."""
+
+    learner: LearnerConfig
+    checkpoints: tuple[int, ...]
+    """The budgets L evaluated for the tables, sorted, each once."""
+    eval_episodes: int
+    curve_points: int
+    curve_eval_episodes: int
+
+    def to_config(self) -> dict[str, Any]:
+        return {
+            "algorithm": self.learner.name,
+            "checkpoints": list(self.checkpoints),
+            "eval_episodes": self.eval_episodes,
+            "curve_points": self.curve_points,
+            "curve_eval_episodes": self.curve_eval_episodes,
+            "learner": asdict(self.learner),
+        }
+
+    @classmethod
+    def from_config(cls, config: Mapping[str, Any]) -> Self:
+        return cls(
+            registry.learner_config(config["algorithm"], config["learner"]),
+            tuple(config["checkpoints"]),
+            config["eval_episodes"],
+            config["curve_points"],
+            config["curve_eval_episodes"],
+        )
+
+    def stream(self) -> dict[str, Any]:
+        """The learner, and L for a learner that anneals over it: the evaluation
+        settings do not change what a run learns."""
+        stream: dict[str, Any] = {"algorithm": self.learner.name, "learner": asdict(self.learner)}
+        if anneals_over_budget(self.learner):
+            stream["episodes"] = self.checkpoints[0]
+        return stream
+
+    @property
+    def largest(self) -> int:
+        """The learning budget: the largest checkpoint."""
+        return max(self.checkpoints)
+
+    def schedule(self) -> list[int]:
+        """Every budget at which a run stops to evaluate: checkpoints and curve points."""
+        points = self.curve_points
+        curve = (
+            {round(self.largest * k / points) for k in range(1, points + 1)} if points else set()
+        )
+        return sorted(curve | set(self.checkpoints) - {0})
+
+    def work(self) -> float:
+        """The episodes one run plays (learning and evaluation): its progress units."""
+        evaluated = self.schedule()
+        if anneals_over_budget(self.learner):
+            evaluated = [b for b in evaluated if b > 0]  # reached by playing, never at 0
+        curve = self.curve_eval_episodes * len(evaluated)
+        return self.largest + curve + self.eval_episodes * len(self.checkpoints)
+
+
+def run_of(record: RunRecord) -> EpisodicRun:
+    """The settings of a stored run."""
+    return parse_settings(EpisodicRun, record.key.config)  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
 class EpisodicSweep:
     """Learners × runs on one game, each evaluated after every budget in ``episodes``."""
 
@@ -134,18 +202,15 @@ class EpisodicSweep:
     def algorithms(self) -> tuple[str, ...]:
         return tuple(config.name for config in self.learners)
 
-    def config(
-        self, learner: LearnerConfig, budgets: Sequence[int] | None = None
-    ) -> dict[str, Any]:
-        """The stored config of one learner's runs (evaluated after each budget)."""
-        return {
-            "algorithm": learner.name,
-            "checkpoints": sorted(set(budgets or self.episodes)),
-            "eval_episodes": self.eval_episodes,
-            "curve_points": self.curve_points,
-            "curve_eval_episodes": self.curve_eval_episodes,
-            "learner": asdict(learner),
-        }
+    def settings(self, learner: LearnerConfig, budgets: Sequence[int] | None = None) -> EpisodicRun:
+        """The settings of one learner's runs (evaluated after each budget)."""
+        return EpisodicRun(
+            learner,
+            tuple(sorted(set(budgets or self.episodes))),
+            self.eval_episodes,
+            self.curve_points,
+            self.curve_eval_episodes,
+        )
 
     def specs(self) -> list[RunSpec]:
         """One spec per (learner, run), trained once to the largest L, with streams that
@@ -156,12 +221,9 @@ class EpisodicSweep:
             budgets = sorted(set(self.episodes))
             groups = [[b] for b in budgets] if anneals_over_budget(learner) else [None]
             for group in groups:
-                config = self.config(learner, group)
-                stream = {"algorithm": learner.name, "learner": config["learner"]}
-                if group:
-                    stream["episodes"] = group[0]
+                settings = self.settings(learner, group)
                 specs += [
-                    RunSpec.make(self.game.experiment, learner.name, config, self.seed, r, stream)
+                    RunSpec.make(self.game.experiment, learner.name, settings, self.seed, r)
                     for r in range(self.runs)
                 ]
         return specs
@@ -170,32 +232,10 @@ class EpisodicSweep:
 # ------------------------------------------------------------------------- runs
 
 
-def learner_of(config: Mapping[str, Any]) -> LearnerConfig:
-    """The learner settings of a stored config."""
-    return registry.learner_config(config["algorithm"], config["learner"])
-
-
 def _keyed_rng(seed: np.random.SeedSequence, *key: int) -> np.random.Generator:
     """A stream that depends only on ``seed`` and ``key`` (e.g. an evaluation at L)."""
     child = np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, *key))
     return np.random.default_rng(child)
-
-
-def schedule(config: Mapping[str, Any]) -> list[int]:
-    """Every budget at which a run stops to evaluate: checkpoints and curve points."""
-    largest = max(config["checkpoints"])
-    points = config["curve_points"]
-    curve = {round(largest * k / points) for k in range(1, points + 1)} if points else set()
-    return sorted(curve | set(config["checkpoints"]) - {0})
-
-
-def run_work(config: Mapping[str, Any]) -> float:
-    """The episodes one run plays (learning and evaluation): its progress units."""
-    evaluated = schedule(config)
-    if anneals_over_budget(learner_of(config)):
-        evaluated = [b for b in evaluated if b > 0]  # reached by playing, never at 0
-    curve = config["curve_eval_episodes"] * len(evaluated)
-    return max(config["checkpoints"]) + curve + config["eval_episodes"] * len(config["checkpoints"])
 
 
 class Recorder:
@@ -203,21 +243,21 @@ class Recorder:
     ``eval_episodes`` episodes, every budget with ``curve_eval_episodes`` for the curve."""
 
     def __init__(
-        self, game: EpisodicGame, config: Mapping[str, Any], eval_seed: np.random.SeedSequence
+        self, game: EpisodicGame, settings: EpisodicRun, eval_seed: np.random.SeedSequence
     ) -> None:
-        self.game, self.config, self.eval_seed = game, config, eval_seed
+        self.game, self.settings, self.eval_seed = game, settings, eval_seed
         self.checkpoints: dict[str, dict[str, float]] = {}
         self.curve: list[list[float]] = []
         self.policy = np.zeros((game.spec.n_states, game.spec.n_agents), dtype=np.int64)
         self.start = time.perf_counter()
 
     def __call__(self, budget: int, policy: np.ndarray) -> None:
-        cfg = self.config
-        if budget in cfg["checkpoints"]:
+        settings = self.settings
+        if budget in settings.checkpoints:
             rng = _keyed_rng(self.eval_seed, 0, budget)
-            self.checkpoints[str(budget)] = self._evaluate(policy, cfg["eval_episodes"], rng)
+            self.checkpoints[str(budget)] = self._evaluate(policy, settings.eval_episodes, rng)
         rng = _keyed_rng(self.eval_seed, 1, budget)
-        point = self._evaluate(policy, cfg["curve_eval_episodes"], rng)
+        point = self._evaluate(policy, settings.curve_eval_episodes, rng)
         self.curve.append(
             [budget, point["success_rate"], point["mean_return"], point["mean_steps"]]
         )
@@ -242,17 +282,17 @@ class Recorder:
         }
 
 
-def run(game: EpisodicGame, config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+def run(game: EpisodicGame, settings: EpisodicRun, seed: np.random.SeedSequence) -> dict[str, Any]:
     """One run: train to each budget in turn, evaluating the greedy policy at each."""
-    learner = learner_of(config)
+    learner = settings.learner
     if anneals_over_budget(learner):
-        return run_batch(game, config, [seed])[0]
+        return run_batch(game, settings, [seed])[0]
     env_seed, agent_seed, eval_seed = seed.spawn(3)
     training = TabularRun(
         game.spec, learner, np.random.default_rng(env_seed), np.random.default_rng(agent_seed)
     )
-    record, trained = Recorder(game, config, eval_seed), 0
-    for budget in schedule(config):
+    record, trained = Recorder(game, settings, eval_seed), 0
+    for budget in settings.schedule():
         training.train(budget - trained)
         with unit_cost(learn_seconds(learner)):
             report_progress(budget - trained)
@@ -262,17 +302,18 @@ def run(game: EpisodicGame, config: dict[str, Any], seed: np.random.SeedSequence
 
 
 def run_batch(
-    game: EpisodicGame, config: dict[str, Any], seeds: list[np.random.SeedSequence]
+    game: EpisodicGame, settings: EpisodicRun, seeds: list[np.random.SeedSequence]
 ) -> list[dict[str, Any]]:
-    """Runs of one deep config, all seeds trained together in one stacked model."""
+    """Runs of one deep learner's settings, all seeds trained together in one stacked
+    model."""
     from cmarlcd.training.deep import DeepBatch  # needs the [deep] extra
 
     train_seeds, eval_seeds = zip(*(s.spawn(2) for s in seeds), strict=True)
-    records = [Recorder(game, config, e) for e in eval_seeds]
-    learner = learner_of(config)
-    batch = DeepBatch(game.spec, learner, train_seeds, max(config["checkpoints"]))
+    records = [Recorder(game, settings, e) for e in eval_seeds]
+    learner = settings.learner
+    batch = DeepBatch(game.spec, learner, train_seeds, settings.largest)
     with unit_cost(learn_seconds(learner)):  # the evaluations inside say their own
-        batch.train(schedule(config), lambda k, budget, table: records[k](budget, table))
+        batch.train(settings.schedule(), lambda k, budget, table: records[k](budget, table))
     return [r.metrics() for r in records]
 
 
@@ -309,24 +350,25 @@ def learn_seconds(learner: LearnerConfig) -> float:
     return LEARN_SECONDS_PER_EPISODE.get(learner.name, 7.3e-6)
 
 
-def _cost(config: Mapping[str, Any]) -> float:
+def _cost(settings: EpisodicRun) -> float:
     """Estimated seconds of one run: its learning episodes and its evaluation episodes
     (what the run reports as it goes, :func:`cmarlcd.progress.unit_cost`)."""
-    learned = max(config["checkpoints"])
-    evaluated = run_work(config) - learned
-    return learn_seconds(learner_of(config)) * learned + SECONDS_PER_EPISODE * evaluated
+    learned = settings.largest
+    evaluated = settings.work() - learned
+    return learn_seconds(settings.learner) * learned + SECONDS_PER_EPISODE * evaluated
 
 
 def experiment(game: EpisodicGame) -> Experiment:
     """The runner's view of ``game`` under this protocol."""
     return Experiment(
         game.experiment,
-        run=lambda config, seed: run(game, config, seed),
+        EpisodicRun,
+        run=lambda settings, seed: run(game, settings, seed),
         warm_up=lambda: warm_up(game),
         cost=_cost,
-        run_batch=lambda config, seeds: run_batch(game, config, seeds),
-        batchable=lambda config: anneals_over_budget(learner_of(config)),
-        work=run_work,
+        run_batch=lambda settings, seeds: run_batch(game, settings, seeds),
+        batchable=lambda settings: anneals_over_budget(settings.learner),
+        work=EpisodicRun.work,
         work_unit="episodes",
     )
 
@@ -357,19 +399,17 @@ class Row:
         return asdict(self)
 
 
-def row_label(algorithm: str, learner: Mapping[str, Any]) -> str:
-    """The algorithm's name, marked with * when its settings are not the paper's."""
-    paper = algorithm in registry.LEARNERS and registry.is_paper_setting(
-        registry.learner_config(algorithm, learner)
-    )
-    return registry.display_name(algorithm) + ("" if paper else " *")
+def row_label(learner: LearnerConfig) -> str:
+    """The learner's name, marked with * when its settings are not the paper's."""
+    paper = registry.is_paper_setting(learner)
+    return registry.display_name(learner.name) + ("" if paper else " *")
 
 
 def summarize(game: EpisodicGame, records: Iterable[RunRecord]) -> list[Row]:
     """The tables from stored runs: one row per (algorithm, settings, L)."""
     per_cell: dict[tuple[str, str, int], dict[int, dict[str, float]]] = defaultdict(dict)
     for rec in records:
-        label = row_label(rec.key.algorithm, rec.config["learner"])
+        label = row_label(run_of(rec).learner)
         for budget, result in rec.metrics["checkpoints"].items():
             # keyed by run: sweeps with other checkpoint lists hold the very same run at L
             per_cell[(rec.key.algorithm, label, int(budget))][rec.key.run_index] = result
@@ -411,15 +451,16 @@ def learning_curves(records: Iterable[RunRecord]) -> dict[str, np.ndarray]:
     """Per row label, an array (runs, points, 4) of [episodes, success, return, steps]."""
     curves: dict[str, list[list[list[float]]]] = defaultdict(list)
     for rec in records:
-        label = row_label(rec.key.algorithm, rec.config["learner"])
-        if anneals_over_budget(learner_of(rec.config)):
-            label += f", L = {max(rec.config['checkpoints']):,}"
+        settings = run_of(rec)
+        label = row_label(settings.learner)
+        if anneals_over_budget(settings.learner):
+            label += f", L = {settings.largest:,}"
         curves[label].append(rec.metrics["curve"])
     return {label: np.array(runs) for label, runs in curves.items() if runs and runs[0]}
 
 
 def protocol_key(record: RunRecord) -> tuple:
     """Runs that belong in one set of tables: same seed and evaluation settings."""
-    cfg = record.config
+    settings = run_of(record)
     fields = ("eval_episodes", "curve_points", "curve_eval_episodes")
-    return (record.key.root_seed, *(str(cfg[f]) for f in fields))
+    return (record.key.root_seed, *(str(getattr(settings, f)) for f in fields))

@@ -11,7 +11,7 @@ import statistics
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from cmarlcd.games.matrix import MatrixGame, check_size, climbing_game, random_g
 from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
 from cmarlcd.limits import check_run_count, check_seed
 from cmarlcd.paper import repeated_success
-from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
 from cmarlcd.store import RunRecord
 from cmarlcd.training.repeated import fit
 
@@ -33,6 +33,31 @@ PAPER_ACTIONS = paper.TABLE_ACTIONS
 PAPER_RUNS = 50
 
 _GRID_FIELDS = ("agents", "actions")
+
+
+@dataclass(frozen=True)
+class RepeatedCell(Settings):
+    """One cell's runs: a fresh random game of ``case`` with ``agents`` agents of
+    ``actions`` actions each, played by CMARL-CD with ``learner``'s settings (stored
+    flat beside the cell's coordinates)."""
+
+    case: int
+    agents: int
+    actions: int
+    learner: RepeatedConfig = field(default_factory=RepeatedConfig)
+
+    def to_config(self) -> dict[str, Any]:
+        return {"case": self.case, "agents": self.agents, "actions": self.actions,
+                **asdict(self.learner)}  # fmt: skip
+
+    @classmethod
+    def from_config(cls, config: Mapping[str, Any]) -> Self:
+        return cls(config["case"], config["agents"], config["actions"], learner_config(config))
+
+
+def cell_of(record: RunRecord) -> RepeatedCell:
+    """The settings of a stored run."""
+    return parse_settings(RepeatedCell, record.key.config)  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)
@@ -61,13 +86,10 @@ class RepeatedSweep:
         """Runs of the sweep, without listing them."""
         return len(self.agents) * len(self.actions) * self.runs
 
-    def cells(self) -> list[dict[str, Any]]:
-        """One config per (agents, actions), learner settings included."""
-        learner = asdict(self.learner)
+    def cells(self) -> list[RepeatedCell]:
+        """One cell per (agents, actions)."""
         return [
-            {"case": self.case, "agents": n, "actions": m, **learner}
-            for m in self.actions
-            for n in self.agents
+            RepeatedCell(self.case, n, m, self.learner) for m in self.actions for n in self.agents
         ]
 
     def specs(self) -> list[RunSpec]:
@@ -89,20 +111,16 @@ def learner_config(config: Mapping[str, Any]) -> RepeatedConfig:
     return RepeatedConfig(**{k: v for k, v in config.items() if k in names})
 
 
-def prepare_run(
-    config: Mapping[str, Any], seed: np.random.SeedSequence
-) -> tuple[MatrixGame, CMARLCD]:
+def prepare_run(cell: RepeatedCell, seed: np.random.SeedSequence) -> tuple[MatrixGame, CMARLCD]:
     """A run's fresh random game and its untrained learners (independent streams)."""
     game_seed, learner_seed = seed.spawn(2)
-    game = random_game(
-        config["case"], config["agents"], config["actions"], np.random.default_rng(game_seed)
-    )
-    return game, CMARLCD(game.action_counts, learner_config(config), seed=learner_seed)
+    game = random_game(cell.case, cell.agents, cell.actions, np.random.default_rng(game_seed))
+    return game, CMARLCD(game.action_counts, cell.learner, seed=learner_seed)
 
 
-def run_cell(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+def run_cell(cell: RepeatedCell, seed: np.random.SeedSequence) -> dict[str, Any]:
     """One run: a fresh random game, CMARL-CD until pure, the paper's success test."""
-    game, learner = prepare_run(config, seed)
+    game, learner = prepare_run(cell, seed)
     result = fit(learner, game)
     return {
         "success": result.success,
@@ -119,16 +137,16 @@ def _warm_up() -> None:
     fit(CMARLCD(game.action_counts, seed=0), game, max_games=10)
 
 
-def _cost(config: Mapping[str, Any]) -> float:
+def _cost(cell: RepeatedCell) -> float:
     """Estimated seconds of one run: case 1 needs about m^(n-1) games to meet an optimum,
     case 2 is quick (coefficients fitted to the paper protocol's stored wall times on a
     2-core machine, 2.3 µs per m^(n-1) and 0.16 ms per n·m)."""
-    if config["case"] == 1:
-        return 2.3e-6 * float(config["actions"]) ** (config["agents"] - 1)
-    return 1.6e-4 * config["agents"] * config["actions"]
+    if cell.case == 1:
+        return 2.3e-6 * float(cell.actions) ** (cell.agents - 1)
+    return 1.6e-4 * cell.agents * cell.actions
 
 
-REPEATED = Experiment(EXPERIMENT, run_cell, _warm_up, _cost)
+REPEATED = Experiment(EXPERIMENT, RepeatedCell, run_cell, _warm_up, _cost)
 
 
 @dataclass(frozen=True)
@@ -155,9 +173,9 @@ def summarize(records: Iterable[RunRecord]) -> list[CellSummary]:
     groups: dict[tuple[int, int, int], list[dict[str, Any]]] = defaultdict(list)
     paper_settings = True
     for rec in records:
-        cfg = rec.config
-        groups[(cfg["case"], cfg["agents"], cfg["actions"])].append(rec.metrics)
-        paper_settings &= learner_config(cfg) == RepeatedConfig()
+        cell = cell_of(rec)
+        groups[(cell.case, cell.agents, cell.actions)].append(rec.metrics)
+        paper_settings &= cell.learner == RepeatedConfig()
     out = []
     for (case, n, m), metrics in sorted(groups.items(), key=lambda kv: (kv[0][2], kv[0][1])):
         games = [x["games"] for x in metrics if x["converged"]]
@@ -176,9 +194,9 @@ def summarize(records: Iterable[RunRecord]) -> list[CellSummary]:
     return out
 
 
-def group_key(config: Mapping[str, Any], root_seed: int) -> tuple:
+def group_key(cell: RepeatedCell, root_seed: int) -> tuple:
     """Runs that belong to one table: same settings apart from the cell coordinates."""
-    rest = tuple(sorted((k, v) for k, v in config.items() if k not in _GRID_FIELDS))
+    rest = tuple(sorted((k, v) for k, v in cell.to_config().items() if k not in _GRID_FIELDS))
     return (root_seed, *rest)
 
 
@@ -186,30 +204,31 @@ def stored_tables(records: Iterable[RunRecord]) -> dict[tuple, list[RunRecord]]:
     """Group every stored repeated-game run into tables (one per case/settings/seed)."""
     tables: dict[tuple, list[RunRecord]] = defaultdict(list)
     for rec in records:
-        tables[group_key(rec.config, rec.key.root_seed)].append(rec)
+        tables[group_key(cell_of(rec), rec.key.root_seed)].append(rec)
     return dict(tables)
 
 
 def settings_text(records: Sequence[RunRecord]) -> str:
     """What a table of runs shows: case, learner settings, seed, runs per cell."""
-    cfg = records[0].config
+    cell = cell_of(records[0])
+    learner, default = cell.learner, RepeatedConfig()
     counts = defaultdict(int)
     for rec in records:
-        counts[(rec.config["agents"], rec.config["actions"])] += 1
+        other = cell_of(rec)
+        counts[(other.agents, other.actions)] += 1
     low, high = min(counts.values()), max(counts.values())
     runs = f"{low} runs per cell" if low == high else f"{low}-{high} runs per cell"
-    default = asdict(RepeatedConfig())
     extra = "".join(
-        f", {name}={cfg[name]:g}"
+        f", {name}={getattr(learner, name):g}"
         for name in ("purity_threshold", "max_games", "initial_degree")
-        if cfg[name] != default[name]
+        if getattr(learner, name) != getattr(default, name)
     )
     return (
-        f"case {cfg['case']}, T={cfg['temperature']:g}, δ={cfg['delta']:g}{extra}, "
+        f"case {cell.case}, T={learner.temperature:g}, δ={learner.delta:g}{extra}, "
         f"seed {records[0].key.root_seed}, {runs}"
     )
 
 
 def table_title(records: Sequence[RunRecord]) -> str:
-    table = {1: "Table 1", 2: "Table 2"}[records[0].config["case"]]
+    table = {1: "Table 1", 2: "Table 2"}[cell_of(records[0]).case]
     return f"{table} — success rate ({settings_text(records)})"

@@ -8,18 +8,30 @@ A run's seed is the sweep's root seed itself (the starting points are drawn from
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.runs import Experiment, RunSpec, Settings
 
 EXPERIMENT = "theorem1"
 #: (agents, optima) of the checks ``reproduce`` runs: the smallest case, whose phase
 #: portrait is drawn, and a large one.
 PAPER_SIZES = ((2, 2), (7, 5))
 TEMPERATURE = 1.0
+
+
+@dataclass(frozen=True)
+class TheoremCheck(Settings):
+    """One stored check: ``agents`` agents, ``optima`` optimal joint actions, the
+    Boltzmann temperature and the number of starting points."""
+
+    agents: int
+    optima: int
+    temperature: float
+    starts: int
 
 
 def specs(
@@ -35,12 +47,7 @@ def specs(
         RunSpec.make(
             EXPERIMENT,
             "ode",
-            {
-                "agents": n,
-                "optima": m,
-                "temperature": temperature,
-                "starts": DEFAULT_STARTS if starts is None else starts,
-            },
+            TheoremCheck(n, m, temperature, DEFAULT_STARTS if starts is None else starts),
             seed,
             0,
         )
@@ -48,23 +55,19 @@ def specs(
     ]
 
 
-def run(config: Mapping[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+def run(check: TheoremCheck, seed: np.random.SeedSequence) -> dict[str, Any]:
     """The check's JSON summary; ``seed.entropy`` is the sweep's root seed."""
     from cmarlcd.theory import check_theorem1
 
     report = check_theorem1(
-        config["agents"],
-        config["optima"],
-        config["temperature"],
-        starts=config["starts"],
-        seed=int(seed.entropy),
+        check.agents, check.optima, check.temperature, starts=check.starts, seed=int(seed.entropy)
     )
     return report.to_dict()
 
 
-def _cost(config: Mapping[str, Any]) -> float:
+def _cost(check: TheoremCheck) -> float:
     """[choice] Estimated seconds: about 1 s for 2 agents, 2.5 s for 7 (measured)."""
-    return 0.5 + 0.3 * config["agents"]
+    return 0.5 + 0.3 * check.agents
 
 
-THEOREM1 = Experiment(EXPERIMENT, run=run, cost=_cost)
+THEOREM1 = Experiment(EXPERIMENT, TheoremCheck, run=run, cost=_cost)

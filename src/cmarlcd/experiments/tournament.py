@@ -30,7 +30,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -41,7 +41,8 @@ from cmarlcd.games.battlefield import GUNNER, MARINE, Battlefield, Unit
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import Experiment, RunSpec
+from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
+from cmarlcd.store import RunRecord
 from cmarlcd.training.match import Match, MatchBatch
 from cmarlcd.training.tabular_side import UNSEEN_MODES, check_unseen
 
@@ -138,16 +139,90 @@ class Readings:
         }
         return replace(config, **changes) if changes else config
 
-    def stored(self, tabular: bool) -> dict[str, Any]:
-        """What a pairing's stored config records of this reading: the parts that differ
-        from the defaults and apply to it (``tabular``: it has a tabular side; the
-        discount and tolerance travel in its learners' settings)."""
-        out: dict[str, Any] = {}
+
+@dataclass(frozen=True)
+class Pairing(Settings):
+    """The matches of one pairing: two learners as they play (readings applied), the
+    learning and evaluation budgets, the unit stats, and what a tabular side plays in
+    unseen states.
+
+    The stored config records the unit stats and ``unseen`` only where they differ from
+    the defaults and apply (``unseen``: a tabular side plays); the discount and tolerance
+    travel in the learners' settings.
+    """
+
+    learners: tuple[LearnerConfig, LearnerConfig]
+    learn_episodes: int
+    eval_episodes: int
+    marine: Unit = MARINE
+    gunner: Unit = GUNNER
+    unseen: str = UNSEEN_MODES[0]
+
+    @property
+    def algorithms(self) -> tuple[str, str]:
+        return (self.learners[0].name, self.learners[1].name)
+
+    @property
+    def rules(self) -> Battlefield:
+        """The battlefield its matches are played on (the paper's troop of 4 + 2)."""
+        if (self.marine, self.gunner) == (MARINE, GUNNER):
+            return battlefield.PAPER
+        return Battlefield(marine=self.marine, gunner=self.gunner)
+
+    @property
+    def has_tabular(self) -> bool:
+        return any(is_tabular(learner) for learner in self.learners)
+
+    @property
+    def has_deep(self) -> bool:
+        """Whether a side is a deep learner (its rounds are worth batching)."""
+        return any(registry.needs_torch(name) for name in self.algorithms)
+
+    def to_config(self) -> dict[str, Any]:
+        config: dict[str, Any] = {
+            "algorithms": list(self.algorithms),
+            "learners": [asdict(learner) for learner in self.learners],
+            "learn_episodes": self.learn_episodes,
+            "eval_episodes": self.eval_episodes,
+        }
         if (self.marine, self.gunner) != (MARINE, GUNNER):
-            out["battlefield"] = {kind: unit_fields(getattr(self, kind)) for kind in UNIT_KINDS}
-        if tabular and self.unseen != UNSEEN_MODES[0]:
-            out["unseen"] = self.unseen
-        return out
+            units = (self.marine, self.gunner)
+            config["battlefield"] = {
+                k: unit_fields(u) for k, u in zip(UNIT_KINDS, units, strict=True)
+            }
+        if self.has_tabular and self.unseen != UNSEEN_MODES[0]:
+            config["unseen"] = self.unseen
+        return config
+
+    @classmethod
+    def from_config(cls, config: Mapping[str, Any]) -> Self:
+        learners = tuple(
+            registry.learner_config(name, settings)
+            for name, settings in zip(config["algorithms"], config["learners"], strict=True)
+        )
+        stats = config.get("battlefield") or {kind: None for kind in UNIT_KINDS}
+        units = [Unit(**u) if u else default for u, default in zip(
+            (stats["marine"], stats["gunner"]), (MARINE, GUNNER), strict=True)]  # fmt: skip
+        return cls(
+            learners,  # type: ignore[arg-type]
+            config["learn_episodes"],
+            config["eval_episodes"],
+            *units,
+            config.get("unseen", UNSEEN_MODES[0]),
+        )
+
+    def stream(self) -> dict[str, Any]:
+        """What seeds a match: not the evaluation budget, nor what a side plays in
+        unseen states (``unseen`` changes the evaluation alone: the sides learn exactly
+        what they learn by default)."""
+        config = self.to_config()
+        kept = ("algorithms", "learners", "learn_episodes", "battlefield")
+        return {k: config[k] for k in kept if k in config}
+
+
+def pairing_of(record: RunRecord) -> Pairing:
+    """The settings of a stored match."""
+    return parse_settings(Pairing, record.key.config)  # type: ignore[return-value]
 
 
 def unit_fields(unit: Unit) -> dict[str, Any]:
@@ -163,19 +238,6 @@ DEFAULT_READING = {
     "unseen": UNSEEN_MODES[0],
     **{kind: unit_fields(unit) for kind, unit in zip(UNIT_KINDS, (MARINE, GUNNER), strict=True)},
 }
-
-
-def rules_of(config: Mapping[str, Any]) -> Battlefield:
-    """The battlefield a stored pairing was played on (the paper's when not recorded)."""
-    stats = config.get("battlefield")
-    if stats is None:
-        return battlefield.PAPER
-    return Battlefield(**{kind: Unit(**stats[kind]) for kind in UNIT_KINDS})
-
-
-def unseen_of(config: Mapping[str, Any]) -> str:
-    """What a stored pairing's tabular sides played in unseen states."""
-    return config.get("unseen", UNSEEN_MODES[0])
 
 
 def pairings(names: Sequence[str]) -> list[tuple[str, str]]:
@@ -237,31 +299,28 @@ class Tournament:
     def algorithms(self) -> tuple[str, ...]:
         return tuple(config.name for config in self.learners)
 
-    def config(self, pair: tuple[LearnerConfig, LearnerConfig]) -> dict[str, Any]:
-        """The stored config of one pairing's matches (``pair`` as they play)."""
-        return {
-            "algorithms": [config.name for config in pair],
-            "learners": [asdict(config) for config in pair],
-            "learn_episodes": self.learn_episodes,
-            "eval_episodes": self.eval_episodes,
-            **self.readings.stored(any(is_tabular(config) for config in pair)),
-        }
+    def pairing(self, pair: tuple[LearnerConfig, LearnerConfig]) -> Pairing:
+        """The settings of one pairing's matches (``pair`` as they play)."""
+        readings = self.readings
+        return Pairing(
+            pair,
+            self.learn_episodes,
+            self.eval_episodes,
+            readings.marine,
+            readings.gunner,
+            readings.unseen,
+        )
 
     def specs(self) -> list[RunSpec]:
         """One spec per (pairing, round); a match's streams depend on its pairing, the
-        learning budget, the unit stats and its round, not on the evaluation budget nor
-        on what a side plays in unseen states (so ``unseen`` changes the evaluation
-        alone: the sides learn exactly what they learn by default)."""
+        learning budget, the unit stats and its round (:meth:`Pairing.stream`)."""
         by_name = {config.name: config for config in self.playing}
         specs = []
         for names in pairings(self.algorithms):
-            config = self.config((by_name[names[0]], by_name[names[1]]))
-            kept = ("algorithms", "learners", "learn_episodes", "battlefield")
-            stream = {k: config[k] for k in kept if k in config}
+            pairing = self.pairing((by_name[names[0]], by_name[names[1]]))
             label = match_label(names)
             specs += [
-                RunSpec.make(EXPERIMENT, label, config, self.seed, r, stream)
-                for r in range(self.rounds)
+                RunSpec.make(EXPERIMENT, label, pairing, self.seed, r) for r in range(self.rounds)
             ]
         return specs
 
@@ -274,41 +333,36 @@ def match_label(names: Sequence[str]) -> str:
 # ------------------------------------------------------------------------- runs
 
 
-def learner_of(config: Mapping[str, Any], k: int) -> LearnerConfig:
-    """The config of a stored pairing's ``k``-th learner."""
-    return registry.learner_config(config["algorithms"][k], config["learners"][k])
-
-
-def play(config: dict[str, Any], seed: np.random.SeedSequence, round_index: int) -> dict[str, Any]:
+def play(pairing: Pairing, seed: np.random.SeedSequence, round_index: int) -> dict[str, Any]:
     """One match: learn, evaluate, and the outcome from each side's view."""
-    return play_rounds(config, [seed], [round_index])[0]
+    return play_rounds(pairing, [seed], [round_index])[0]
 
 
 def play_rounds(
-    config: dict[str, Any], seeds: Sequence[np.random.SeedSequence], rounds: Sequence[int]
+    pairing: Pairing, seeds: Sequence[np.random.SeedSequence], rounds: Sequence[int]
 ) -> list[dict[str, Any]]:
     """The matches of one pairing in several rounds, learning together
     (:class:`cmarlcd.training.match.MatchBatch`: a deep learner's sides train as one
     stacked model); each plays and stores exactly what it would alone."""
     start = time.perf_counter()
-    pair = (learner_of(config, 0), learner_of(config, 1))
+    pair = pairing.learners
     positions = [(0, 1) if r % 2 == 0 else (1, 0) for r in rounds]  # balanced sides
     streams = [[np.random.default_rng(s) for s in seed.spawn(4)] for seed in seeds]
     batch = MatchBatch(
-        rules_of(config).spec(),
+        pairing.rules.spec(),
         pair,
         positions,
         [env for env, _, _, _ in streams],
         [(side0, side1) for _, side0, side1, _ in streams],
-        config["learn_episodes"],
-        unseen_of(config),
+        pairing.learn_episodes,
+        pairing.unseen,
     )
     batch.learn()
     learn_seconds = (time.perf_counter() - start) / len(seeds)
     results = []
     for match, order, (_, _, _, eval_rng) in zip(batch.matches, positions, streams, strict=True):
         evaluated = time.perf_counter()
-        result = match.evaluate(config["eval_episodes"], eval_rng)
+        result = match.evaluate(pairing.eval_episodes, eval_rng)
         results.append(
             {
                 "sides": [pair[p].name for p in order],
@@ -339,17 +393,17 @@ def warm_up() -> None:
         match.evaluate(2, rngs[3])
 
 
-def _work(config: Mapping[str, Any]) -> float:
-    return float(config["learn_episodes"] + config["eval_episodes"])
+def _work(pairing: Pairing) -> float:
+    return float(pairing.learn_episodes + pairing.eval_episodes)
 
 
-def _cost(config: Mapping[str, Any]) -> float:
+def _cost(pairing: Pairing) -> float:
     """Estimated seconds of one match: about 14 µs per episode of two tabular sides, and
     a deep side adds about 8 times that (fitted to the quick preset's measured matches
     on the project's 2-core machine, benchmarks/fit_costs.py): matches with deep sides
     start first."""
-    deep = sum(registry.needs_torch(name) for name in config["algorithms"])
-    return 14e-6 * _work(config) * (1 + 8 * deep)
+    deep = sum(registry.needs_torch(name) for name in pairing.algorithms)
+    return 14e-6 * _work(pairing) * (1 + 8 * deep)
 
 
 def round_of(seed: np.random.SeedSequence) -> int:
@@ -358,28 +412,24 @@ def round_of(seed: np.random.SeedSequence) -> int:
     return int(seed.spawn_key[-1])
 
 
-def run(config: dict[str, Any], seed: np.random.SeedSequence) -> dict[str, Any]:
+def run(pairing: Pairing, seed: np.random.SeedSequence) -> dict[str, Any]:
     """The runner's entry for one match."""
-    return play(config, seed, round_of(seed))
+    return play(pairing, seed, round_of(seed))
 
 
-def run_batch(config: dict[str, Any], seeds: list[np.random.SeedSequence]) -> list[dict[str, Any]]:
+def run_batch(pairing: Pairing, seeds: list[np.random.SeedSequence]) -> list[dict[str, Any]]:
     """The runner's entry for the rounds of one pairing with a deep learner."""
-    return play_rounds(config, seeds, [round_of(seed) for seed in seeds])
-
-
-def has_deep_learner(config: Mapping[str, Any]) -> bool:
-    """Whether a pairing has a deep learner (its rounds are worth batching)."""
-    return any(registry.needs_torch(name) for name in config["algorithms"])
+    return play_rounds(pairing, seeds, [round_of(seed) for seed in seeds])
 
 
 TOURNAMENT = Experiment(
     EXPERIMENT,
+    Pairing,
     run=run,
     warm_up=warm_up,
     cost=_cost,
     run_batch=run_batch,
-    batchable=has_deep_learner,
+    batchable=lambda pairing: pairing.has_deep,
     work=_work,
     work_unit="episodes",
 )

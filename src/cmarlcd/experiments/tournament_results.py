@@ -23,22 +23,19 @@ from cmarlcd.experiments.tournament import (
     DEFAULT_READING,
     STD_DDOF,
     UNIT_KINDS,
+    Pairing,
     is_tabular,
-    learner_of,
-    rules_of,
+    pairing_of,
     unit_fields,
-    unseen_of,
 )
 from cmarlcd.store import RunRecord
 
 
-def reading_of(config: Mapping[str, Any]) -> dict[str, Any]:
+def reading_of(pairing: Pairing) -> dict[str, Any]:
     """The readings a stored pairing was played under: the tabular learners' discount and
     tolerance and what they play in unseen states (None when it has no tabular side),
     and the unit stats."""
-    tabular = [learner_of(config, k) for k in range(2)]
-    tabular = [learner for learner in tabular if is_tabular(learner)]
-    rules = rules_of(config)
+    tabular = [learner for learner in pairing.learners if is_tabular(learner)]
 
     def one(name: str) -> Any:
         values = sorted({getattr(learner, name) for learner in tabular})
@@ -47,8 +44,8 @@ def reading_of(config: Mapping[str, Any]) -> dict[str, Any]:
     return {
         "gamma": one("gamma"),
         "tolerance": one("tolerance"),
-        "unseen": unseen_of(config) if tabular else None,
-        **{kind: unit_fields(getattr(rules, kind)) for kind in UNIT_KINDS},
+        "unseen": pairing.unseen if tabular else None,
+        **{kind: unit_fields(getattr(pairing, kind)) for kind in UNIT_KINDS},
     }
 
 
@@ -56,7 +53,7 @@ def match_reading(records: Sequence[RunRecord]) -> dict[str, Any]:
     """The readings of one tournament's matches (:func:`tournaments`): a tabular
     learners' setting that differs among them is the list of its values; a tournament
     of deep learners alone has no tabular readings (None)."""
-    readings = [reading_of(rec.config) for rec in records]
+    readings = [reading_of(pairing_of(rec)) for rec in records]
     tabular = [r for r in readings if r["unseen"] is not None]
     merged = dict(readings[0])
     for name in ("gamma", "tolerance", "unseen"):
@@ -111,18 +108,16 @@ def reading_label(reading: Mapping[str, Any]) -> str:
 def protocol_key(record: RunRecord) -> tuple:
     """What every match of one tournament shares: seed, budgets and unit stats (the
     tabular readings are told apart by :func:`tabular_key`)."""
-    cfg = record.config
-    rules = rules_of(cfg)
-    units = tuple(tuple(unit_fields(getattr(rules, kind)).values()) for kind in UNIT_KINDS)
-    return (record.key.root_seed, cfg["learn_episodes"], cfg["eval_episodes"], units)
+    pairing = pairing_of(record)
+    units = tuple(tuple(unit_fields(getattr(pairing, kind)).values()) for kind in UNIT_KINDS)
+    return (record.key.root_seed, pairing.learn_episodes, pairing.eval_episodes, units)
 
 
-def tabular_settings(config: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
+def tabular_settings(pairing: Pairing) -> dict[str, tuple[float, float]]:
     """Each tabular learner's (γ, tolerance) in a stored pairing."""
-    learners = [learner_of(config, k) for k in range(2)]
     return {
         learner.name: (float(learner.gamma), float(learner.tolerance))
-        for learner in learners
+        for learner in pairing.learners
         if is_tabular(learner)
     }
 
@@ -131,12 +126,13 @@ def tabular_key(record: RunRecord) -> tuple | None:
     """The tabular readings of a match: what its tabular sides play in unseen states and
     the (γ, tolerance) they all share, or each one's when they differ (possible from the
     Python API only); None for a match of two deep learners."""
-    settings = tabular_settings(record.config)
+    pairing = pairing_of(record)
+    settings = tabular_settings(pairing)
     if not settings:
         return None
     shared = set(settings.values())
     each = ("all", *shared.pop()) if len(shared) == 1 else ("each", *sorted(settings.items()))
-    return (unseen_of(record.config), each)
+    return (pairing.unseen, each)
 
 
 def tournaments(records: Iterable[RunRecord]) -> list[list[RunRecord]]:
@@ -172,13 +168,13 @@ def _tournaments_of(records: Sequence[RunRecord]) -> list[list[RunRecord]]:
                 recs += [
                     rec
                     for rec in others
-                    if all(own.get(n) == other[1:] for n in tabular_settings(rec.config))
+                    if all(own.get(n) == other[1:] for n in tabular_settings(pairing_of(rec)))
                 ]
         groups[(unseen, shared)] = recs
     found = []
     for recs in groups.values():
-        names = {name for rec in recs for name in rec.config["algorithms"]}
-        found.append(recs + [r for r in deep_only if set(r.config["algorithms"]) <= names])
+        names = {name for rec in recs for name in pairing_of(rec).algorithms}
+        found.append(recs + [r for r in deep_only if set(pairing_of(r).algorithms) <= names])
     if deep_only:
         found.append(deep_only)
     keys = [frozenset(rec.key for rec in group) for group in found]
