@@ -282,6 +282,11 @@ def test_dsn_json_tables_figures_and_resume(paths) -> None:
         (["--gamma", "-0.1"], "--gamma"),
         (["--gamma", "1.01"], "--gamma"),
         (["--rate", "1"], "--rate"),
+        (["--set", "cmarl-cd.delta=x"], "--set"),
+        (["--set", "cmarl-cd.nope=1"], "--set"),
+        (["--set", "vdn.lr=0.1"], "--set"),  # VDN does not play
+        (["--set", "delta=0.1"], "--set"),
+        (["--set", "cmarl-cd.delta=-1"], "--set"),
     ],
 )
 def test_dsn_bad_input(paths, args, option) -> None:
@@ -289,6 +294,19 @@ def test_dsn_bad_input(paths, args, option) -> None:
     result = invoke("dsn", "--episodes", "10", "--runs", "1", *where, *args)
     assert result.exit_code == 2
     assert_rejected_cleanly(result, option, store, figures)
+
+
+def test_set_reaches_the_learner_s_stored_settings(paths) -> None:
+    """``--set`` changes a learner's setting: the run is stored with it (a new key)."""
+    store, _, where = paths
+    args = ("--algorithms", "cmarl-cd", "--episodes", "20", "--runs", "1", "--eval-episodes", "5")
+    assert invoke("dsn", *args, *where, "--set", "cmarl-cd.delta=0.1").exit_code == 0
+    from cmarlcd.experiments import settings_of
+    from cmarlcd.store import ResultStore
+
+    with ResultStore(store) as db:
+        (record,) = db.records("dsn")
+    assert settings_of(record).learner.delta == 0.1
 
 
 def tiny_reproduction(paths, monkeypatch):

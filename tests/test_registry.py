@@ -50,16 +50,18 @@ def test_learners_are_found_by_their_own_names() -> None:
 
 
 def test_each_learner_is_registered_once_under_the_name_of_every_form_it_takes() -> None:
-    from cmarlcd.learners.deep_config import DeepConfig
+    from cmarlcd.experiments.tournament import paper_learners
+    from cmarlcd.learners.deep_config import DeepLearnerConfig
 
     for name, learner in registry.REGISTRY.items():
         forms = [learner.stochastic, learner.repeated, *learner.presets.values()]
         forms = [form for form in forms if form is not None]
         assert forms, name
         assert all(form.name == name for form in forms), name
-        assert learner.needs_torch == all(isinstance(form, DeepConfig) for form in forms)
+        assert learner.needs_torch == all(isinstance(form, DeepLearnerConfig) for form in forms)
     battlefield_players = list(registry.learners_on(registry.BATTLEFIELD))
-    assert battlefield_players == ["cmarl-cd", "la-oca", "vdn", "qmix"]
+    assert battlefield_players == ["cmarl-cd", "la-oca", "vdn", "qmix", "deep-cmarl-cd"]
+    assert list(paper_learners()) == ["cmarl-cd", "la-oca", "vdn", "qmix"]  # the paper's
 
 
 def test_each_game_is_registered_once_with_a_way_to_play_it() -> None:

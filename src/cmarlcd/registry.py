@@ -36,7 +36,8 @@ from cmarlcd.games.matrix.stochastic import (
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.automata import AutomatonConfig
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD, RepeatedConfig, StochasticConfig
-from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig
+from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig, DeepLearnerConfig
+from cmarlcd.learners.deep_coordination import BATTLEFIELD_DEEP_CMARLCD, DeepCMARLCDConfig
 from cmarlcd.learners.distributed_q import DistributedQConfig, DistributedQStochasticConfig
 from cmarlcd.learners.fmq import FMQConfig
 from cmarlcd.learners.hysteretic import HystereticConfig, HystereticStochasticConfig
@@ -46,7 +47,7 @@ from cmarlcd.learners.q_learning import IQLConfig, IQLStochasticConfig
 from cmarlcd.learners.tabular import TabularConfig
 from cmarlcd.paper import TABLE_ACTIONS, TABLE_AGENTS
 
-LearnerConfig = TabularConfig | DeepConfig
+LearnerConfig = TabularConfig | DeepConfig | DeepCMARLCDConfig
 
 RepeatedLearnerConfig = (
     RepeatedConfig
@@ -109,6 +110,13 @@ REGISTRY: dict[str, Learner] = {
         _tabular(AutomatonConfig(), battlefield=AutomatonConfig()),
         _deep("vdn"),
         _deep("qmix"),
+        Learner(
+            DeepCMARLCDConfig.name,
+            DEEP,
+            DeepCMARLCDConfig(),
+            None,
+            {BATTLEFIELD: BATTLEFIELD_DEEP_CMARLCD},
+        ),
         _tabular(IQLStochasticConfig(), IQLConfig()),
         _tabular(DistributedQStochasticConfig(), DistributedQConfig()),
         _tabular(HystereticStochasticConfig(), HystereticConfig()),
@@ -266,7 +274,7 @@ def needs_torch(name: str) -> bool:
 
 def kind_of(config: Any) -> str:
     """A learner config's kind: :data:`TABULAR` or :data:`DEEP`."""
-    return DEEP if isinstance(config, DeepConfig) else TABULAR
+    return DEEP if isinstance(config, DeepLearnerConfig) else TABULAR
 
 
 def repeated_learner_names() -> str:

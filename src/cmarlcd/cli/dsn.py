@@ -14,6 +14,8 @@ from cmarlcd import registry, report
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
     SeedOption,
+    SetOption,
+    apply_settings,
     fails_cleanly,
     parse_count,
     parse_counts,
@@ -108,8 +110,9 @@ def dsn(
         ),
     ] = None,
     seed_batch: Annotated[
-        int, typer.Option(help="VDN/QMIX seeds trained together in one stacked model.")
+        int, typer.Option(help="Deep learners' seeds trained together in one stacked model.")
     ] = dsn_exp.SEED_BATCH,
+    settings: SetOption = "",
     *,
     run: Execution,
 ) -> None:
@@ -124,8 +127,11 @@ def dsn(
         c_init=c_init,
     )
     sweep = dsn_exp.DsnSweep(
-        learners=learner_settings(
-            names, {"cmarl-cd": cmarlcd_settings, "la-oca": {"rate": rate}}, {"gamma": gamma}
+        learners=apply_settings(
+            settings,
+            learner_settings(
+                names, {"cmarl-cd": cmarlcd_settings, "la-oca": {"rate": rate}}, {"gamma": gamma}
+            ),
         ),
         episodes=parse_counts(episodes, "episodes"),
         runs=runs,

@@ -7,6 +7,7 @@ read-only while results are written ends the same way, keeping what was stored b
 
 from __future__ import annotations
 
+import dataclasses
 import errno
 import functools
 import os
@@ -130,6 +131,70 @@ def parse_names(text: str, parameter: str) -> tuple[str, ...]:
     names = tuple(dict.fromkeys(p.strip().lower() for p in text.split(",") if p.strip()))
     require(len(names) > 0, parameter, f"needs at least one name (got {text!r})")
     return names
+
+
+#: The ``--set`` option of the commands that train learners.
+SetOption = Annotated[
+    str,
+    typer.Option(
+        "--set",
+        help="Learner settings, LEARNER.SETTING=VALUE as a comma list, e.g. "
+        "deep-cmarl-cd.expectile=0.99,vdn.lr=0.0005 (any field of the learner's config; "
+        "see the docs' interpretation choices).",
+    ),
+]
+
+
+def apply_settings(text: str, configs: tuple[Any, ...], parameter: str = "set") -> tuple:
+    """``configs`` with the settings of ``text`` (``LEARNER.SETTING=VALUE, ...``), each
+    value read as its field's type; a learner not among ``configs``, an unknown setting
+    or a value the learner refuses is one clear error."""
+    by_name = {config.name: config for config in configs}
+    changes: dict[str, dict[str, Any]] = {}
+    for item in (part.strip() for part in text.split(",") if part.strip()):
+        name, field, value = _setting_item(item, by_name, parameter)
+        changes.setdefault(name, {})[field] = value
+    out = []
+    for config in configs:
+        try:
+            out.append(dataclasses.replace(config, **changes.get(config.name, {})))
+        except ConfigError as err:
+            raise ConfigError(parameter, f"{config.name}.{err.parameter} {err.message}") from None
+    return tuple(out)
+
+
+def _setting_item(item: str, by_name: dict[str, Any], parameter: str) -> tuple[str, str, Any]:
+    """``"learner.setting=value"`` -> (learner, setting, value of the setting's type)."""
+    target, _, text = item.partition("=")
+    name, _, field = target.strip().lower().rpartition(".")
+    usage = f"expected LEARNER.SETTING=VALUE (got {item!r})"
+    require(bool(name and field and text.strip()), parameter, usage)
+    playing = ", ".join(by_name)
+    require(name in by_name, parameter, f"{name!r} does not play here (playing: {playing})")
+    fields = sorted(f.name for f in dataclasses.fields(by_name[name]))
+    known = f"{name} has no setting {field!r}; its settings: {', '.join(fields)}"
+    require(field in fields, parameter, known)
+    return name, field, _typed(getattr(by_name[name], field), text.strip(), parameter)
+
+
+def _typed(default: Any, text: str, parameter: str) -> Any:
+    """``text`` as a value of ``default``'s type (bool: true/false/1/0)."""
+    kind = type(default).__name__
+    if isinstance(default, bool):
+        require(
+            text.lower() in ("true", "false", "1", "0"),
+            parameter,
+            f"expected a bool (got {text!r})",
+        )
+        return text.lower() in ("true", "1")
+    try:
+        if isinstance(default, int):
+            return parse_count(text, parameter) if text.lower().endswith("k") else int(text)
+        if isinstance(default, float):
+            return float(text)
+    except ValueError:
+        raise ConfigError(parameter, f"expected a {kind} (got {text!r})") from None
+    return text
 
 
 def parse_count(text: str, parameter: str) -> int:

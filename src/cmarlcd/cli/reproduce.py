@@ -103,7 +103,7 @@ def _reproduced_tournament(
 ) -> tuple[LearnerConfig, ...]:
     """The tournament's algorithms: all four, or the tabular ones (with a note) without
     PyTorch."""
-    names = tuple(tour.battlefield_learners())
+    names = tuple(tour.paper_learners())
     if not has_torch():
         deep = [registry.display_name(n) for n in names if registry.needs_torch(n)]
         note = needs_torch(deep) + " (left out of the tournament)"

@@ -13,6 +13,8 @@ from cmarlcd import registry, report
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
     SeedOption,
+    SetOption,
+    apply_settings,
     fails_cleanly,
     parse_count,
     parse_names,
@@ -58,7 +60,7 @@ RoundsSeedBatchOption = Annotated[
     int,
     typer.Option(help="Rounds of a pairing with VDN/QMIX that learn together (one model)."),
 ]
-ALL_ALGORITHMS = ",".join(tour.battlefield_learners())
+ALL_ALGORITHMS = ",".join(tour.paper_learners())
 
 
 def _unit_text(unit: battlefield.Unit) -> str:
@@ -107,6 +109,7 @@ def tournament(
         battlefield.GUNNER
     ),
     seed_batch: RoundsSeedBatchOption = tour.SEED_BATCH,
+    settings: SetOption = "",
     *,
     run: Execution,
 ) -> None:
@@ -121,7 +124,9 @@ def tournament(
         gunner=parse_unit(gunner, "gunner"),
     )
     contest = tour.Tournament(
-        learners=tournament_learners(parse_names(algorithms, "algorithms")),
+        learners=apply_settings(
+            settings, tournament_learners(parse_names(algorithms, "algorithms"))
+        ),
         rounds=rounds,
         learn_episodes=parse_count(learn_episodes, "learn_episodes"),
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),

@@ -26,7 +26,7 @@ import numpy as np
 from cmarlcd import registry
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.learners.deep_config import DeepLearnerConfig
 from cmarlcd.limits import (
     MAX_CURVE_POINTS,
     check_at_most,
@@ -83,7 +83,12 @@ class EpisodicGame:
 
 def anneals_over_budget(config: LearnerConfig) -> bool:
     """Whether a learner's schedule depends on its learning budget L (eq. 18's ε)."""
-    return isinstance(config, DeepConfig)
+    return isinstance(config, DeepLearnerConfig) and config.anneals
+
+
+def is_deep(config: LearnerConfig) -> bool:
+    """Whether a learner trains networks (its seeds then learn as one stacked model)."""
+    return isinstance(config, DeepLearnerConfig)
 
 
 @dataclass(frozen=True)
@@ -285,7 +290,7 @@ class Recorder:
 def run(game: EpisodicGame, settings: EpisodicRun, seed: np.random.SeedSequence) -> dict[str, Any]:
     """One run: train to each budget in turn, evaluating the greedy policy at each."""
     learner = settings.learner
-    if anneals_over_budget(learner):
+    if is_deep(learner):
         return run_batch(game, settings, [seed])[0]
     env_seed, agent_seed, eval_seed = seed.spawn(3)
     training = TabularRun(
@@ -320,7 +325,7 @@ def run_batch(
 def warm_up(game: EpisodicGame) -> None:
     """Compile the tabular loops for ``game`` (once, before workers fork)."""
     for config in registry.LEARNERS.values():
-        if not anneals_over_budget(config):
+        if not is_deep(config):
             rngs = np.random.default_rng(0), np.random.default_rng(1)
             training = TabularRun(game.spec, config, *rngs)
             training.train(2)
@@ -342,6 +347,7 @@ LEARN_SECONDS_PER_EPISODE = {
     "distributed-q": 4.7e-6,
     "vdn": 36e-6,
     "qmix": 106e-6,
+    "deep-cmarl-cd": 36e-6,
 }
 
 
@@ -367,7 +373,7 @@ def experiment(game: EpisodicGame) -> Experiment:
         warm_up=lambda: warm_up(game),
         cost=_cost,
         run_batch=lambda settings, seeds: run_batch(game, settings, seeds),
-        batchable=lambda settings: anneals_over_budget(settings.learner),
+        batchable=lambda settings: is_deep(settings.learner),
         work=EpisodicRun.work,
         work_unit="episodes",
     )

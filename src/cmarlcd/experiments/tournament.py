@@ -63,9 +63,15 @@ def is_tabular(config: LearnerConfig) -> bool:
 
 
 def battlefield_learners() -> dict[str, LearnerConfig]:
-    """The paper's settings of each learner on the battlefield (Section V-B), from the
-    registry's battlefield presets."""
+    """Each learner's settings on the battlefield (the paper's, Section V-B, for its
+    four), from the registry's battlefield presets."""
     return registry.learners_on(registry.BATTLEFIELD)
+
+
+def paper_learners() -> dict[str, LearnerConfig]:
+    """The four learners of the paper's tournament, with its settings."""
+    every = battlefield_learners()
+    return {name: every[name] for name in registry.PAPER_LEARNERS}
 
 
 #: The tabular learners of the battlefield (their loops are compiled once before workers

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import ClassVar, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -417,6 +417,19 @@ def coordination_end_episode(tables, params, states, joints, rewards, length, co
     )
 
 
+def check_degree_settings(config: Any) -> None:
+    """Validate Algorithm 2's steps, temperature and degree bounds (``delta``,
+    ``delta_reset``, ``temperature`` > 0; ``0 < c_min <= c_init <= c_max``) of any
+    config that has them (the tabular and the deep learner)."""
+    for name in ("delta", "delta_reset", "temperature"):
+        value = getattr(config, name)
+        require(bool(np.isfinite(value)) and value > 0, name, f"must be > 0 (got {value})")
+    lo, hi, init = config.c_min, config.c_max, config.c_init
+    require(bool(np.isfinite(lo)) and lo > 0, "c_min", f"must be > 0 (got {lo})")
+    require(bool(np.isfinite(hi)) and lo <= hi, "c_max", f"must be >= c_min = {lo} (got {hi})")
+    require(lo <= init <= hi, "c_init", f"must lie in [c_min, c_max] = [{lo}, {hi}] (got {init})")
+
+
 @dataclass(frozen=True)
 class StochasticConfig(TabularConfig):
     """CMARL-CD for stochastic games (Algorithm 2); defaults are the paper's DSN settings."""
@@ -449,15 +462,7 @@ class StochasticConfig(TabularConfig):
     """[choice] Absolute tolerance under which two returns count as equal."""
 
     def __post_init__(self) -> None:
-        for name in ("delta", "delta_reset", "temperature"):
-            value = getattr(self, name)
-            require(bool(np.isfinite(value)) and value > 0, name, f"must be > 0 (got {value})")
-        lo, hi, init = self.c_min, self.c_max, self.c_init
-        require(bool(np.isfinite(lo)) and lo > 0, "c_min", f"must be > 0 (got {lo})")
-        require(bool(np.isfinite(hi)) and lo <= hi, "c_max", f"must be >= c_min = {lo} (got {hi})")
-        require(
-            lo <= init <= hi, "c_init", f"must lie in [c_min, c_max] = [{lo}, {hi}] (got {init})"
-        )
+        check_degree_settings(self)
         check_gamma_tolerance(self.gamma, self.tolerance)
 
     def params(self) -> CoordinationParams:

@@ -1,4 +1,5 @@
-"""Hyper-parameters of the VDN and QMIX baselines and the ε schedule of eq. (18).
+"""Hyper-parameters of the VDN and QMIX baselines and the ε schedule of eq. (18), and
+what every deep learner's config provides (:class:`DeepLearnerConfig`).
 
 Kept free of PyTorch so that configs validate, and the command line reports bad input,
 without the ``[deep]`` extra installed.
@@ -16,8 +17,46 @@ MIXERS = ("vdn", "qmix")
 DISPLAY_NAMES = {"vdn": "VDN", "qmix": "QMIX"}
 
 
+class DeepLearnerConfig:
+    """Base of the configs of the deep learners (VDN and QMIX, deep CMARL-CD): what the
+    deep side (:mod:`cmarlcd.training.deep_side`) asks of a learner besides the fields
+    every deep config has (``hidden``, ``buffer_size``, ``batch_size``, ``train_every``,
+    ``target_every``, ``lr``, ``gamma``), which :func:`scheduled_work` reads."""
+
+    name: str
+    display_name: str
+    hidden: int
+    buffer_size: int
+    batch_size: int
+    train_every: int
+    target_every: int
+
+    @property
+    def anneals(self) -> bool:
+        """Whether its exploration depends on the learning budget L (eq. 18), so that a run
+        is made per L rather than evaluated at every L on the way."""
+        raise NotImplementedError
+
+    def schedule(self, learn_episodes: int) -> list[float]:
+        """The constants its compiled kernels read (``schedule``): entry
+        :data:`TRAIN_EVERY_ENTRY` is ``train_every`` for every deep learner."""
+        raise NotImplementedError
+
+    def side_kernels(self, spec, inputs: str):
+        """Its compiled side kernels on ``spec`` reading ``inputs``."""
+        raise NotImplementedError
+
+    def new_model(self, counts, in_dim: int, seeds):
+        """Its stacked PyTorch model for ``seeds`` (needs the ``[deep]`` extra)."""
+        raise NotImplementedError
+
+
+#: Where every deep learner's schedule holds ``train_every`` (read by the pause kernel).
+TRAIN_EVERY_ENTRY = 5
+
+
 @dataclass(frozen=True)
-class DeepConfig:
+class DeepConfig(DeepLearnerConfig):
     """Hyper-parameters of VDN / QMIX; defaults are the paper's DSN settings."""
 
     mixer: str = "vdn"
@@ -48,13 +87,32 @@ class DeepConfig:
     """ε for the remaining episodes (eq. 18: 0.01)."""
 
     @property
-    def name(self) -> str:
+    def name(self) -> str:  # type: ignore[override]
         """The learner's registry name: its mixer (``"vdn"`` or ``"qmix"``)."""
         return self.mixer
 
     @property
-    def display_name(self) -> str:
+    def display_name(self) -> str:  # type: ignore[override]
         return DISPLAY_NAMES[self.mixer]
+
+    @property
+    def anneals(self) -> bool:
+        """ε anneals over the L learning episodes (eq. 18)."""
+        return True
+
+    def schedule(self, learn_episodes: int) -> list[float]:
+        """ε schedule (start, end, anneal fraction, after), L, ``train_every``."""
+        return [*epsilon_schedule(self), learn_episodes, self.train_every]
+
+    def side_kernels(self, spec, inputs: str):
+        from cmarlcd.training.deep_kernels import deep_kernels
+
+        return deep_kernels(spec, inputs)
+
+    def new_model(self, counts, in_dim: int, seeds):
+        from cmarlcd.learners.value_decomposition import ValueDecomposition
+
+        return ValueDecomposition(counts, in_dim, self, seeds)
 
     def __post_init__(self) -> None:
         known = ", ".join(MIXERS)
@@ -95,7 +153,9 @@ def epsilon_schedule(config: DeepConfig) -> tuple[float, float, float, float]:
     return (config.eps_start, config.eps_end, config.anneal_fraction, config.eps_after)
 
 
-def scheduled_work(before: int, after: int, stored: int, config: DeepConfig) -> tuple[bool, bool]:
+def scheduled_work(
+    before: int, after: int, stored: int, config: DeepLearnerConfig
+) -> tuple[bool, bool]:
     """The schedule of every deep learner: once its environment steps have gone from
     ``before`` to ``after``, (take a gradient step, copy the target networks). A gradient
     step is due at every multiple of ``train_every`` crossed, once ``batch_size``

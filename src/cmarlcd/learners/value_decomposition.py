@@ -125,6 +125,10 @@ class AgentNetworks(nn.Module):
         """Q of every integer (one-hot) state: (B, in_dim, n_agents, n_actions)."""
         return self._by_seed(self.second(torch.relu(self.first.table())))
 
+    def feature_weights(self) -> tuple[torch.Tensor, ...]:
+        """The per-agent layers the compiled loop reads (w1, b1, w2, b2), agent-major."""
+        return self.first.weight, self.first.bias, self.second.weight, self.second.bias
+
     def _by_seed(self, q: torch.Tensor) -> torch.Tensor:
         """(B*n, N, A), grouped seed-major -> (B, N, n, A)."""
         return q.view(self.seeds, self.n_agents, *q.shape[1:]).transpose(1, 2)
@@ -210,7 +214,7 @@ class ValueDecomposition(nn.Module):
         self.n_agents, self.n_seeds = len(counts), len(seeds)
         width = int(counts.max())
         self.register_buffer("valid", torch.arange(width)[None, :] < counts[:, None])
-        gens = [_generators(s, self.n_agents + 1) for s in seeds]
+        gens = [generators_of(s, self.n_agents + 1) for s in seeds]
         self.agents = AgentNetworks(self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens)
         self.mixer: nn.Module = (
             QMixer(self.n_seeds, self.n_agents, in_dim, config.mixer_hidden, gens)
@@ -252,6 +256,10 @@ class ValueDecomposition(nn.Module):
     def greedy_table(self) -> torch.Tensor:
         """Greedy joint action (B, S, n) in every integer state (its legal actions)."""
         return self._masked(self.agents.tables(), self.state_legal).argmax(dim=-1)
+
+    def learn(self, batch: dict[str, torch.Tensor]) -> float:
+        """The learner's update on a replay batch: :meth:`td_step`."""
+        return self.td_step(batch)
 
     def td_step(self, batch: dict[str, torch.Tensor]) -> float:
         """One Adam step on the summed per-seed one-step TD losses; returns the mean loss.
@@ -303,7 +311,7 @@ class ValueDecomposition(nn.Module):
         self._next_value_table = None
 
 
-def _generators(seed: np.random.SeedSequence, count: int) -> list[torch.Generator]:
+def generators_of(seed: np.random.SeedSequence, count: int) -> list[torch.Generator]:
     """``count`` torch generators from one seed: one per agent network, then the mixer."""
     states = seed.generate_state(count, dtype=np.uint64)
     return [torch.Generator().manual_seed(int(s) & 0x7FFF_FFFF_FFFF_FFFF) for s in states]

@@ -27,7 +27,7 @@ import numpy as np
 from cmarlcd.games.env import KernelParallelEnv
 from cmarlcd.games.matrix import from_payoffs
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.learners.deep_config import DeepConfig, DeepLearnerConfig
 from cmarlcd.learners.independent import RepeatedLearner
 from cmarlcd.learners.tabular import (
     RepeatedKernels,
@@ -55,7 +55,7 @@ def check_learner(config: Any, episodes: int = 300) -> None:
         check_repeated_learner(config)
     elif isinstance(config, TabularConfig):
         check_tabular_learner(config, episodes)
-    elif isinstance(config, DeepConfig):
+    elif isinstance(config, DeepLearnerConfig):
         check_deep_learner(config, episodes)
     else:
         raise AssertionError(f"{config!r} is no learner config this package knows")

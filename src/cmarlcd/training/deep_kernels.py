@@ -19,6 +19,7 @@ import numpy as np
 from cmarlcd.compiled import Unbound, kernel, specialise_kernel
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
+from cmarlcd.learners.deep_config import TRAIN_EVERY_ENTRY
 from cmarlcd.learners.policy import (
     annealed_epsilon,
     epsilon_greedy,
@@ -70,7 +71,10 @@ class FeatureData(NamedTuple):
     replay: Replay
     counters: np.ndarray
     schedule: np.ndarray
-    """ε schedule (start, end, anneal fraction, after), learning episodes, train_every."""
+    """The learner's constants (``DeepLearnerConfig.schedule``: VDN's and QMIX's ε
+    schedule (start, end, anneal fraction, after), learning episodes, train_every)."""
+    scratch: np.ndarray
+    """(2, width) floats a learner's kernels may use as they like."""
 
 
 class IndexData(NamedTuple):
@@ -91,6 +95,7 @@ class IndexData(NamedTuple):
     replay: Replay
     counters: np.ndarray
     schedule: np.ndarray
+    scratch: np.ndarray
 
 
 # ------------------------------------------------------------ shared kernels
@@ -110,7 +115,7 @@ def deep_end_episode(side, length: int) -> None:
 @kernel
 def deep_pause(side) -> bool:
     """Stop the loop every ``train_every`` turns, for the gradient step."""
-    return side.counters[TURNS] - side.counters[PAUSED_AT] >= side.schedule[5]
+    return side.counters[TURNS] - side.counters[PAUSED_AT] >= side.schedule[TRAIN_EVERY_ENTRY]
 
 
 @kernel

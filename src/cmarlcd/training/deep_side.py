@@ -1,4 +1,8 @@
-"""VDN or QMIX as one side of a game (:mod:`cmarlcd.training.loop`; ``[deep]`` extra).
+"""A deep learner as one side of a game (:mod:`cmarlcd.training.loop`; ``[deep]``
+extra): VDN or QMIX, or deep CMARL-CD. What differs between them is behind their config
+(:class:`cmarlcd.learners.deep_config.DeepLearnerConfig`): its compiled side kernels (how
+it acts and what it stores in its replay ring) and its stacked model (what a gradient
+step does); the rest, written here once, is the same for every deep learner.
 
 A deep side sees its state in one of two ways ([choice] the game's feature vector where it
 has one, else the state index):
@@ -32,9 +36,8 @@ import torch
 
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import DeepConfig, epsilon_schedule, scheduled_work
+from cmarlcd.learners.deep_config import DeepLearnerConfig, scheduled_work
 from cmarlcd.learners.tabular import full_legal
-from cmarlcd.learners.value_decomposition import ValueDecomposition
 from cmarlcd.training.deep_kernels import (
     INPUTS,
     NEW_STATES,
@@ -43,7 +46,6 @@ from cmarlcd.training.deep_kernels import (
     FeatureData,
     IndexData,
     Weights,
-    deep_kernels,
     inputs_of,
 )
 from cmarlcd.training.loop import Group
@@ -54,7 +56,7 @@ from cmarlcd.training.replay import new_ring, sample, seed_view
 
 
 class DeepGroup(Group):
-    """The VDN or QMIX sides of B plays, trained as one stacked model: one seed per play,
+    """A deep learner's sides of B plays, trained as one stacked model: one seed per play,
     each with its own parameters, replay ring and streams.
 
     Each play's side is a :class:`DeepSide` view of the group's stacked arrays. Seed b's
@@ -80,7 +82,7 @@ class DeepGroup(Group):
         self,
         spec: GameSpec,
         teams: Sequence[int],
-        config: DeepConfig,
+        config: DeepLearnerConfig,
         init_seeds: Sequence[np.random.SeedSequence],
         replay_rngs: Sequence[np.random.Generator],
         learn_episodes: int,
@@ -97,7 +99,7 @@ class DeepGroup(Group):
         self.alone = False
         """Whether the group trains itself between loop calls (a play on its own) rather
         than when its batch says (:class:`cmarlcd.training.loop.PlayBatch`)."""
-        self.model = ValueDecomposition(counts, features or spec.n_states, config, init_seeds)
+        self.model = config.new_model(counts, features or spec.n_states, init_seeds)
         self.replay_rngs = list(replay_rngs)
         self.ring = new_ring(seeds, config.buffer_size, n, width, spec.n_states, features)
         if inputs == "features":
@@ -115,7 +117,7 @@ class DeepGroup(Group):
             self.seen = np.zeros((seeds, spec.n_states), np.bool_)
             """The states each seed has met."""
             self.model.set_state_legal(torch.from_numpy(self.legal))  # shares the memory
-        kernels = deep_kernels(spec, inputs)
+        kernels = config.side_kernels(spec, inputs)
         self.views = [DeepSide(self, b, counts, kernels, learn_episodes) for b in range(len(teams))]
         self._copy_weights()
 
@@ -135,7 +137,7 @@ class DeepGroup(Group):
         stored = min(int(self.ring.size[view.index]) for view in due)
         step, copy = scheduled_work(before, after, stored, self.config)
         if step:
-            self.model.td_step(self.sample())
+            self.model.learn(self.sample())
             self._copy_weights()
         if copy:
             self.model.sync_target()
@@ -168,10 +170,8 @@ class DeepGroup(Group):
             if self.inputs == "index":
                 np.copyto(self.values, agents.tables().numpy())
                 return
-            np.copyto(self.weights.w1, agents.first.weight.numpy())
-            np.copyto(self.weights.b1, agents.first.bias.numpy())
-            np.copyto(self.weights.w2, agents.second.weight.numpy())
-            np.copyto(self.weights.b2, agents.second.bias.numpy())
+            for copy, weight in zip(self.weights, agents.feature_weights(), strict=True):
+                np.copyto(copy, weight.numpy())
 
     def memory_bytes(self) -> int:
         """Parameters (online and target networks, Adam's two moments)."""
@@ -179,7 +179,7 @@ class DeepGroup(Group):
 
 
 class DeepSide(Side):
-    """VDN or QMIX on one side of one play: a view of seed ``index`` of a
+    """A deep learner on one side of one play: a view of seed ``index`` of a
     :class:`DeepGroup` (alone, a group of one trains itself between loop calls)."""
 
     def __init__(
@@ -195,9 +195,7 @@ class DeepSide(Side):
         self.group, self.index, self.kernels, self.frozen = group, index, kernels, False
         replay = seed_view(group.ring, index)
         counters = np.zeros(4, np.int64)
-        schedule = np.array(
-            [*epsilon_schedule(config), learn_episodes, config.train_every], np.float64
-        )
+        schedule = np.array(config.schedule(learn_episodes), np.float64)
         joints, rewards = np.zeros((steps, n), np.int64), np.zeros(steps)
         self.data: FeatureData | IndexData
         if group.inputs == "features":
@@ -213,6 +211,7 @@ class DeepSide(Side):
                 replay,
                 counters,
                 schedule,
+                np.zeros((2, width)),
             )
         else:
             self.data = IndexData(
@@ -226,6 +225,7 @@ class DeepSide(Side):
                 replay,
                 counters,
                 schedule,
+                np.zeros((2, width)),
             )
 
     @classmethod
@@ -233,7 +233,7 @@ class DeepSide(Side):
         cls,
         spec: GameSpec,
         team: int,
-        config: DeepConfig,
+        config: DeepLearnerConfig,
         rng: np.random.Generator,
         learn_episodes: int,
     ) -> DeepSide:
@@ -249,11 +249,11 @@ class DeepSide(Side):
         return self.data.counters
 
     @property
-    def model(self) -> ValueDecomposition:
+    def model(self):
         return self.group.model
 
     @property
-    def config(self) -> DeepConfig:
+    def config(self) -> DeepLearnerConfig:
         return self.group.config
 
     def due(self) -> bool:

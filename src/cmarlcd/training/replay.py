@@ -113,6 +113,31 @@ def push_row(ring, obs, next_obs, next_legal, joint, reward: float, terminal: bo
     ring.size[0] = min(ring.size[0] + 1, ring.state.shape[0])
 
 
+@kernel
+def push_visit(ring, state: int, joint, value: float) -> None:
+    """Append one visit (integer state, joint action, a value such as its return) to a
+    seed's ring; the transition fields are left as they are."""
+    p = ring.position[0]
+    ring.state[p], ring.reward[p] = state, value
+    for i in range(joint.shape[0]):
+        ring.actions[p, i] = joint[i]
+    ring.position[0] = (p + 1) % ring.state.shape[0]
+    ring.size[0] = min(ring.size[0] + 1, ring.state.shape[0])
+
+
+@kernel
+def push_visit_row(ring, obs, joint, value: float) -> None:
+    """:func:`push_visit` of a visit given by its feature vector."""
+    p = ring.position[0]
+    for f in range(obs.shape[0]):
+        ring.state[p, f] = obs[f]
+    ring.reward[p] = value
+    for i in range(joint.shape[0]):
+        ring.actions[p, i] = joint[i]
+    ring.position[0] = (p + 1) % ring.state.shape[0]
+    ring.size[0] = min(ring.size[0] + 1, ring.state.shape[0])
+
+
 def new_batch(ring: Replay, batch_size: int) -> Replay:
     """Room for one sampled batch of ``batch_size`` transitions per seed of ``ring``, in
     the types the TD step reads (integer states and actions as int64)."""

@@ -1,0 +1,158 @@
+"""Deep CMARL-CD: Algorithm 2 with function approximation (beyond the paper, whose
+conclusion proposes it), the settings; free of PyTorch so that they validate without the
+``[deep]`` extra.
+
+The tables of Algorithm 2 become two networks per seed:
+
+* the **coordination degrees** ``c_i(s, ·)`` of each agent come from an MLP (state ->
+  ``hidden`` ReLU units -> one output per action; one network per agent, or one shared
+  by every agent with the agent's one-hot index as extra input, ``share``), clipped to
+  ``[c_min, c_max]``; the strategy is ``softmax(c / T)`` over the legal actions (eq. 17)
+  and greedy execution takes the argmax, as in the tabular learner;
+* the **record** ``R_max(s)`` comes from a second MLP (state -> ``record_hidden`` ReLU
+  units -> 1) fitted to the upper envelope of the discounted returns seen from ``s``: an
+  expectile regression at ``expectile`` τ (τ -> 1 is the paper's max; 0.5 the mean).
+
+After each episode every visit ``(s_t, a_t)`` is stored with its discounted return
+``G_t`` (eq. 1) in a replay ring; every ``train_every`` steps a batch of visits is drawn
+and Algorithm 2's two updates (lines 16-19) become regression targets for the degree
+network, compared with the record network's target copy ``R(s)``:
+
+* **record**, ``G > R(s) + margin``: every degree of ``s`` is reset to ``c_init``, and
+  the taken action moved by ``+delta_reset``, every other by ``-delta_reset``;
+* **tie**, ``|G - R(s)| <= tolerance``: the taken action ``+delta``, every other
+  ``-delta``, from the network's present degrees;
+* **below**: no target (the degrees of ``s`` are left as they are).
+
+Targets are clipped to ``[c_min, c_max]``; the loss is the squared error over each
+agent's real actions, summed over the agents, on the record and tie visits; the record
+network's loss is the expectile loss on every visit. One Adam step for both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from cmarlcd.errors import check_discount, require
+from cmarlcd.learners.coordination import check_degree_settings
+from cmarlcd.learners.deep_config import DeepLearnerConfig
+
+
+@dataclass(frozen=True)
+class DeepCMARLCDConfig(DeepLearnerConfig):
+    """Deep CMARL-CD's settings; the degree steps, temperature, bounds and discount are
+    the tabular learner's DSN settings, the network and schedule VDN's (Section V-A)."""
+
+    name: ClassVar[str] = "deep-cmarl-cd"  # type: ignore[misc]
+    display_name: ClassVar[str] = "Deep CMARL-CD"  # type: ignore[misc]
+
+    hidden: int = 49
+    """Hidden units of each degree network (VDN's agent networks: 49)."""
+    share: bool = False
+    """[choice] One degree network for every agent (the agent's one-hot index appended to
+    its input) rather than one per agent (VDN's and QMIX's: none shared)."""
+    record_hidden: int = 49
+    """Hidden units of the record network."""
+    buffer_size: int = 40_000
+    """Replay ring capacity, in visits (state, joint action, return)."""
+    batch_size: int = 400
+    """Visits per gradient step; learning starts once this many are stored."""
+    train_every: int = 50
+    """[choice] One gradient step every this many environment steps. Algorithm 2 learns
+    from every episode; at VDN's one step per 200 the degrees get too few updates (on the
+    DSN at L = 100k: 1 % success against 19-24 % at 50, 11-15 % at 25; docs: beyond)."""
+    target_every: int = 500
+    """[choice] Copy the record network to its target copy every this many environment
+    steps (every 10 gradient steps, VDN's ratio)."""
+    lr: float = 1e-3
+    """Adam learning rate of the degree networks (VDN's)."""
+    record_lr: float = 1e-2
+    """[choice] Adam learning rate of the record network. Adam moves each weight by about
+    the learning rate per step whatever the size of the returns, so at 1e-3 a record of
+    the DSN's returns (up to about 32) would take tens of thousands of steps to climb to
+    them, and every return above the lagging record would count as a new one."""
+    delta: float = 0.05
+    """Step of eqs. (14)-(15) when a return ties the record, > 0."""
+    delta_reset: float = 0.5
+    """Step used after a new record resets the degrees to ``c_init``."""
+    temperature: float = 1.0
+    """T of eq. (17), > 0."""
+    c_min: float = 0.5
+    """Lower clip of the degrees (positive, Section IV-D)."""
+    c_max: float = 3.0
+    """Upper clip of the degrees."""
+    c_init: float = 1.5
+    """The degree a new record resets a state's degrees to."""
+    gamma: float = 0.9
+    """Discount of eq. (1), in [0, 1]."""
+    expectile: float = 0.9999
+    """[choice] τ of the record network's expectile loss, in (0, 1): how close to the
+    upper envelope of the returns the record sits (-> 1: the paper's max). The DSN's
+    returns from a state are skewed (most far below the best, which needs the targets
+    nearly captured): at τ = 0.99 the record sits at about a third of the best return,
+    and 5-7 % of the visits count as new records, each resetting its state's degrees."""
+    margin: float = 2.0
+    """[choice] By how much a return must pass the record to count as a new one: the
+    record is an estimate that wavers by about a unit, and a record within that of it
+    would reset a state's degrees over and over."""
+    tolerance: float = 1.0
+    """[choice] Within how much of the record a return counts as reaching it (eq. 16's
+    equality, for an estimated record)."""
+
+    def __post_init__(self) -> None:
+        for name in ("hidden", "record_hidden", "buffer_size", "batch_size", "train_every"):
+            value = getattr(self, name)
+            require(value >= 1, name, f"must be >= 1 (got {value})")
+        require(self.target_every >= 1, "target_every", f"must be >= 1 (got {self.target_every})")
+        require(self.batch_size <= self.buffer_size, "batch_size", "must be <= buffer_size")
+        for name in ("lr", "record_lr"):
+            value = getattr(self, name)
+            require(bool(np.isfinite(value)) and value > 0, name, f"must be > 0 (got {value})")
+        check_degree_settings(self)
+        check_discount(self.gamma)
+        tau = self.expectile
+        require(0 < tau < 1, "expectile", f"must be in (0, 1) (got {tau})")
+        for name in ("margin", "tolerance"):
+            value = getattr(self, name)
+            require(bool(np.isfinite(value)) and value >= 0, name, f"must be >= 0 (got {value})")
+
+    @property
+    def anneals(self) -> bool:
+        """Its exploration is its strategy: nothing depends on L."""
+        return False
+
+    def schedule(self, learn_episodes: int) -> list[float]:
+        """T, c_min, c_max, γ, L, ``train_every``."""
+        return [
+            self.temperature,
+            self.c_min,
+            self.c_max,
+            self.gamma,
+            learn_episodes,
+            self.train_every,
+        ]
+
+    def side_kernels(self, spec, inputs: str):
+        from cmarlcd.training.degree_kernels import degree_kernels
+
+        return degree_kernels(spec, inputs)
+
+    def new_model(self, counts, in_dim: int, seeds):
+        from cmarlcd.learners.degree_model import DegreeModel
+
+        return DegreeModel(counts, in_dim, self, seeds)
+
+
+#: [choice] Its battlefield settings: the tabular learner's there (c_max = 2.5, T = 0.8),
+#: VDN's and QMIX's replay and schedule there (Section V-B).
+BATTLEFIELD_DEEP_CMARLCD = DeepCMARLCDConfig(
+    c_max=2.5,
+    temperature=0.8,
+    buffer_size=100_000,
+    batch_size=720,
+    train_every=240,
+    target_every=2_400,
+)

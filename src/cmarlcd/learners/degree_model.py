@@ -1,0 +1,203 @@
+"""Deep CMARL-CD's networks and update, B seeds stacked in one model (``[deep]`` extra).
+
+The settings and the rule in words are in :mod:`cmarlcd.learners.deep_coordination`.
+Like :class:`cmarlcd.learners.value_decomposition.ValueDecomposition`, every tensor has a
+leading seed axis and no parameter is shared between seeds, so each seed learns exactly
+what it would alone; the degree networks are that module's :class:`AgentNetworks` (or
+:class:`SharedAgentNetwork`), so the compiled loops act with them in the same way.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+from cmarlcd.learners.value_decomposition import (
+    AgentNetworks,
+    GroupLinear,
+    generators_of,
+    per_state,
+    rows,
+)
+
+
+class SharedAgentNetwork(nn.Module):
+    """One MLP per seed for every agent: input the state and the agent's one-hot index,
+    output one value per action; the same interface as :class:`AgentNetworks`."""
+
+    def __init__(
+        self,
+        seeds: int,
+        n_agents: int,
+        in_dim: int,
+        hidden: int,
+        n_actions: int,
+        generators: Sequence[torch.Generator],
+    ) -> None:
+        super().__init__()
+        self.seeds, self.n_agents, self.in_dim = seeds, n_agents, in_dim
+        self.first = GroupLinear(in_dim + n_agents, hidden, generators)
+        self.second = GroupLinear(hidden, n_actions, generators)
+
+    def _hidden(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, N, H) -> ReLU of every agent's hidden layer, (B, N, n, H)."""
+        agent = self.first.weight[:, self.in_dim :]  # (B, n, H): each agent's index row
+        return torch.relu(x[:, :, None, :] + agent[:, None])
+
+    def forward(self, state: torch.Tensor) -> torch.Tensor:
+        """``state``: (B, N) int64 or (B, N, in_dim) -> values (B, N, n_agents, n_actions)."""
+        if state.dtype == torch.int64:
+            return rows(self.tables(), state)
+        x = torch.baddbmm(self.first.bias[:, None], state, self.first.weight[:, : self.in_dim])
+        hidden = self._hidden(x)
+        b, n = state.shape[:2]
+        out = torch.baddbmm(
+            self.second.bias[:, None], hidden.reshape(b, -1, hidden.shape[-1]), self.second.weight
+        )
+        return out.view(b, n, self.n_agents, -1)
+
+    def tables(self) -> torch.Tensor:
+        """Values of every integer (one-hot) state: (B, in_dim, n_agents, n_actions)."""
+        x = self.first.weight[:, : self.in_dim] + self.first.bias[:, None]  # (B, S, H)
+        hidden = self._hidden(x)
+        b, s = x.shape[:2]
+        out = torch.baddbmm(
+            self.second.bias[:, None], hidden.reshape(b, -1, hidden.shape[-1]), self.second.weight
+        )
+        return out.view(b, s, self.n_agents, -1)
+
+    def feature_weights(self) -> tuple[torch.Tensor, ...]:
+        """The per-agent layers the compiled loop reads, agent-major (B * n, ...): the
+        shared weights, each agent's index row folded into its first bias."""
+        n, f = self.n_agents, self.in_dim
+        w1 = self.first.weight[:, :f].repeat_interleave(n, dim=0)
+        b1 = (self.first.bias[:, None] + self.first.weight[:, f:]).reshape(-1, w1.shape[-1])
+        w2 = self.second.weight.repeat_interleave(n, dim=0)
+        b2 = self.second.bias.repeat_interleave(n, dim=0)
+        return w1, b1, w2, b2
+
+
+class RecordNetwork(nn.Module):
+    """``R(s)`` for B seeds: state -> Linear -> ReLU -> Linear -> one value."""
+
+    def __init__(self, in_dim: int, hidden: int, generators: Sequence[torch.Generator]) -> None:
+        super().__init__()
+        self.first = GroupLinear(in_dim, hidden, generators)
+        self.second = GroupLinear(hidden, 1, generators)
+
+    def forward(self, state: torch.Tensor) -> torch.Tensor:
+        """(B, N[, in]) -> (B, N)."""
+        return per_state(self.first, state, lambda x: self.second(torch.relu(x)))[..., 0]
+
+
+class DegreeModel(nn.Module):
+    """Deep CMARL-CD for B independent seeds: degree and record networks, the record's
+    target copy, Adam, and the update of :mod:`cmarlcd.learners.deep_coordination`.
+
+    Args:
+        action_counts: actions of each agent.
+        in_dim: state features, or the number of states for integer (one-hot) states.
+        seeds: one :class:`numpy.random.SeedSequence` per seed (parameter initialisation).
+    """
+
+    def __init__(
+        self,
+        action_counts: Sequence[int],
+        in_dim: int,
+        config: DeepCMARLCDConfig,
+        seeds: Sequence[np.random.SeedSequence],
+    ) -> None:
+        super().__init__()
+        self.config = config
+        counts = torch.as_tensor(list(action_counts))
+        self.n_agents, self.n_seeds = len(counts), len(seeds)
+        width = int(counts.max())
+        self.register_buffer("valid", torch.arange(width)[None, :] < counts[:, None])
+        gens = [generators_of(s, self.n_agents + 1) for s in seeds]
+        self.agents: nn.Module
+        if config.share:
+            shared = [g[0] for g in gens]
+            self.agents = SharedAgentNetwork(
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, shared
+            )
+        else:
+            self.agents = AgentNetworks(
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens
+            )
+        self.record = RecordNetwork(in_dim, config.record_hidden, [g[-1] for g in gens])
+        self.target_record = copy.deepcopy(self.record).requires_grad_(False)
+        self.state_legal: torch.Tensor | None = None
+        self.optimizer = torch.optim.Adam(
+            [
+                {"params": list(self.agents.parameters()), "lr": config.lr},
+                {"params": list(self.record.parameters()), "lr": config.record_lr},
+            ],
+            fused=True,
+        )
+
+    def degrees(self, state: torch.Tensor) -> torch.Tensor:
+        """The clipped degrees (B, N, n, A) at the states."""
+        c = self.config
+        return self.agents(state).clamp(c.c_min, c.c_max)
+
+    def targets(
+        self, degrees: torch.Tensor, actions: torch.Tensor, returns: torch.Tensor,
+        record: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]:  # fmt: skip
+        """Algorithm 2's updates as regression targets: the new degrees (B, N, n, A) of
+        each visit given its present ``degrees``, taken ``actions`` (B, N, n), return
+        (B, N) and the record estimate (B, N); and which visits have one (record or tie,
+        (B, N) bool)."""
+        c = self.config
+        new_record = returns > record + c.margin
+        tie = ~new_record & ((returns - record).abs() <= c.tolerance)
+        base = torch.where(new_record[..., None, None], c.c_init, degrees.clamp(c.c_min, c.c_max))
+        step = torch.where(new_record, c.delta_reset, c.delta)[..., None, None]
+        taken = nn.functional.one_hot(actions, degrees.shape[-1]).bool()
+        moved = base + torch.where(taken, step, -step)
+        return moved.clamp(c.c_min, c.c_max), new_record | tie
+
+    def learn(self, batch: dict[str, torch.Tensor]) -> float:
+        """One Adam step on a batch of visits: ``state`` (B, N[, in]), ``actions``
+        (B, N, n), ``reward`` (B, N): each visit's discounted return. Returns the mean
+        loss per seed."""
+        state, actions, returns = batch["state"], batch["actions"], batch["reward"]
+        degrees = self.agents(state)
+        with torch.no_grad():
+            record = self.target_record(state)
+            target, updated = self.targets(degrees, actions, returns, record)
+        weight = (updated[..., None, None] & self.valid).to(degrees.dtype)
+        per_visit = (((degrees - target) ** 2) * weight).sum(dim=(2, 3))  # (B, N)
+        visits = updated.sum(dim=1).clamp(min=1).to(degrees.dtype)
+        degree_loss = (per_visit.sum(dim=1) / visits).sum()  # mean over the updated visits
+        estimate = self.record(state)
+        tau = self.config.expectile
+        below = (returns < estimate).to(estimate.dtype).detach()
+        expectile = (tau + (1 - 2 * tau) * below) * (returns - estimate) ** 2
+        loss = degree_loss + expectile.mean(dim=1).sum()
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        self.optimizer.step()
+        return float(loss.detach()) / self.n_seeds
+
+    def sync_target(self) -> None:
+        """Clone the record network into its target copy."""
+        self.target_record.load_state_dict(self.record.state_dict())
+
+    def set_state_legal(self, legal: torch.Tensor) -> None:
+        """Each integer state's legal actions (see ``ValueDecomposition.set_state_legal``)."""
+        self.state_legal = legal
+
+    @torch.no_grad()
+    def greedy_table(self) -> torch.Tensor:
+        """Greedy joint action (B, S, n) in every integer state: each agent's legal action
+        of largest clipped degree (lowest index on ties, as the tabular learner)."""
+        c = self.config
+        degrees = self.agents.tables().clamp(c.c_min, c.c_max)
+        allowed = self.valid if self.state_legal is None else self.state_legal & self.valid
+        return degrees.masked_fill(~allowed, -torch.inf).argmax(dim=-1)

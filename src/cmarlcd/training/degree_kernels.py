@@ -1,0 +1,153 @@
+"""The compiled side kernels of deep CMARL-CD (``[deep]`` extra, no PyTorch here): what
+the loop of :mod:`cmarlcd.training.loop` calls on its side
+(:mod:`cmarlcd.training.deep_side`), for both kinds of input of
+:mod:`cmarlcd.training.deep_kernels` (whose entering, pausing and forward pass it
+shares).
+
+Acting samples each agent's action from ``softmax(c / T)`` of its clipped degrees over
+the legal actions (eq. 17), one uniform per agent in agent order, as the tabular
+learner does; greedy execution takes the legal action of largest clipped degree (lowest
+index on ties). After each episode every visit is stored with its discounted return
+(eq. 1, computed backwards) for the gradient steps.
+"""
+
+from __future__ import annotations
+
+from cmarlcd.compiled import kernel, specialise_kernel
+from cmarlcd.games.spec import GameSpec
+from cmarlcd.learners.policy import greedy_action, sample_action, softmax_strategy
+from cmarlcd.training.deep_kernels import (
+    EPISODES,
+    TURNS,
+    deep_fits,
+    deep_pause,
+    features_enter,
+    game,
+    hidden_layer,
+    index_enter,
+)
+from cmarlcd.training.protocol import SideKernels
+from cmarlcd.training.replay import push_visit, push_visit_row
+
+#: Entries of deep CMARL-CD's ``schedule`` (``DeepCMARLCDConfig.schedule``).
+TEMPERATURE, C_MIN, C_MAX, GAMMA = range(4)
+
+
+@kernel
+def clip_row(values, count: int, lo: float, hi: float, out) -> None:
+    """``out[:count]`` := ``values[:count]`` confined to ``[lo, hi]`` (Section IV-D)."""
+    for a in range(count):
+        out[a] = min(max(values[a], lo), hi)
+
+
+@kernel
+def agent_degrees(weights, agent: int, x, count: int, hidden, out) -> None:
+    """``out[:count]`` := agent ``agent``'s degree network at features ``x``."""
+    hidden_layer(weights, agent, x, hidden)
+    w2, b2 = weights[2], weights[3]
+    for a in range(count):
+        c = b2[agent, a]
+        for h in range(hidden.shape[0]):
+            c += hidden[h] * w2[agent, h, a]
+        out[a] = c
+
+
+@kernel
+def sample_degrees(side, raw, legal_row, count: int, rng) -> int:
+    """An action from ``softmax(clip(raw) / T)`` over the legal actions (eq. 17)."""
+    s, row, probs = side.schedule, side.scratch[0], side.scratch[1]
+    clip_row(raw, count, s[C_MIN], s[C_MAX], row)
+    softmax_strategy(row, legal_row, count, s[TEMPERATURE], probs)
+    return sample_action(probs, count, rng.random())
+
+
+@kernel
+def greedy_degrees(side, raw, legal_row, count: int) -> int:
+    """The legal action of largest clipped degree, lowest index on ties."""
+    row = side.scratch[0]
+    clip_row(raw, count, side.schedule[C_MIN], side.schedule[C_MAX], row)
+    return greedy_action(row, legal_row, count)
+
+
+@kernel
+def count_turn(side, t: int, next_key: int, terminal: bool) -> None:
+    """``observe``: count the turn (the episode is stored when it ends)."""
+    side.counters[TURNS] += 1
+
+
+# ---------------------------------------------------------- feature inputs
+
+
+@kernel
+def features_act(side, key: int, rng, joint) -> None:
+    x, legal, raw = side.obs[key], side.legal[key], side.scratch[1]
+    for i in range(side.counts.shape[0]):
+        count = side.counts[i]
+        agent_degrees(side.weights, i, x, count, side.hidden, raw)
+        joint[i] = sample_degrees(side, raw, legal[i], count, rng)
+
+
+@kernel
+def features_store(side, length: int) -> None:
+    """``end_episode``: every visit with its discounted return, backwards."""
+    g = 0.0
+    for t in range(length - 1, -1, -1):
+        g = side.rewards[t] + side.schedule[GAMMA] * g
+        push_visit_row(side.replay, side.obs[t], side.joints[t], g)
+    side.counters[EPISODES] += 1
+
+
+def features_greedy(side, env, team, offset, legal, rng, joint) -> None:
+    """Template: every agent's greedy legal action at the side's features."""
+    x, raw = side.obs[0], side.scratch[1]
+    game.features(env, team, x)
+    game.legal(env, legal)
+    for i in range(joint.shape[0]):
+        count = side.counts[i]
+        agent_degrees(side.weights, i, x, count, side.hidden, raw)
+        joint[i] = greedy_degrees(side, raw, legal[offset + i], count)
+
+
+# ------------------------------------------------------------- index inputs
+
+
+@kernel
+def index_act(side, s: int, rng, joint) -> None:
+    for i in range(side.counts.shape[0]):
+        joint[i] = sample_degrees(side, side.values[s, i], side.legal[s, i], side.counts[i], rng)
+
+
+@kernel
+def index_store(side, length: int) -> None:
+    """``end_episode``: every visit with its discounted return, backwards."""
+    g = 0.0
+    for t in range(length - 1, -1, -1):
+        g = side.rewards[t] + side.schedule[GAMMA] * g
+        push_visit(side.replay, side.obs[t], side.joints[t], g)
+    side.counters[EPISODES] += 1
+
+
+def index_greedy(side, env, team, offset, legal, rng, joint) -> None:
+    """Template: every agent's greedy legal action in the state's degree table."""
+    s = game.state(env, team)
+    game.legal(env, legal)
+    for i in range(joint.shape[0]):
+        joint[i] = greedy_degrees(side, side.values[s, i], legal[offset + i], side.counts[i])
+
+
+def degree_kernels(spec: GameSpec, inputs: str) -> SideKernels:
+    """The side kernels of deep CMARL-CD on ``spec`` reading ``inputs``."""
+    bound = {"game": spec.kernels}
+    if inputs == "features":
+        enter, act, store, greedy = features_enter, features_act, features_store, features_greedy
+    else:
+        enter, act, store, greedy = index_enter, index_act, index_store, index_greedy
+    return SideKernels(
+        deep_fits,
+        specialise_kernel(enter, **bound),
+        act,
+        count_turn,
+        store,
+        deep_pause,
+        specialise_kernel(greedy, **bound),
+    )
