@@ -20,7 +20,7 @@ from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 from cmarlcd.learners.value_decomposition import (
     AgentNetworks,
     GroupLinear,
-    generators_of,
+    StackedModel,
     per_state,
     rows,
 )
@@ -95,7 +95,7 @@ class RecordNetwork(nn.Module):
         return per_state(self.first, state, lambda x: self.second(torch.relu(x)))[..., 0]
 
 
-class DegreeModel(nn.Module):
+class DegreeModel(StackedModel):
     """Deep CMARL-CD for B independent seeds: degree and record networks, the record's
     target copy, Adam, and the update of :mod:`cmarlcd.learners.deep_coordination`.
 
@@ -112,13 +112,8 @@ class DegreeModel(nn.Module):
         config: DeepCMARLCDConfig,
         seeds: Sequence[np.random.SeedSequence],
     ) -> None:
-        super().__init__()
-        self.config = config
-        counts = torch.as_tensor(list(action_counts))
-        self.n_agents, self.n_seeds = len(counts), len(seeds)
-        width = int(counts.max())
-        self.register_buffer("valid", torch.arange(width)[None, :] < counts[:, None])
-        gens = [generators_of(s, self.n_agents + 1) for s in seeds]
+        super().__init__(action_counts, config, seeds)
+        gens, width = self.generators, self.width
         self.agents: nn.Module
         if config.share:
             shared = [g[0] for g in gens]
@@ -131,7 +126,6 @@ class DegreeModel(nn.Module):
             )
         self.record = RecordNetwork(in_dim, config.record_hidden, [g[-1] for g in gens])
         self.target_record = copy.deepcopy(self.record).requires_grad_(False)
-        self.state_legal: torch.Tensor | None = None
         self.optimizer = torch.optim.Adam(
             [
                 {"params": list(self.agents.parameters()), "lr": config.lr},
@@ -189,15 +183,10 @@ class DegreeModel(nn.Module):
         """Clone the record network into its target copy."""
         self.target_record.load_state_dict(self.record.state_dict())
 
-    def set_state_legal(self, legal: torch.Tensor) -> None:
-        """Each integer state's legal actions (see ``ValueDecomposition.set_state_legal``)."""
-        self.state_legal = legal
-
     @torch.no_grad()
     def greedy_table(self) -> torch.Tensor:
         """Greedy joint action (B, S, n) in every integer state: each agent's legal action
         of largest clipped degree (lowest index on ties, as the tabular learner)."""
         c = self.config
         degrees = self.agents.tables().clamp(c.c_min, c.c_max)
-        allowed = self.valid if self.state_legal is None else self.state_legal & self.valid
-        return degrees.masked_fill(~allowed, -torch.inf).argmax(dim=-1)
+        return self._masked(degrees, self.state_legal).argmax(dim=-1)

@@ -192,7 +192,36 @@ class QMixer(nn.Module):
 # ------------------------------------------------------------------------ learner
 
 
-class ValueDecomposition(nn.Module):
+class StackedModel(nn.Module):
+    """What the stacked model of every deep learner has: B seeds of agents with these
+    action counts (``valid``: each agent's real actions), each seed's generators (one
+    per agent network, then one more), and the per-state masks of integer states."""
+
+    def __init__(
+        self, action_counts: Sequence[int], config, seeds: Sequence[np.random.SeedSequence]
+    ) -> None:
+        super().__init__()
+        self.config = config
+        counts = torch.as_tensor(list(action_counts))
+        self.n_agents, self.n_seeds = len(counts), len(seeds)
+        self.width = int(counts.max())
+        self.register_buffer("valid", torch.arange(self.width)[None, :] < counts[:, None])
+        self.generators = [generators_of(s, self.n_agents + 1) for s in seeds]
+        self.state_legal: torch.Tensor | None = None
+
+    def _masked(self, values: torch.Tensor, legal: torch.Tensor | None) -> torch.Tensor:
+        """``values`` with illegal and padded actions at -inf."""
+        allowed = self.valid if legal is None else legal & self.valid
+        return values.masked_fill(~allowed, -torch.inf)
+
+    def set_state_legal(self, legal: torch.Tensor) -> None:
+        """The legal actions of every integer state, (S, n, A) bool for all seeds or
+        (B, S, n, A) for each seed its own, for games whose masks depend on the state
+        (default: every action legal everywhere)."""
+        self.state_legal = legal
+
+
+class ValueDecomposition(StackedModel):
     """VDN or QMIX for B independent seeds: networks, targets, optimiser and TD step.
 
     Args:
@@ -208,13 +237,8 @@ class ValueDecomposition(nn.Module):
         config: DeepConfig,
         seeds: Sequence[np.random.SeedSequence],
     ) -> None:
-        super().__init__()
-        self.config = config
-        counts = torch.as_tensor(list(action_counts))
-        self.n_agents, self.n_seeds = len(counts), len(seeds)
-        width = int(counts.max())
-        self.register_buffer("valid", torch.arange(width)[None, :] < counts[:, None])
-        gens = [generators_of(s, self.n_agents + 1) for s in seeds]
+        super().__init__(action_counts, config, seeds)
+        gens, width = self.generators, self.width
         self.agents = AgentNetworks(self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens)
         self.mixer: nn.Module = (
             QMixer(self.n_seeds, self.n_agents, in_dim, config.mixer_hidden, gens)
@@ -224,7 +248,6 @@ class ValueDecomposition(nn.Module):
         self.target_agents = copy.deepcopy(self.agents).requires_grad_(False)
         self.target_mixer = copy.deepcopy(self.mixer).requires_grad_(False)
         self._next_value_table: torch.Tensor | None = None  # see _next_values
-        self.state_legal: torch.Tensor | None = None  # see set_state_legal
         self.optimizer = torch.optim.Adam(
             list(self.agents.parameters()) + list(self.mixer.parameters()),
             lr=config.lr,
@@ -235,21 +258,15 @@ class ValueDecomposition(nn.Module):
         """Online Q (B, N, n, A) with illegal and padded actions at -inf."""
         return self._masked(self.agents(state), legal)
 
-    def _masked(self, q: torch.Tensor, legal: torch.Tensor | None) -> torch.Tensor:
-        allowed = self.valid if legal is None else legal & self.valid
-        return q.masked_fill(~allowed, -torch.inf)
-
     @torch.no_grad()
     def greedy(self, state: torch.Tensor, legal: torch.Tensor | None = None) -> torch.Tensor:
         """Greedy legal joint actions (B, N, n) for the states (B, N[, in])."""
         return self.q_values(state, legal).argmax(dim=-1)
 
     def set_state_legal(self, legal: torch.Tensor) -> None:
-        """The legal actions of every integer state, (S, n, A) bool for all seeds or
-        (B, S, n, A) for each seed its own, for games whose masks depend on the state:
-        used by :meth:`greedy_table` and for the next states of :meth:`td_step` (default:
-        every action legal everywhere)."""
-        self.state_legal = legal
+        """:meth:`StackedModel.set_state_legal`, read by :meth:`greedy_table` and for the
+        next states of :meth:`td_step` (whose cached values it clears)."""
+        super().set_state_legal(legal)
         self._next_value_table = None
 
     @torch.no_grad()
