@@ -18,10 +18,11 @@ DISPLAY_NAMES = {"vdn": "VDN", "qmix": "QMIX"}
 
 
 class DeepLearnerConfig:
-    """Base of the configs of the deep learners (VDN and QMIX, deep CMARL-CD): what the
-    deep side (:mod:`cmarlcd.training.deep_side`) asks of a learner besides the fields
+    """Base of the configs of the deep learners (VDN and QMIX, deep CMARL-CD): the fields
     every deep config has (``hidden``, ``buffer_size``, ``batch_size``, ``train_every``,
-    ``target_every``, ``lr``, ``gamma``), which :func:`scheduled_work` reads."""
+    ``target_every``, ``lr``, ``gamma``; :func:`scheduled_work` reads them) and the
+    constants its compiled kernels read. Its kernels and its stacked model are found by
+    the config's type (:func:`cmarlcd.training.deep_side.register_deep_learner`)."""
 
     name: str
     display_name: str
@@ -40,14 +41,6 @@ class DeepLearnerConfig:
     def schedule(self, learn_episodes: int) -> list[float]:
         """The constants its compiled kernels read (``schedule``): entry
         :data:`TRAIN_EVERY_ENTRY` is ``train_every`` for every deep learner."""
-        raise NotImplementedError
-
-    def side_kernels(self, spec, inputs: str):
-        """Its compiled side kernels on ``spec`` reading ``inputs``."""
-        raise NotImplementedError
-
-    def new_model(self, counts, in_dim: int, seeds):
-        """Its stacked PyTorch model for ``seeds`` (needs the ``[deep]`` extra)."""
         raise NotImplementedError
 
 
@@ -103,16 +96,6 @@ class DeepConfig(DeepLearnerConfig):
     def schedule(self, learn_episodes: int) -> list[float]:
         """ε schedule (start, end, anneal fraction, after), L, ``train_every``."""
         return [*epsilon_schedule(self), learn_episodes, self.train_every]
-
-    def side_kernels(self, spec, inputs: str):
-        from cmarlcd.training.deep_kernels import deep_kernels
-
-        return deep_kernels(spec, inputs)
-
-    def new_model(self, counts, in_dim: int, seeds):
-        from cmarlcd.learners.value_decomposition import ValueDecomposition
-
-        return ValueDecomposition(counts, in_dim, self, seeds)
 
     def __post_init__(self) -> None:
         known = ", ".join(MIXERS)

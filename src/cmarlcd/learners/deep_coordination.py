@@ -135,16 +135,6 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.train_every,
         ]
 
-    def side_kernels(self, spec, inputs: str):
-        from cmarlcd.training.degree_kernels import degree_kernels
-
-        return degree_kernels(spec, inputs)
-
-    def new_model(self, counts, in_dim: int, seeds):
-        from cmarlcd.learners.degree_model import DegreeModel
-
-        return DegreeModel(counts, in_dim, self, seeds)
-
 
 #: [choice] Its battlefield settings: the tabular learner's there (c_max = 2.5, T = 0.8),
 #: VDN's and QMIX's replay and schedule there (Section V-B).

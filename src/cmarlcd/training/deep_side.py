@@ -29,15 +29,18 @@ take their gradient steps together. A play alone is a group of one.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import torch
 
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import DeepLearnerConfig, scheduled_work
+from cmarlcd.learners.deep_config import DeepConfig, DeepLearnerConfig, scheduled_work
+from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+from cmarlcd.learners.degree_model import DegreeModel
 from cmarlcd.learners.tabular import full_legal
+from cmarlcd.learners.value_decomposition import ValueDecomposition
 from cmarlcd.training.deep_kernels import (
     INPUTS,
     NEW_STATES,
@@ -46,11 +49,39 @@ from cmarlcd.training.deep_kernels import (
     FeatureData,
     IndexData,
     Weights,
+    deep_kernels,
     inputs_of,
 )
+from cmarlcd.training.degree_kernels import degree_kernels
 from cmarlcd.training.loop import Group
 from cmarlcd.training.protocol import Side, SideKernels
 from cmarlcd.training.replay import new_ring, sample, seed_view
+
+# ------------------------------------------------------------------ learners
+
+#: Each deep learner's parts, by its config's type: its side kernels (from the game and
+#: the inputs) and its stacked model (from the action counts, the input size, the config
+#: and the seeds).
+DEEP_LEARNERS: dict[type, tuple[Callable, Callable]] = {}
+
+
+def register_deep_learner(config_type: type, kernels: Callable, model: Callable) -> None:
+    """Let the deep side play the learner whose config is a ``config_type`` (a
+    :class:`~cmarlcd.learners.deep_config.DeepLearnerConfig`): a plug-in deep learner
+    registers itself once, in its own module."""
+    DEEP_LEARNERS[config_type] = (kernels, model)
+
+
+def parts_of(config: DeepLearnerConfig) -> tuple[Callable, Callable]:
+    """The side kernels and the model of ``config``'s learner."""
+    for config_type, parts in DEEP_LEARNERS.items():
+        if isinstance(config, config_type):
+            return parts
+    raise TypeError(f"{type(config).__name__} is no registered deep learner")
+
+
+register_deep_learner(DeepConfig, deep_kernels, ValueDecomposition)
+register_deep_learner(DeepCMARLCDConfig, degree_kernels, DegreeModel)
 
 # ------------------------------------------------------------------ groups
 
@@ -99,7 +130,8 @@ class DeepGroup(Group):
         self.alone = False
         """Whether the group trains itself between loop calls (a play on its own) rather
         than when its batch says (:class:`cmarlcd.training.loop.PlayBatch`)."""
-        self.model = config.new_model(counts, features or spec.n_states, init_seeds)
+        new_kernels, new_model = parts_of(config)
+        self.model = new_model(counts, features or spec.n_states, config, init_seeds)
         self.replay_rngs = list(replay_rngs)
         self.ring = new_ring(seeds, config.buffer_size, n, width, spec.n_states, features)
         if inputs == "features":
@@ -117,7 +149,7 @@ class DeepGroup(Group):
             self.seen = np.zeros((seeds, spec.n_states), np.bool_)
             """The states each seed has met."""
             self.model.set_state_legal(torch.from_numpy(self.legal))  # shares the memory
-        kernels = config.side_kernels(spec, inputs)
+        kernels = new_kernels(spec, inputs)
         self.views = [DeepSide(self, b, counts, kernels, learn_episodes) for b in range(len(teams))]
         self._copy_weights()
 
