@@ -1,4 +1,4 @@
-"""The blood battlefield (Section V-B, Fig. 5, SPEC §6).
+"""The blood battlefield (Section V-B, Fig. 5; the interpretation choices).
 
 Expected values are worked out by hand from the rules: each side fields marines in
 slots 0-3 (HP 3, damage 1) and gunners in slots 4-5 (HP 6, damage 2); agents 0-5 are
@@ -75,7 +75,7 @@ def legal(env) -> np.ndarray:
 
 
 def expected_masks(hp_now: np.ndarray) -> np.ndarray:
-    """SPEC §6: a live unit may fire at any live opponent; a destroyed unit only plays 0."""
+    """A live unit may fire at any live opponent; a destroyed unit only plays 0."""
     masks = np.zeros((12, 6), dtype=np.bool_)
     for k, u in product(range(2), range(6)):
         if hp_now[k, u] > 0:
@@ -240,7 +240,7 @@ def test_a_destroyed_unit_does_not_act_and_cannot_be_hit() -> None:
 
 
 def random_episode(rules: Battlefield, seed: int, masked: bool = True) -> list:
-    """One game of random actions, checking SPEC §6 after every turn."""
+    """One game of random actions, checking the rules after every turn."""
     env = rules.new_env()
     game_rng, action_rng = np.random.default_rng(seed), np.random.default_rng(seed + 10_000)
     _reset(env, game_rng)
@@ -337,7 +337,7 @@ def test_hit_rates_marine_08_gunner_06() -> None:
 
 
 def test_features_are_the_state_vector_scaled() -> None:
-    """s = [opponents' HP / full HP, own units alive] (SPEC §6, scaled for the networks)."""
+    """s = [opponents' HP / full HP, own units alive] (the paper's, scaled for the networks)."""
     env = PAPER.new_env()
     _reset(env, np.random.default_rng(0))
     env[0][:] = [[3, 0, 2, 1, 6, 0], [1, 3, 0, 3, 3, 6]]

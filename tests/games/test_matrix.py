@@ -1,4 +1,4 @@
-"""Invariants of the repeated games (Section IV-C, SPEC §1)."""
+"""Invariants of the repeated games (Section IV-C)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The distributed sensor network task (Section V-A, Fig. 3, SPEC §5).
+"""The distributed sensor network task (Section V-A, Fig. 3).
 
 Expected values are worked out by hand from the picture of the grid::
 

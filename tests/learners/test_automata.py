@@ -1,4 +1,4 @@
-"""The LA-OCA stand-in (SPEC §3): reward-inaction automata on the max-return indicator."""
+"""The LA-OCA stand-in: reward-inaction automata on the max-return indicator."""
 
 from __future__ import annotations
 

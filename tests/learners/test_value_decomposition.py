@@ -1,4 +1,4 @@
-"""VDN and QMIX (SPEC §4): mixers, masks, the ε schedule, learning a matrix game."""
+"""VDN and QMIX: mixers, masks, the ε schedule, learning a matrix game."""
 
 from __future__ import annotations
 
