@@ -38,6 +38,19 @@ from numba import njit
 
 from cmarlcd.compiled import kernel
 from cmarlcd.errors import ConfigError, require
+from cmarlcd.games.sensor_network import layout
+from cmarlcd.games.sensor_network.layout import (
+    CAPTURE_CREDITED,
+    CAPTURE_REWARD,
+    FOCUS_REWARD,
+    HIT_THRESHOLD,
+    MAX_ACTIONS,
+    MOVE_COL,
+    MOVE_ROW,
+    N_MOVES,
+    NO_CELL,
+    TARGET_ENERGY,
+)
 from cmarlcd.games.spec import GameKernels, GameSpec
 
 __all__ = [
@@ -68,6 +81,7 @@ __all__ = [
     "OPTIMAL_STEPS",
     "SENSOR_CELLS",
     "SPEC",
+    "STATE_OFFSETS",
     "TARGET_ENERGY",
     "TERMINAL_STATE",
     "decode_state",
@@ -100,12 +114,8 @@ N_CELLS = N_ROWS * N_COLS
 #: Sensors on the (N_ROWS + 1) x (N_COLS + 1) grid intersections.
 N_SENSORS = (N_ROWS + 1) * (N_COLS + 1)
 N_TARGETS = 2
-#: Largest action count of a sensor (idle + four cells, the interior sensors).
-MAX_ACTIONS = 5
 #: The idle action of every sensor.
 IDLE = 0
-#: "No cell": a captured target in ``targets``, an idle sensor's focus, table padding.
-NO_CELL = -1
 CAPTURED = NO_CELL
 
 # -------------------------------------------------------------------------- states
@@ -116,55 +126,25 @@ N_STATES = N_CELLS * (N_CELLS - 1) + 2 * N_CELLS
 TERMINAL_STATE = N_STATES
 #: State indices including the terminal one (the observation space size).
 N_STATE_INDICES = N_STATES + 1
-_ONLY_T1_OFFSET = N_CELLS * (N_CELLS - 1)  # 30: target 0 captured, 30 + t1
-_ONLY_T0_OFFSET = _ONLY_T1_OFFSET + N_CELLS  # 36: target 1 captured, 36 + t0
+#: The first index of each group of states (by captured targets, :mod:`~.layout`).
+STATE_OFFSETS = layout.state_offsets(N_CELLS, N_TARGETS)
+_ONLY_T1_OFFSET = int(STATE_OFFSETS[1])  # 30: target 0 captured, 30 + t1
+_ONLY_T0_OFFSET = int(STATE_OFFSETS[2])  # 36: target 1 captured, 36 + t0
 
 # ------------------------------------------------------------------------- dynamics
 
 #: Episode cap: an episode is truncated after this many steps.
-MAX_STEPS = 40
-#: Initial energy of each target.
-TARGET_ENERGY = 3
-#: Focusing sensors needed on a target's cell to hit it.
-HIT_THRESHOLD = 3
-#: Sensors rewarded for a capture (the highest-indexed focusing ones).
-CAPTURE_CREDITED = 3
-#: Reward of each of the sensors making a capture.
-CAPTURE_REWARD = 10.0
-#: Reward of a focusing sensor (on a target or not); idle earns 0.
-FOCUS_REWARD = -1.0
-#: [choice] Target moves, drawn uniformly: 0 stay, 1 up, 2 down, 3 left, 4 right.
-N_MOVES = 5
-MOVE_ROW = np.array([0, -1, 1, 0, 0], dtype=np.int64)
-MOVE_COL = np.array([0, 0, 0, -1, 1], dtype=np.int64)
+MAX_STEPS = layout.STEPS_PER_TARGET * N_TARGETS
 #: The best episode: 3 sensors on each target for 3 steps, 2 * 3 * 10 - 6 * 3 = 42.
 OPTIMAL_RETURN = 42.0
 OPTIMAL_STEPS = 3
 
-
-def _sensor_cells() -> np.ndarray:
-    """Row ``s``: the cells sensor ``s`` touches, increasing, padded with ``-1``."""
-    table = np.full((N_SENSORS, MAX_ACTIONS - 1), NO_CELL, dtype=np.int64)
-    for sensor in range(N_SENSORS):
-        row, col = divmod(sensor, N_COLS + 1)
-        cells = [
-            r * N_COLS + c
-            for r, c in ((row - 1, col - 1), (row - 1, col), (row, col - 1), (row, col))
-            if 0 <= r < N_ROWS and 0 <= c < N_COLS
-        ]
-        table[sensor, : len(cells)] = sorted(cells)
-    return table
-
-
 #: ``SENSOR_CELLS[s, k]``: the cell that action ``k + 1`` of sensor ``s`` focuses (-1: none).
-SENSOR_CELLS = _sensor_cells()
+SENSOR_CELLS = layout.sensor_cells(N_ROWS, N_COLS)
 #: Actions per sensor: idle + one per touched cell (corners 2, edges 3, interior 5).
-ACTION_COUNTS = 1 + (SENSOR_CELLS >= 0).sum(axis=1).astype(np.int64)
+ACTION_COUNTS = layout.action_counts(SENSOR_CELLS)
 #: ``CELL_SENSORS[c]``: the four sensors touching cell ``c``, increasing.
-CELL_SENSORS = np.array(
-    [np.flatnonzero(np.isin(SENSOR_CELLS, cell).any(axis=1)) for cell in range(N_CELLS)],
-    dtype=np.int64,
-)
+CELL_SENSORS = layout.cell_sensors(SENSOR_CELLS, N_CELLS)
 #: ``CELL_ACTIONS[c, j]``: the action with which sensor ``CELL_SENSORS[c, j]`` focuses ``c``.
 CELL_ACTIONS = np.array(
     [
@@ -173,51 +153,36 @@ CELL_ACTIONS = np.array(
     ],
     dtype=np.int64,
 )
-for _table in (SENSOR_CELLS, ACTION_COUNTS, CELL_SENSORS, CELL_ACTIONS, MOVE_ROW, MOVE_COL):
+for _table in (SENSOR_CELLS, ACTION_COUNTS, CELL_SENSORS, CELL_ACTIONS, STATE_OFFSETS):
     _table.setflags(write=False)
 
 # -------------------------------------------------------------------------- kernels
+# The rules of :mod:`~.layout`, bound to the paper's grid (its arrays and sizes are
+# module constants, which the compiled loops see as constants).
 
 
 @njit(cache=True)
 def dsn_reset(targets: np.ndarray, energy: np.ndarray, rng) -> None:
     """Start an episode: full energy, two distinct uniform cells (two draws, in order)."""
-    energy[0] = TARGET_ENERGY
-    energy[1] = TARGET_ENERGY
-    first = int(N_CELLS * rng.random())
-    second = int((N_CELLS - 1) * rng.random())
-    if second >= first:
-        second += 1
-    targets[0] = first
-    targets[1] = second
+    layout.reset_targets(targets, energy, N_CELLS, rng)
 
 
 @njit(cache=True)
 def dsn_state(targets: np.ndarray) -> int:
     """The global state index: 0..29 both alive, 30..35 / 36..41 one alive, 42 none."""
-    t0 = targets[0]
-    t1 = targets[1]
-    if t0 >= 0 and t1 >= 0:
-        return t0 * (N_CELLS - 1) + (t1 if t1 < t0 else t1 - 1)
-    if t1 >= 0:
-        return _ONLY_T1_OFFSET + t1
-    if t0 >= 0:
-        return _ONLY_T0_OFFSET + t0
-    return TERMINAL_STATE
+    return layout.state_index(targets, N_CELLS, STATE_OFFSETS)
 
 
 @njit(cache=True)
 def done(targets: np.ndarray) -> bool:
     """True when both targets are captured (the episode terminates)."""
-    return targets[0] < 0 and targets[1] < 0
+    return layout.all_captured(targets)
 
 
 @njit(cache=True)
 def focused_cell(sensor: int, action: int) -> int:
     """The cell ``sensor`` focuses with ``action``, or ``-1`` when idle."""
-    if action == IDLE:
-        return NO_CELL
-    return SENSOR_CELLS[sensor, action - 1]
+    return layout.focus_of(SENSOR_CELLS, sensor, action)
 
 
 @njit(cache=True)
@@ -226,50 +191,20 @@ def dsn_sensor_phase(
 ) -> float:
     """The sensors act: fill ``individual`` with each sensor's reward, apply hits and
     captures (a captured target becomes ``-1``), and return the global reward."""
-    total = 0.0
-    for s in range(N_SENSORS):
-        individual[s] = FOCUS_REWARD if joint[s] != IDLE else 0.0
-    for k in range(N_TARGETS):
-        cell = targets[k]
-        if cell < 0:
-            continue
-        focusing = 0
-        for s in range(N_SENSORS):
-            if focused_cell(s, joint[s]) == cell:
-                focusing += 1
-        if focusing < HIT_THRESHOLD:
-            continue
-        energy[k] -= 1
-        if energy[k] > 0:
-            continue
-        targets[k] = CAPTURED
-        credited = 0
-        for s in range(N_SENSORS - 1, -1, -1):  # the highest-indexed focusing sensors
-            if credited < CAPTURE_CREDITED and focused_cell(s, joint[s]) == cell:
-                individual[s] += CAPTURE_REWARD
-                credited += 1
-    for s in range(N_SENSORS):
-        total += individual[s]
-    return total
+    return layout.sensor_phase(SENSOR_CELLS, targets, energy, joint, individual)
 
 
 @njit(cache=True)
 def move_cell(cell: int, move: int) -> int:
     """The cell reached from ``cell`` by ``move``, or ``cell`` itself when it leaves the grid."""
-    row = cell // N_COLS + MOVE_ROW[move]
-    col = cell % N_COLS + MOVE_COL[move]
-    if row < 0 or row >= N_ROWS or col < 0 or col >= N_COLS:
-        return cell
-    return row * N_COLS + col
+    return layout.moved_cell(cell, move, N_ROWS, N_COLS)
 
 
 @njit(cache=True)
 def move_target(targets: np.ndarray, k: int, move: int) -> None:
     """Move live target ``k``; a move into the other live target's cell is not executed
     (a captured target, ``-1``, blocks nothing)."""
-    destination = move_cell(targets[k], move)
-    if destination != targets[1 - k]:
-        targets[k] = destination
+    layout.move_one(targets, k, move, N_ROWS, N_COLS)
 
 
 @njit(cache=True)
@@ -286,11 +221,7 @@ def dsn_step(
 ) -> float:
     """One step: the sensor phase, then one uniform move per live target, target 0 first
     (no draw for a captured target). Returns the global reward."""
-    reward = dsn_sensor_phase(targets, energy, joint, individual)
-    for k in range(N_TARGETS):
-        if targets[k] >= 0:
-            move_target(targets, k, int(N_MOVES * rng.random()))
-    return reward
+    return layout.step_layout(SENSOR_CELLS, N_ROWS, N_COLS, targets, energy, joint, rng, individual)
 
 
 # ------------------------------------------------------------------ Python helpers
