@@ -287,6 +287,11 @@ def test_dsn_json_tables_figures_and_resume(paths) -> None:
         (["--set", "vdn.lr=0.1"], "--set"),  # VDN does not play
         (["--set", "delta=0.1"], "--set"),
         (["--set", "cmarl-cd.delta=-1"], "--set"),
+        (["--grid", "3"], "--grid"),
+        (["--grid", "0x4"], "--grid"),
+        (["--targets", "0"], "--targets"),
+        (["--grid", "3x4", "--targets", "13"], "--targets"),
+        (["--grid", "20x20", "--targets", "4"], "--targets"),  # 2.5e10 states
     ],
 )
 def test_dsn_bad_input(paths, args, option) -> None:
@@ -294,6 +299,34 @@ def test_dsn_bad_input(paths, args, option) -> None:
     result = invoke("dsn", "--episodes", "10", "--runs", "1", *where, *args)
     assert result.exit_code == 2
     assert_rejected_cleanly(result, option, store, figures)
+
+
+def test_a_larger_sensor_network_end_to_end(paths) -> None:
+    """``--grid``/``--targets``: its own rows (no paper values, success = every target
+    captured), stored with the layout; the paper's grid keeps its keys."""
+    import json
+
+    torch = pytest.importorskip("torch")  # noqa: F841  (VDN reads the same layout)
+    store, _, where = paths
+    args = ("--episodes", "300", "--runs", "1", "--eval-episodes", "50", "--json")
+    result = invoke(
+        "dsn", "--grid", "2x2", "--targets", "1", "--algorithms", "cmarl-cd,vdn", *args, *where
+    )
+    assert result.exit_code == 0, result.stderr
+    doc = json.loads(result.stdout)
+    assert "grid 2x2, targets 1" in doc["title"]
+    assert {r["label"] for r in doc["rows"]} == {
+        "CMARL-CD, grid 2x2, targets 1",
+        "VDN, grid 2x2, targets 1",
+    }
+    assert all(set(r["paper"].values()) == {None} for r in doc["rows"])
+    assert all(0.0 <= r["success_rate"] <= 1.0 for r in doc["rows"])
+    from cmarlcd.experiments import settings_of
+    from cmarlcd.store import ResultStore
+
+    with ResultStore(store) as db:
+        layouts = {settings_of(r).options for r in db.records("dsn")}
+    assert layouts == {(("grid", (2, 2)), ("targets", 1))}
 
 
 def test_set_reaches_the_learner_s_stored_settings(paths) -> None:

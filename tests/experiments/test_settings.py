@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from cmarlcd.cli.reproduce import PRESETS, comparison_of, reproduction_plan
 from cmarlcd.experiments import readings, settings_of, theorem
+from cmarlcd.experiments import sensor_network as sn
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games.battlefield import Unit
 from cmarlcd.runs import RunSpec
@@ -17,6 +18,10 @@ def planned_specs() -> list[RunSpec]:
     specs += comparison_of(PRESETS["quick"], 3).specs()
     study = readings.ReadingsStudy(tuple(tour.battlefield_learners().values()), rounds=1)
     specs += study.specs(study.first_stage())
+    larger = sn.DsnSweep(
+        episodes=(50,), runs=1, eval_episodes=5, options=sn.layout_options(3, 4, 3)
+    )
+    specs += larger.specs()
     return specs + theorem.specs(((3, 2),), 0.5, 7, seed=5)
 
 

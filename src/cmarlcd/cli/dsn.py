@@ -19,6 +19,7 @@ from cmarlcd.cli.options import (
     fails_cleanly,
     parse_count,
     parse_counts,
+    parse_grid,
     parse_names,
 )
 from cmarlcd.cli.sweeps import (
@@ -113,6 +114,14 @@ def dsn(
         int, typer.Option(help="Deep learners' seeds trained together in one stacked model.")
     ] = dsn_exp.SEED_BATCH,
     settings: SetOption = "",
+    grid: Annotated[
+        str,
+        typer.Option(
+            help="Cells of the grid, ROWSxCOLS (beyond the paper's 2x3: sensors on "
+            "the intersections, success = every target captured)."
+        ),
+    ] = "2x3",
+    targets: Annotated[int, typer.Option(help="Targets (the paper's: 2).")] = 2,
     *,
     run: Execution,
 ) -> None:
@@ -137,6 +146,7 @@ def dsn(
         runs=runs,
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),
         seed=seed,
+        options=dsn_exp.layout_options(*parse_grid(grid), targets),
     )
     check_seed_batch(seed_batch)
     deep = [name for name in names if registry.needs_torch(name)]

@@ -197,6 +197,16 @@ def _typed(default: Any, text: str, parameter: str) -> Any:
     return text
 
 
+def parse_grid(text: str, parameter: str = "grid") -> tuple[int, int]:
+    """``"3x4"`` -> (3, 4): rows and columns of cells, each >= 1."""
+    rows, sep, cols = text.strip().lower().partition("x")
+    usage = f"expected ROWSxCOLS such as 3x4 (got {text!r})"
+    require(bool(sep) and rows.strip().isdigit() and cols.strip().isdigit(), parameter, usage)
+    shape = int(rows), int(cols)
+    require(min(shape) >= 1, parameter, f"needs at least 1x1 cells (got {text!r})")
+    return shape
+
+
 def parse_count(text: str, parameter: str) -> int:
     """``"100000"``, ``"100_000"`` or ``"100k"`` -> 100000 (must be >= 1)."""
     part = text.replace("_", "").strip().lower()

@@ -38,7 +38,7 @@ from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
 from cmarlcd.store import RunRecord
-from cmarlcd.training.tabular import TabularRun, evaluate
+from cmarlcd.training.tabular import EpisodeStats, TabularRun, evaluate
 
 #: [choice] Learning-curve resolution: greedy evaluations at this many evenly spaced
 #: points up to the largest L, each over CURVE_EVAL_EPISODES episodes.
@@ -62,6 +62,21 @@ def _no_paper_value(algorithm: str, episodes: int, metric: str) -> float | None:
     return None
 
 
+#: A game's options (e.g. a larger DSN's grid and targets), as sorted (name, value) pairs
+#: of JSON values; empty: the game as the paper plays it.
+Options = tuple[tuple[str, Any], ...]
+
+
+def _no_variants(game: EpisodicGame, options: Options) -> EpisodicGame:
+    require(not options, "game", f"{game.experiment} takes no options (got {dict(options)})")
+    return game
+
+
+def terminated_episodes(stats: EpisodeStats) -> np.ndarray:
+    """An episode succeeds when it terminated (every goal met) within the step cap."""
+    return stats.terminated
+
+
 @dataclass(frozen=True)
 class EpisodicGame:
     """A one-team game under this protocol.
@@ -69,16 +84,22 @@ class EpisodicGame:
     Attributes:
         experiment: the store's experiment name of its runs.
         spec: the game.
-        success: per-episode success from arrays of returns and lengths.
+        success: per-episode success from the evaluation's episodes.
         policy_states: the states whose greedy joint action a run stores (the first ones).
         paper_value: the paper's published value of a metric, if any.
+        variant: the game with some options (e.g. a larger DSN): ``variant(game, options)``.
     """
 
     experiment: str
     spec: GameSpec
-    success: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    success: Callable[[EpisodeStats], np.ndarray]
     policy_states: int
     paper_value: Callable[[str, int, str], float | None] = _no_paper_value
+    variant: Callable[[EpisodicGame, Options], EpisodicGame] = _no_variants
+
+    def with_options(self, options: Options) -> EpisodicGame:
+        """The game with ``options`` (itself when there are none)."""
+        return self.variant(self, options) if options else self
 
 
 def anneals_over_budget(config: LearnerConfig) -> bool:
@@ -103,9 +124,11 @@ class EpisodicRun(Settings):
     eval_episodes: int
     curve_points: int
     curve_eval_episodes: int
+    options: Options = ()
+    """The game's options (stored under ``"game"`` only when there are some)."""
 
     def to_config(self) -> dict[str, Any]:
-        return {
+        config = {
             "algorithm": self.learner.name,
             "checkpoints": list(self.checkpoints),
             "eval_episodes": self.eval_episodes,
@@ -113,6 +136,9 @@ class EpisodicRun(Settings):
             "curve_eval_episodes": self.curve_eval_episodes,
             "learner": asdict(self.learner),
         }
+        if self.options:
+            config["game"] = dict(self.options)
+        return config
 
     @classmethod
     def from_config(cls, config: Mapping[str, Any]) -> Self:
@@ -122,12 +148,15 @@ class EpisodicRun(Settings):
             config["eval_episodes"],
             config["curve_points"],
             config["curve_eval_episodes"],
+            options_of(config.get("game", {})),
         )
 
     def stream(self) -> dict[str, Any]:
-        """The learner, and L for a learner that anneals over it: the evaluation
-        settings do not change what a run learns."""
+        """The learner, the game's options, and L for a learner that anneals over it:
+        the evaluation settings do not change what a run learns."""
         stream: dict[str, Any] = {"algorithm": self.learner.name, "learner": asdict(self.learner)}
+        if self.options:
+            stream["game"] = dict(self.options)
         if anneals_over_budget(self.learner):
             stream["episodes"] = self.checkpoints[0]
         return stream
@@ -154,6 +183,14 @@ class EpisodicRun(Settings):
         return self.largest + curve + self.eval_episodes * len(self.checkpoints)
 
 
+def options_of(options: Mapping[str, Any]) -> Options:
+    """Options as settings keep them: sorted pairs, lists as tuples."""
+    return tuple(
+        (name, tuple(value) if isinstance(value, list) else value)
+        for name, value in sorted(options.items())
+    )
+
+
 def run_of(record: RunRecord) -> EpisodicRun:
     """The settings of a stored run."""
     return parse_settings(EpisodicRun, record.key.config)  # type: ignore[return-value]
@@ -172,8 +209,11 @@ class EpisodicSweep:
     seed: int = 0
     curve_points: int = CURVE_POINTS
     curve_eval_episodes: int = CURVE_EVAL_EPISODES
+    options: Options = ()
+    """The game's options (e.g. a larger DSN's ``grid`` and ``targets``)."""
 
     def __post_init__(self) -> None:
+        self.game.with_options(self.options)  # refuses options the game does not take
         require(len(self.learners) > 0, "algorithms", "needs at least one algorithm")
         names = [config.name for config in self.learners]
         require(len(set(names)) == len(names), "algorithms", f"each at most once (got {names})")
@@ -215,6 +255,7 @@ class EpisodicSweep:
             self.eval_episodes,
             self.curve_points,
             self.curve_eval_episodes,
+            self.options,
         )
 
     def specs(self) -> list[RunSpec]:
@@ -250,6 +291,7 @@ class Recorder:
     def __init__(
         self, game: EpisodicGame, settings: EpisodicRun, eval_seed: np.random.SeedSequence
     ) -> None:
+        game = game.with_options(settings.options)
         self.game, self.settings, self.eval_seed = game, settings, eval_seed
         self.checkpoints: dict[str, dict[str, float]] = {}
         self.curve: list[list[float]] = []
@@ -273,7 +315,7 @@ class Recorder:
         with unit_cost(SECONDS_PER_EPISODE):
             report_progress(episodes)
         return {
-            "success_rate": int(self.game.success(stats.returns, stats.lengths).sum()) / episodes,
+            "success_rate": int(self.game.success(stats).sum()) / episodes,
             "mean_return": float(stats.returns.sum()) / episodes,
             "mean_steps": int(stats.lengths.sum()) / episodes,
         }
@@ -293,8 +335,9 @@ def run(game: EpisodicGame, settings: EpisodicRun, seed: np.random.SeedSequence)
     if is_deep(learner):
         return run_batch(game, settings, [seed])[0]
     env_seed, agent_seed, eval_seed = seed.spawn(3)
+    spec = game.with_options(settings.options).spec
     training = TabularRun(
-        game.spec, learner, np.random.default_rng(env_seed), np.random.default_rng(agent_seed)
+        spec, learner, np.random.default_rng(env_seed), np.random.default_rng(agent_seed)
     )
     record, trained = Recorder(game, settings, eval_seed), 0
     for budget in settings.schedule():
@@ -316,7 +359,8 @@ def run_batch(
     train_seeds, eval_seeds = zip(*(s.spawn(2) for s in seeds), strict=True)
     records = [Recorder(game, settings, e) for e in eval_seeds]
     learner = settings.learner
-    batch = DeepBatch(game.spec, learner, train_seeds, settings.largest)
+    spec = game.with_options(settings.options).spec
+    batch = DeepBatch(spec, learner, train_seeds, settings.largest)
     with unit_cost(learn_seconds(learner)):  # the evaluations inside say their own
         batch.train(settings.schedule(), lambda k, budget, table: records[k](budget, table))
     return [r.metrics() for r in records]
@@ -414,8 +458,11 @@ def row_label(learner: LearnerConfig) -> str:
 def summarize(game: EpisodicGame, records: Iterable[RunRecord]) -> list[Row]:
     """The tables from stored runs: one row per (algorithm, settings, L)."""
     per_cell: dict[tuple[str, str, int], dict[int, dict[str, float]]] = defaultdict(dict)
+    as_paper: dict[str, bool] = {}
     for rec in records:
-        label = row_label(run_of(rec).learner)
+        settings = run_of(rec)
+        label = row_label(settings.learner) + options_label(settings.options)
+        as_paper[label] = not label.endswith("*") and not settings.options
         for budget, result in rec.metrics["checkpoints"].items():
             # keyed by run: sweeps with other checkpoint lists hold the very same run at L
             per_cell[(rec.key.algorithm, label, int(budget))][rec.key.run_index] = result
@@ -425,7 +472,7 @@ def summarize(game: EpisodicGame, records: Iterable[RunRecord]) -> list[Row]:
         success = np.array([r["success_rate"] for r in results])
         returns = np.array([r["mean_return"] for r in results])
         steps = np.array([r["mean_steps"] for r in results])
-        paper = not label.endswith("*")
+        paper = as_paper[label]
         rows.append(
             Row(
                 algorithm=name,
@@ -458,7 +505,7 @@ def learning_curves(records: Iterable[RunRecord]) -> dict[str, np.ndarray]:
     curves: dict[str, list[list[list[float]]]] = defaultdict(list)
     for rec in records:
         settings = run_of(rec)
-        label = row_label(settings.learner)
+        label = row_label(settings.learner) + options_label(settings.options)
         if anneals_over_budget(settings.learner):
             label += f", L = {settings.largest:,}"
         curves[label].append(rec.metrics["curve"])
@@ -468,5 +515,14 @@ def learning_curves(records: Iterable[RunRecord]) -> dict[str, np.ndarray]:
 def protocol_key(record: RunRecord) -> tuple:
     """Runs that belong in one set of tables: same seed and evaluation settings."""
     settings = run_of(record)
-    fields = ("eval_episodes", "curve_points", "curve_eval_episodes")
+    fields = ("eval_episodes", "curve_points", "curve_eval_episodes", "options")
     return (record.key.root_seed, *(str(getattr(settings, f)) for f in fields))
+
+
+def options_label(options: Options) -> str:
+    """How a row names a game's options (nothing for the game as the paper plays it)."""
+    return "".join(f", {name} {_option_text(value)}" for name, value in options)
+
+
+def _option_text(value: Any) -> str:
+    return "x".join(map(str, value)) if isinstance(value, tuple) else str(value)

@@ -8,16 +8,26 @@ paper's values come from :mod:`cmarlcd.paper`.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
-from cmarlcd.experiments.episodic import EpisodicGame, EpisodicSweep, experiment
+from cmarlcd.errors import require
+from cmarlcd.experiments.episodic import (
+    EpisodicGame,
+    EpisodicSweep,
+    Options,
+    experiment,
+    terminated_episodes,
+)
 from cmarlcd.games import sensor_network as dsn
+from cmarlcd.games.sensor_network import sized
 from cmarlcd.learners.automata import AutomatonConfig
 from cmarlcd.learners.coordination import StochasticConfig
 from cmarlcd.paper import DSN_EPISODES, dsn_value
 from cmarlcd.registry import LearnerConfig
+from cmarlcd.training.tabular import EpisodeStats
 
 EXPERIMENT = "dsn"
 #: Seeds of one deep config trained together in one stacked model (the runner's batch).
@@ -31,9 +41,27 @@ PAPER_EVAL_EPISODES = 50_000
 DEFAULT_LEARNERS: tuple[LearnerConfig, ...] = (StochasticConfig(), AutomatonConfig())
 
 
-def optimal_episodes(returns: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+def optimal_episodes(stats: EpisodeStats) -> np.ndarray:
     """An episode succeeds when it returns the optimum, 42, in exactly 3 steps."""
-    return (returns == dsn.OPTIMAL_RETURN) & (lengths == dsn.OPTIMAL_STEPS)
+    return (stats.returns == dsn.OPTIMAL_RETURN) & (stats.lengths == dsn.OPTIMAL_STEPS)
+
+
+#: The options a larger sensor network takes (``cmarl-cd dsn --grid 3x4 --targets 3``).
+LAYOUT_OPTIONS = ("grid", "targets")
+
+
+@functools.lru_cache(maxsize=32)
+def larger_network(game: EpisodicGame, options: Options) -> EpisodicGame:
+    """The DSN at another size (:func:`cmarlcd.games.sensor_network.make_spec`): an
+    episode succeeds when every target is captured within the step cap (the paper's
+    success, 42 in 3 steps, is defined at its size only); no policy is stored, and there
+    are no paper values."""
+    given = dict(options)
+    unknown = sorted(set(given) - set(LAYOUT_OPTIONS))
+    require(not unknown, unknown[0] if unknown else "game", "is no option of the DSN")
+    rows, cols = given.get("grid", sized.PAPER_GRID)
+    spec = dsn.make_spec(rows, cols, given.get("targets", sized.PAPER_TARGETS))
+    return EpisodicGame(game.experiment, spec, terminated_episodes, 0)
 
 
 DSN_GAME = EpisodicGame(
@@ -42,7 +70,17 @@ DSN_GAME = EpisodicGame(
     success=optimal_episodes,
     policy_states=dsn.N_STATES,
     paper_value=dsn_value,
+    variant=larger_network,
 )
+
+
+def layout_options(rows: int, cols: int, targets: int) -> Options:
+    """The options of a DSN of ``rows`` x ``cols`` cells and ``targets`` targets: none
+    for the paper's (so its runs keep their keys)."""
+    if (rows, cols, targets) == (*sized.PAPER_GRID, sized.PAPER_TARGETS):
+        return ()
+    return (("grid", (rows, cols)), ("targets", targets))
+
 
 DSN = experiment(DSN_GAME)
 

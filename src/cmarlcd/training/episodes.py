@@ -37,6 +37,7 @@ def play_episodes(
     greedy actions otherwise. ``seed`` seeds the first ``env.reset``; later episodes
     continue the environment's own stream."""
     returns, lengths = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
+    terminated = np.zeros(episodes, dtype=np.bool_)
     for episode in range(episodes):
         _, infos = env.reset(seed=seed if episode == 0 else None)
         agents = list(env.possible_agents)
@@ -54,6 +55,7 @@ def play_episodes(
                 learner.observe(state, joint, reward)
             returns[episode] += reward
             lengths[episode] += 1
+            terminated[episode] = any(terminations.values())
         if learn:
             learner.end_episode(final_state=env.state(), terminated=any(terminations.values()))
-    return EpisodeStats(returns, lengths)
+    return EpisodeStats(returns, lengths, terminated)

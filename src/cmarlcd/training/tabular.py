@@ -27,10 +27,12 @@ from cmarlcd.training.tabular_side import TabularSide
 
 @dataclass(frozen=True)
 class EpisodeStats:
-    """Undiscounted return and length of each episode played."""
+    """Undiscounted return and length of each episode played, and whether it terminated
+    (rather than reaching the step cap)."""
 
     returns: np.ndarray
     lengths: np.ndarray
+    terminated: np.ndarray
 
 
 def evaluate(spec: GameSpec, policy: np.ndarray, episodes: int, rng) -> EpisodeStats:
@@ -38,7 +40,7 @@ def evaluate(spec: GameSpec, policy: np.ndarray, episodes: int, rng) -> EpisodeS
     action per state index), the game's randomness drawn from ``rng``."""
     spec.require_one_team("evaluate")
     outcome = Play(spec, [PolicySide(spec, 0, policy)], rng, [rng]).evaluate(episodes, rng)
-    return EpisodeStats(outcome.returns[:, 0].copy(), outcome.lengths)
+    return EpisodeStats(outcome.returns[:, 0].copy(), outcome.lengths, outcome.terminated)
 
 
 class TabularRun:
