@@ -62,14 +62,14 @@ def scripted_policy() -> np.ndarray:
 def test_scripted_optimal_policy_evaluates_to_42_in_3_steps() -> None:
     stats = evaluate(dsn.SPEC, scripted_policy(), 2000, np.random.default_rng(0))
     assert set(stats.returns.tolist()) == {42.0} and set(stats.lengths.tolist()) == {3}
-    assert optimal_episodes(stats.returns, stats.lengths).all()
+    assert optimal_episodes(stats).all()
 
 
 def test_idle_policy_never_succeeds_and_runs_to_the_step_limit() -> None:
     policy = np.zeros((dsn.N_STATE_INDICES, dsn.N_SENSORS), dtype=np.int64)
     stats = evaluate(dsn.SPEC, policy, 100, np.random.default_rng(0))
     assert (stats.returns == 0).all() and (stats.lengths == dsn.MAX_STEPS).all()
-    assert not optimal_episodes(stats.returns, stats.lengths).any()
+    assert not optimal_episodes(stats).any()
 
 
 def test_compiled_evaluation_agrees_with_the_env_greedy_loop() -> None:
@@ -90,4 +90,4 @@ def test_cmarlcd_learns_the_dsn_optimum_in_every_state() -> None:
     )
     run.train(150_000)
     stats = evaluate(dsn.SPEC, run.greedy_policy(), 5000, np.random.default_rng(0))
-    assert optimal_episodes(stats.returns, stats.lengths).mean() > 0.9
+    assert optimal_episodes(stats).mean() > 0.9
