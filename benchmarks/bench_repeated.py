@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 from cmarlcd.experiments import repeated as rep
+from cmarlcd.experiments import settings_of
 from cmarlcd.runner import default_workers, run_sweep
 from cmarlcd.store import ResultStore
 from cmarlcd.training import fit
@@ -36,7 +37,7 @@ def time_subset() -> dict[str, float]:
     rep._warm_up()
     games, seconds = 0, 0.0
     for spec in SUBSET.specs():
-        game, learner = rep.prepare_run(spec.config, spec.seed_sequence())
+        game, learner = rep.prepare_run(settings_of(spec), spec.seed_sequence())
         start = time.perf_counter()
         games += fit(learner, game).games
         seconds += time.perf_counter() - start

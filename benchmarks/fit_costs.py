@@ -14,7 +14,6 @@ Usage: python benchmarks/fit_costs.py STORE.sqlite
 from __future__ import annotations
 
 import argparse
-import json
 import sqlite3
 from collections import defaultdict
 
@@ -32,7 +31,8 @@ def main() -> None:
             row = totals[(experiment, algorithm)]
             row[0] += 1
             row[1] += seconds
-            row[2] += get_experiment(experiment).cost(json.loads(config))
+            kind = get_experiment(experiment)
+            row[2] += kind.cost(kind.settings_of(config))
     print(f"{'kind':40s} {'runs':>6s} {'measured s':>11s} {'estimated s':>12s} {'ratio':>6s}")
     for (experiment, algorithm), (runs, measured, estimated) in sorted(totals.items()):
         ratio = measured / estimated if estimated else float("nan")

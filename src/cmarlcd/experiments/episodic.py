@@ -391,7 +391,7 @@ LEARN_SECONDS_PER_EPISODE = {
     "distributed-q": 4.7e-6,
     "vdn": 36e-6,
     "qmix": 106e-6,
-    "deep-cmarl-cd": 36e-6,
+    "deep-cmarl-cd": 2.5e-4,  # its 10-run row at --seed-batch 1 (docs: deep CMARL-CD)
 }
 
 
