@@ -157,9 +157,12 @@ def apply_settings(text: str, configs: tuple[Any, ...], parameter: str = "set") 
     out = []
     for config in configs:
         try:
-            out.append(dataclasses.replace(config, **changes.get(config.name, {})))
+            changed = dataclasses.replace(config, **changes.get(config.name, {}))
         except ConfigError as err:
             raise ConfigError(parameter, f"{config.name}.{err.parameter} {err.message}") from None
+        renamed = f"would make {config.name} another learner; choose it with --algorithms"
+        require(changed.name == config.name, parameter, renamed)
+        out.append(changed)
     return tuple(out)
 
 

@@ -204,7 +204,7 @@ def is_comparison_dsn_run(record: RunRecord) -> bool:
     """Whether a stored DSN run is one of a comparison's: one L and no learning curve
     (the paper's protocol draws one)."""
     settings = episodic.run_of(record)
-    return len(settings.checkpoints) == 1 and settings.curve_points == 0
+    return len(settings.checkpoints) == 1 and settings.curve_points == 0 and not settings.options
 
 
 def run_compare(cell: CompareRun, seed: np.random.SeedSequence) -> dict[str, Any]:

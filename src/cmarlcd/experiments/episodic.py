@@ -38,6 +38,7 @@ from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
 from cmarlcd.store import RunRecord
+from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
 from cmarlcd.training.tabular import EpisodeStats, TabularRun, evaluate
 
 #: [choice] Learning-curve resolution: greedy evaluations at this many evenly spaced
@@ -213,8 +214,15 @@ class EpisodicSweep:
     """The game's options (e.g. a larger DSN's ``grid`` and ``targets``)."""
 
     def __post_init__(self) -> None:
-        self.game.with_options(self.options)  # refuses options the game does not take
+        spec = self.game.with_options(self.options).spec  # refuses options it does not take
         require(len(self.learners) > 0, "algorithms", "needs at least one algorithm")
+        deep = [c.name for c in self.learners if is_deep(c)]
+        require(
+            not deep or spec.n_states <= MAX_INDEX_STATES,
+            "algorithms",
+            f"{', '.join(deep)} read one-hot state indices under this protocol, at most "
+            f"{MAX_INDEX_STATES:,} states ({spec.name} has {spec.n_states:,})",
+        )
         names = [config.name for config in self.learners]
         require(len(set(names)) == len(names), "algorithms", f"each at most once (got {names})")
         require(len(self.episodes) > 0, "episodes", "needs at least one budget")

@@ -48,6 +48,9 @@ def optimal_episodes(stats: EpisodeStats) -> np.ndarray:
 
 #: The options a larger sensor network takes (``cmarl-cd dsn --grid 3x4 --targets 3``).
 LAYOUT_OPTIONS = ("grid", "targets")
+#: [choice] The largest greedy-policy table (states x sensors) the protocol evaluates:
+#: 50M int64 entries, 400 MB.
+MAX_POLICY_ENTRIES = 50_000_000
 
 
 @functools.lru_cache(maxsize=32)
@@ -61,6 +64,13 @@ def larger_network(game: EpisodicGame, options: Options) -> EpisodicGame:
     require(not unknown, unknown[0] if unknown else "game", "is no option of the DSN")
     rows, cols = given.get("grid", sized.PAPER_GRID)
     spec = dsn.make_spec(rows, cols, given.get("targets", sized.PAPER_TARGETS))
+    entries = spec.n_states * len(spec.agents)
+    require(
+        entries <= MAX_POLICY_ENTRIES,
+        "targets",
+        f"this protocol evaluates a table of every state's joint action, here {entries:,} "
+        f"entries, more than {MAX_POLICY_ENTRIES:,}",
+    )
     return EpisodicGame(game.experiment, spec, terminated_episodes, 0)
 
 

@@ -134,11 +134,6 @@ class DegreeModel(StackedModel):
             fused=True,
         )
 
-    def degrees(self, state: torch.Tensor) -> torch.Tensor:
-        """The clipped degrees (B, N, n, A) at the states."""
-        c = self.config
-        return self.agents(state).clamp(c.c_min, c.c_max)
-
     def targets(
         self, degrees: torch.Tensor, actions: torch.Tensor, returns: torch.Tensor,
         record: torch.Tensor,

@@ -1,4 +1,5 @@
-"""Seed-batched VDN / QMIX on a cooperative game of one team (``[deep]`` extra).
+"""A deep learner (VDN, QMIX, deep CMARL-CD), seed-batched, on a cooperative game of one
+team (``[deep]`` extra).
 
 B independent seeds learn together: each seed is a play of the game
 (:class:`cmarlcd.training.loop.Play`) whose only side is a view of one
@@ -20,7 +21,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.learners.deep_config import DeepLearnerConfig
 from cmarlcd.training.deep_side import DeepGroup
 from cmarlcd.training.loop import Play, PlayBatch
 
@@ -29,13 +30,13 @@ Evaluator = Callable[[int, int, np.ndarray], None]
 
 
 class DeepBatch:
-    """B seeds of VDN or QMIX learning one game for ``total_episodes`` episodes each,
+    """B seeds of a deep learner learning one game for ``total_episodes`` episodes each,
     reading the game's state indices (one-hot)."""
 
     def __init__(
         self,
         spec: GameSpec,
-        config: DeepConfig,
+        config: DeepLearnerConfig,
         seeds: Sequence[np.random.SeedSequence],
         total_episodes: int,
     ) -> None:

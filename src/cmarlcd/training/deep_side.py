@@ -14,12 +14,14 @@ has one, else the state index):
 * **index** (one-hot state indices; the DSN's 43): the networks' Q-values of every state
   form a table, copied after each gradient step, and the side acts by looking it up.
 
-Either way it acts ε-greedily (eq. 18, annealed over its learning episodes) and appends
-each turn to its replay ring. Every ``train_every`` turns it pauses the loop, and its
-:class:`DeepGroup` takes the gradient step and target copy the schedule asks for
-(:func:`cmarlcd.learners.deep_config.scheduled_work`) on the stacked model of
-:class:`cmarlcd.learners.value_decomposition.ValueDecomposition`, then copies the new
-weights (or Q-tables) back for the loop. The networks change only there, so acting with
+Either way it acts with its learner's kernels (VDN and QMIX ε-greedily, eq. 18, each
+turn appended to the replay ring; deep CMARL-CD by softmax over its degrees, each
+episode's visits stored when it ends). Every ``train_every`` turns it pauses the loop,
+and its :class:`DeepGroup` takes the gradient step and target copy the schedule asks for
+(:func:`cmarlcd.learners.deep_config.scheduled_work`) on the learner's stacked model
+(:class:`~cmarlcd.learners.value_decomposition.ValueDecomposition`,
+:class:`~cmarlcd.learners.degree_model.DegreeModel`), then copies the new weights (or
+tables) back for the loop. The networks change only there, so acting with
 the copy is acting with the networks.
 
 A group holds the deep sides of B plays (the rounds of a tournament pairing, the seeds of a

@@ -38,6 +38,8 @@ MAX_ACTIONS = 5
 N_MOVES = 5
 MOVE_ROW = np.array([0, -1, 1, 0, 0], dtype=np.int64)
 MOVE_COL = np.array([0, 0, 0, -1, 1], dtype=np.int64)
+MOVE_ROW.setflags(write=False)
+MOVE_COL.setflags(write=False)
 #: Focusing sensors needed on a target's cell to hit it.
 HIT_THRESHOLD = 3
 #: Sensors rewarded for a capture (the highest-indexed focusing ones).
@@ -93,11 +95,15 @@ def state_offsets(n_cells: int, n_targets: int) -> np.ndarray:
     return np.cumsum([0, *sizes[:-1]]).astype(np.int64)
 
 
-def state_count(n_cells: int, n_targets: int) -> int:
-    """State indices of a layout, the terminal one included."""
-    return sum(
-        math.comb(n_targets, live) * math.perm(n_cells, live) for live in range(n_targets + 1)
-    )
+def state_count(n_cells: int, n_targets: int, cap: int | None = None) -> int:
+    """State indices of a layout, the terminal one included; once past ``cap`` the sum
+    stops (any count above ``cap`` is returned), so a huge layout is refused at once."""
+    total = 0
+    for live in range(n_targets + 1):
+        total += math.comb(n_targets, live) * math.perm(n_cells, live)
+        if cap is not None and total > cap:
+            return total
+    return total
 
 
 # -------------------------------------------------------------------------- kernels

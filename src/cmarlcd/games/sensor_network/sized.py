@@ -5,8 +5,8 @@ action_counts, state_offsets, shape)`` with ``shape = [rows, cols]``, so one com
 loop plays every size. The rules are :mod:`~.layout`'s, the ones the paper's
 :data:`~cmarlcd.games.sensor_network.SPEC` binds to its grid: on 2 x 3 cells with 2
 targets both play the same episodes from the same seeds (tested). Unlike the paper's
-spec, a sized spec has state features (:func:`~.layout.target_features`), so deep learners
-read a vector whose length does not grow with the state count.
+spec, a sized spec has state features (:func:`~.layout.target_features`): a vector whose
+length does not grow with the state count, for learners that read features.
 """
 
 from __future__ import annotations
@@ -73,12 +73,12 @@ def check_layout(rows: int, cols: int, targets: int, max_steps: int | None) -> N
         f"at most one per cell: {rows} x {cols} cells hold at most {cells} (got {targets})",
     )
     require(max_steps is None or max_steps >= 1, "max_steps", f"must be >= 1 (got {max_steps})")
-    states = layout.state_count(cells, targets)
+    states = layout.state_count(cells, targets, cap=layout.MAX_LAYOUT_STATES)
     require(
         states <= layout.MAX_LAYOUT_STATES,
         "targets",
-        f"{rows} x {cols} cells with {targets} targets make {states:,} states, more than "
-        f"the {layout.MAX_LAYOUT_STATES:,} a learner may index",
+        f"{rows} x {cols} cells with {targets} targets make more than "
+        f"{layout.MAX_LAYOUT_STATES:,} states, the most a learner may index",
     )
 
 
