@@ -21,11 +21,12 @@ from typing import Any
 
 import numpy as np
 
-from cmarlcd.experiments import episodic
+from cmarlcd.experiments import episodic, episodic_results
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments import tournament_results as match_results
-from cmarlcd.experiments.episodic import EpisodicGame, Row
+from cmarlcd.experiments.episodic import EpisodicGame
+from cmarlcd.experiments.episodic_results import Row
 from cmarlcd.experiments.repeated import CellSummary
 from cmarlcd.section import BAD, GOOD, Cell, FigureBlock, Section, TableBlock, TextBlock, cells
 from cmarlcd.store import RunRecord
@@ -207,19 +208,19 @@ def dsn_section(game: EpisodicGame, records: Sequence[RunRecord], figures: Path)
     """Tables 3-7, the learning curves and Fig. 4 of one group of DSN runs."""
     from cmarlcd import figures as figs
 
-    rows = episodic.summarize(game, records)
+    rows = episodic_results.summarize(game, records)
     seed = records[0].key.root_seed
     protocol = protocol_text(records, rows)
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
     curves_name = figure_name(f"dsn-learning-curves-seed{seed}", group)
-    curves = figs.learning_curves(episodic.learning_curves(records), figures / curves_name)
+    curves = figs.learning_curves(episodic_results.learning_curves(records), figures / curves_name)
     paths = {"learning_curves": str(curves)}
     shown = {"learning_curves": f"learning curves, {protocol}"}
     options = episodic.run_of(records[0]).options
     for rec in records:
         if rec.key.run_index == 0 and rec.metrics["policy"]:  # a larger network stores none
             settings = episodic.run_of(rec)
-            label, largest = episodic.row_label(settings.learner), settings.largest
+            label, largest = episodic_results.row_label(settings.learner), settings.largest
             what = f"{label}, L = {largest:,}, seed {seed}, run 0"
             title = f"Fig. 4 — greedy joint action of {what} in each of the 42 states"
             stem = f"dsn-fig4-{rec.key.algorithm}-L{largest}-seed{seed}"
@@ -230,7 +231,7 @@ def dsn_section(game: EpisodicGame, records: Sequence[RunRecord], figures: Path)
             paths[key], shown[key] = str(path), f"Fig. 4, {what}"
     title = "Tables 3-7 and Fig. 4: the distributed sensor network task"
     if options:  # beyond the paper: success is every target captured within the cap
-        size = episodic.options_label(options)
+        size = episodic_results.options_label(options)
         title = f"The distributed sensor network{size} (beyond the paper)"
         protocol += "; success: every target captured within the step cap"
     section = new_section(

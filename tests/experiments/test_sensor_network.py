@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from cmarlcd.errors import ConfigError
-from cmarlcd.experiments import episodic, settings_of
+from cmarlcd.experiments import episodic, episodic_results, settings_of
 from cmarlcd.experiments import sensor_network as sn
 from cmarlcd.learners import AutomatonConfig, DeepConfig, StochasticConfig
 from cmarlcd.progress import progress_sink
@@ -81,7 +81,9 @@ def test_tables_3_to_7_aggregate_as_the_paper_defines_them() -> None:
         {"100000": {"success_rate": 1.0, "mean_return": 42.0, "mean_steps": 3.0}},
         {"100000": {"success_rate": 0.5, "mean_return": 40.0, "mean_steps": 4.0}},
     ]
-    (row,) = episodic.summarize(sn.DSN_GAME, (record("cmarl-cd", i, c) for i, c in enumerate(runs)))
+    (row,) = episodic_results.summarize(
+        sn.DSN_GAME, (record("cmarl-cd", i, c) for i, c in enumerate(runs))
+    )
     assert (row.algorithm, row.episodes, row.runs) == ("cmarl-cd", 100_000, 2)
     assert row.success_rate == 0.75  # Table 3: mean of the per-run success rates
     assert (row.mean_return, row.std_return) == (41.0, 1.0)  # Table 4 (population std)
@@ -92,9 +94,9 @@ def test_tables_3_to_7_aggregate_as_the_paper_defines_them() -> None:
 
 def test_non_default_settings_are_marked_and_have_no_paper_values() -> None:
     changed = StochasticConfig(delta=0.1)
-    assert episodic.row_label(changed) == "CMARL-CD *"
+    assert episodic_results.row_label(changed) == "CMARL-CD *"
     result = {"100000": {"success_rate": 1.0, "mean_return": 42.0, "mean_steps": 3.0}}
-    (row,) = episodic.summarize(sn.DSN_GAME, [record("cmarl-cd", 0, result, changed)])
+    (row,) = episodic_results.summarize(sn.DSN_GAME, [record("cmarl-cd", 0, result, changed)])
     assert row.label == "CMARL-CD *" and set(row.paper.values()) == {None}
 
 
@@ -104,14 +106,14 @@ def test_small_sweep_through_the_runner(tmp_path) -> None:
     with ResultStore(tmp_path / "s.sqlite") as store:
         run_sweep(sweep.specs(), store, workers=1)
         records = store.get(s.key for s in sweep.specs())
-    rows = episodic.summarize(sn.DSN_GAME, records)
+    rows = episodic_results.summarize(sn.DSN_GAME, records)
     assert [(r.label, r.episodes, r.runs) for r in rows] == [
         ("CMARL-CD", 200, 2),
         ("CMARL-CD", 400, 2),
         ("LA-OCA", 200, 2),
         ("LA-OCA", 400, 2),
     ]
-    curves = episodic.learning_curves(records)
+    curves = episodic_results.learning_curves(records)
     assert curves["CMARL-CD"].shape == (2, 2, 4)
 
 

@@ -25,7 +25,7 @@ from cmarlcd.cli.theory import theorem_sections
 from cmarlcd.compare_report import compare_section
 from cmarlcd.errors import require
 from cmarlcd.experiments import compare as cmp
-from cmarlcd.experiments import episodic, theorem
+from cmarlcd.experiments import episodic_results, theorem
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.experiments import tournament as tour
@@ -111,7 +111,7 @@ def _report_groups(
             found.append(("repeated", report.repeated_section, records))
     if case is None:
         kinds = (
-            ("dsn", dsn, dsn_exp.EXPERIMENT, episodic.protocol_key),
+            ("dsn", dsn, dsn_exp.EXPERIMENT, episodic_results.protocol_key),
             ("theorem1", _theorem_section, theorem.EXPERIMENT, _theorem_key),
         )
         dsn_runs = [r for r in db.records(dsn_exp.EXPERIMENT) if cmp.is_comparison_dsn_run(r)]

@@ -31,7 +31,7 @@ import numpy as np
 from cmarlcd import registry
 from cmarlcd.compiled import specialise
 from cmarlcd.errors import require
-from cmarlcd.experiments import episodic
+from cmarlcd.experiments import episodic, episodic_results
 from cmarlcd.experiments.sensor_network import DSN_GAME, DsnSweep
 from cmarlcd.learners import joint_action
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
@@ -324,7 +324,7 @@ def summarize(records: Iterable[RunRecord]) -> list[CompareCell]:
 
 def _dsn_cells(records: Sequence[RunRecord]) -> list[CompareCell]:
     """The DSN column, one cell per learner, from the DSN rows at the comparison's L."""
-    rows = episodic.summarize(DSN_GAME, records)
+    rows = episodic_results.summarize(DSN_GAME, records)
     return [
         CompareCell(
             learner=row.algorithm,
