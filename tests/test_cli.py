@@ -294,7 +294,6 @@ def test_dsn_json_tables_figures_and_resume(paths) -> None:
         (["--grid", "20x20", "--targets", "4"], "--targets"),  # 2.5e10 states
         (["--grid", "1000x1000", "--targets", "100000"], "--targets"),  # refused at once
         (["--grid", "6x6", "--targets", "4"], "--targets"),  # a 78M-entry policy table
-        (["--grid", "7x7", "--targets", "3", "--algorithms", "vdn"], "--algorithms"),
         (["--algorithms", "vdn", "--set", "vdn.mixer=qmix"], "--set"),  # another learner
     ],
 )

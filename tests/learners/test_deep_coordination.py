@@ -121,5 +121,5 @@ def test_a_one_state_game_is_solved() -> None:
     config = DeepCMARLCDConfig(buffer_size=500, batch_size=50, train_every=10, target_every=50)
     final = {}
     batch = DeepBatch(spec, config, [np.random.SeedSequence(k) for k in range(5)], 3_000)
-    batch.train([], lambda k, budget, table: final.__setitem__(k, table[0].tolist()))
+    batch.train([], lambda k, budget, policy: final.__setitem__(k, policy.table[0].tolist()))
     assert list(final.values()) == [[0, 0]] * 5

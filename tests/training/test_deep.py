@@ -53,7 +53,7 @@ def test_gradient_and_target_cadence(monkeypatch) -> None:
 def test_every_seed_stops_at_its_episode_budget() -> None:
     run = DeepBatch(dsn.SPEC, SMALL, [np.random.SeedSequence(k) for k in range(3)], 25)
     seen = []
-    run.train([10], lambda k, budget, table: seen.append((k, budget, table.shape)))
+    run.train([10], lambda k, budget, policy: seen.append((k, budget, policy.table.shape)))
     assert run.episodes.tolist() == [25, 25, 25]
     assert sorted(seen) == [(k, b, (43, 12)) for k in range(3) for b in (10, 25)]
 
@@ -158,7 +158,7 @@ def test_a_seed_learns_what_it_learns_alone_when_another_seed_finishes_short_of_
     final: dict[tuple[str, int], np.ndarray] = {}
 
     def keep(where: str, k0: int = 0):
-        return lambda k, budget, table: final.__setitem__((where, k0 + k), table.copy())
+        return lambda k, budget, policy: final.__setitem__((where, k0 + k), policy.table.copy())
 
     together = DeepBatch(dsn.SPEC, config, [np.random.SeedSequence(k) for k in range(6)], 6)
     together.train([], keep("together"))
@@ -167,3 +167,39 @@ def test_a_seed_learns_what_it_learns_alone_when_another_seed_finishes_short_of_
     for k in range(6):
         DeepBatch(dsn.SPEC, config, [np.random.SeedSequence(k)], 6).train([], keep("alone", k))
         assert np.array_equal(final["together", k], final["alone", k]), f"seed {k}"
+
+
+@pytest.mark.parametrize("name", ["vdn", "deep-cmarl-cd"])
+def test_evaluating_on_the_way_leaves_a_feature_reading_seed_as_it_was(name: str) -> None:
+    """A seed that reads the game's features has no table: its own side plays its greedy
+    strategy on a game of its own, between learning turns (in the middle of an episode
+    too), and what it learns is what it learns without the evaluations."""
+    from dataclasses import replace
+
+    from cmarlcd import registry
+
+    spec = dsn.make_spec(2, 2, 1)
+    config = replace(
+        registry.require_learner(name),
+        buffer_size=500,
+        batch_size=32,
+        train_every=7,
+        target_every=63,
+    )
+
+    def learn(checkpoints: list[int]) -> tuple[list, list]:
+        batch = DeepBatch(spec, config, [np.random.SeedSequence(0)], 120)
+        assert batch.inputs == "features"
+        played = []
+
+        def evaluate(k: int, budget: int, policy) -> None:
+            assert policy.table is None
+            played.append(policy.evaluate(15, np.random.default_rng(budget)).lengths.sum())
+
+        batch.train(checkpoints, evaluate)
+        return [p.detach().clone() for p in batch.model.parameters()], played
+
+    quiet, _ = learn([])
+    busy, played = learn(list(range(1, 120, 3)))
+    assert len(played) == 41 and all(steps >= 15 for steps in played)
+    assert all(torch.equal(a, b) for a, b in zip(quiet, busy, strict=True))

@@ -131,7 +131,7 @@ def test_vdn_learns_the_chain_through_the_seed_batched_loop() -> None:
     config = DeepConfig(buffer_size=2_000, batch_size=64, train_every=8, target_every=64)
     batch = DeepBatch(CHAIN, config, [np.random.SeedSequence(k) for k in range(2)], 1_500)
     finals = {}
-    batch.train([], lambda k, budget, table: finals.__setitem__(k, table))
+    batch.train([], lambda k, budget, policy: finals.__setitem__(k, policy.table))
     for k in range(2):
         assert finals[k][:3].tolist() == CHAIN_TARGET.tolist()
         stats = evaluate(CHAIN, finals[k], 500, np.random.default_rng(k))

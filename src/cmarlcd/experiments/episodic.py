@@ -38,6 +38,7 @@ from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
 from cmarlcd.store import RunRecord
 from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
+from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.tabular import EpisodeStats, TabularRun, evaluate
 
 #: [choice] Learning-curve resolution: greedy evaluations at this many evenly spaced
@@ -61,6 +62,10 @@ TABLE_METRICS = (
 def _no_paper_value(algorithm: str, episodes: int, metric: str) -> float | None:
     return None
 
+
+#: Further per-episode measures of a checkpoint's evaluation, by name (each stored as the
+#: share of episodes it holds for).
+Metrics = tuple[tuple[str, Callable[[EpisodeStats], np.ndarray]], ...]
 
 #: A game's options (e.g. a larger DSN's grid and targets), as sorted (name, value) pairs
 #: of JSON values; empty: the game as the paper plays it.
@@ -88,6 +93,8 @@ class EpisodicGame:
         policy_states: the states whose greedy joint action a run stores (the first ones).
         paper_value: the paper's published value of a metric, if any.
         variant: the game with some options (e.g. a larger DSN): ``variant(game, options)``.
+        also: further shares of episodes a checkpoint's evaluation stores (e.g. the
+            paper's success where a study's own is another).
     """
 
     experiment: str
@@ -96,6 +103,7 @@ class EpisodicGame:
     policy_states: int
     paper_value: Callable[[str, int, str], float | None] = _no_paper_value
     variant: Callable[[EpisodicGame, Options], EpisodicGame] = _no_variants
+    also: Metrics = ()
 
     def with_options(self, options: Options) -> EpisodicGame:
         """The game with ``options`` (itself when there are none)."""
@@ -217,10 +225,10 @@ class EpisodicSweep:
         require(len(self.learners) > 0, "algorithms", "needs at least one algorithm")
         deep = [c.name for c in self.learners if is_deep(c)]
         require(
-            not deep or spec.n_states <= MAX_INDEX_STATES,
+            not deep or spec.n_features > 0 or spec.n_states <= MAX_INDEX_STATES,
             "algorithms",
-            f"{', '.join(deep)} read one-hot state indices under this protocol, at most "
-            f"{MAX_INDEX_STATES:,} states ({spec.name} has {spec.n_states:,})",
+            f"{', '.join(deep)} read one-hot state indices where a game has no features, "
+            f"at most {MAX_INDEX_STATES:,} states ({spec.name} has {spec.n_states:,})",
         )
         names = [config.name for config in self.learners]
         require(len(set(names)) == len(names), "algorithms", f"each at most once (got {names})")
@@ -298,40 +306,45 @@ class Recorder:
     def __init__(
         self, game: EpisodicGame, settings: EpisodicRun, eval_seed: np.random.SeedSequence
     ) -> None:
+        self.scale = episode_scale(game, settings)
         game = game.with_options(settings.options)
         self.game, self.settings, self.eval_seed = game, settings, eval_seed
         self.checkpoints: dict[str, dict[str, float]] = {}
         self.curve: list[list[float]] = []
-        self.policy = np.zeros((game.spec.n_states, game.spec.n_agents), dtype=np.int64)
+        self.policy: np.ndarray | None = None
         self.start = time.perf_counter()
 
-    def __call__(self, budget: int, policy: np.ndarray) -> None:
+    def __call__(self, budget: int, policy: GreedyPolicy) -> None:
         settings = self.settings
         if budget in settings.checkpoints:
             rng = _keyed_rng(self.eval_seed, 0, budget)
-            self.checkpoints[str(budget)] = self._evaluate(policy, settings.eval_episodes, rng)
+            found = self._evaluate(policy, settings.eval_episodes, rng, self.game.also)
+            self.checkpoints[str(budget)] = found
         rng = _keyed_rng(self.eval_seed, 1, budget)
         point = self._evaluate(policy, settings.curve_eval_episodes, rng)
-        self.curve.append(
-            [budget, point["success_rate"], point["mean_return"], point["mean_steps"]]
-        )
-        self.policy = policy
+        point_row = [budget, point["success_rate"], point["mean_return"], point["mean_steps"]]
+        self.curve.append(point_row)
+        self.policy = policy.table
 
-    def _evaluate(self, policy: np.ndarray, episodes: int, rng) -> dict[str, float]:
-        stats = evaluate(self.game.spec, policy, episodes, rng)
-        with unit_cost(SECONDS_PER_EPISODE):
+    def _evaluate(
+        self, policy: GreedyPolicy, episodes: int, rng, also: Metrics = ()
+    ) -> dict[str, float]:
+        stats = policy.evaluate(episodes, rng)
+        with unit_cost(SECONDS_PER_EPISODE * self.scale):
             report_progress(episodes)
-        return {
+        found = {
             "success_rate": int(self.game.success(stats).sum()) / episodes,
             "mean_return": float(stats.returns.sum()) / episodes,
             "mean_steps": int(stats.lengths.sum()) / episodes,
         }
+        return found | {name: int(rule(stats).sum()) / episodes for name, rule in also}
 
     def metrics(self) -> dict[str, Any]:
+        table = [] if self.policy is None else self.policy[: self.game.policy_states].tolist()
         return {
             "checkpoints": self.checkpoints,
             "curve": self.curve,
-            "policy": self.policy[: self.game.policy_states].tolist(),
+            "policy": table,
             "seconds": time.perf_counter() - self.start,
         }
 
@@ -349,10 +362,10 @@ def run(game: EpisodicGame, settings: EpisodicRun, seed: np.random.SeedSequence)
     record, trained = Recorder(game, settings, eval_seed), 0
     for budget in settings.schedule():
         training.train(budget - trained)
-        with unit_cost(learn_seconds(learner)):
+        with unit_cost(learn_seconds(learner) * record.scale):
             report_progress(budget - trained)
         trained = budget
-        record(budget, training.greedy_policy())
+        record(budget, GreedyPolicy(spec, table=training.greedy_policy()))
     return record.metrics()
 
 
@@ -368,8 +381,8 @@ def run_batch(
     learner = settings.learner
     spec = game.with_options(settings.options).spec
     batch = DeepBatch(spec, learner, train_seeds, settings.largest)
-    with unit_cost(learn_seconds(learner)):  # the evaluations inside say their own
-        batch.train(settings.schedule(), lambda k, budget, table: records[k](budget, table))
+    with unit_cost(learn_seconds(learner) * records[0].scale):  # evaluations say their own
+        batch.train(settings.schedule(), lambda k, budget, policy: records[k](budget, policy))
     return [r.metrics() for r in records]
 
 
@@ -407,12 +420,22 @@ def learn_seconds(learner: LearnerConfig) -> float:
     return LEARN_SECONDS_PER_EPISODE.get(learner.name, 7.3e-6)
 
 
-def _cost(settings: EpisodicRun) -> float:
+def episode_scale(game: EpisodicGame, settings: EpisodicRun) -> float:
+    """How much longer an episode of the game with the run's options is estimated to take
+    than one of the game itself (whose costs are measured): agents x step cap."""
+    if not settings.options:
+        return 1.0
+    base, sized = game.spec, game.with_options(settings.options).spec
+    return (sized.n_agents * sized.max_steps) / (base.n_agents * base.max_steps)
+
+
+def _cost(game: EpisodicGame, settings: EpisodicRun) -> float:
     """Estimated seconds of one run: its learning episodes and its evaluation episodes
     (what the run reports as it goes, :func:`cmarlcd.progress.unit_cost`)."""
     learned = settings.largest
     evaluated = settings.work() - learned
-    return learn_seconds(settings.learner) * learned + SECONDS_PER_EPISODE * evaluated
+    per_episode = learn_seconds(settings.learner) * learned + SECONDS_PER_EPISODE * evaluated
+    return per_episode * episode_scale(game, settings)
 
 
 def experiment(game: EpisodicGame) -> Experiment:
@@ -422,7 +445,7 @@ def experiment(game: EpisodicGame) -> Experiment:
         EpisodicRun,
         run=lambda settings, seed: run(game, settings, seed),
         warm_up=lambda: warm_up(game),
-        cost=_cost,
+        cost=lambda settings: _cost(game, settings),
         run_batch=lambda settings, seeds: run_batch(game, settings, seeds),
         batchable=lambda settings: is_deep(settings.learner),
         work=EpisodicRun.work,

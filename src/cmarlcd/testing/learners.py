@@ -179,7 +179,7 @@ def check_deep_learner(config: DeepConfig, episodes: int = 300) -> None:
     final: dict[tuple[int, int], np.ndarray] = {}
 
     def keep(batch: int):
-        return lambda k, budget, table: final.__setitem__((batch, k), table.copy())
+        return lambda k, budget, policy: final.__setitem__((batch, k), policy.table.copy())
 
     def seeds(*keys: int) -> list[np.random.SeedSequence]:
         return [np.random.SeedSequence(k) for k in keys]  # fresh: spawning changes them

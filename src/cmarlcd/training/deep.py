@@ -9,9 +9,10 @@ streams, spawned from its run seed in a fixed order: parameter initialisation,
 environment, exploration, replay sampling; so seed b of a batch follows the same
 trajectory as that seed trained alone, up to float rounding in the batched products.
 
-The networks only change at the gradient steps, so between them each seed's greedy
-policy is a table over the game's states: a run is evaluated at its checkpoints with the
-table it had when it finished the checkpoint's last episode.
+The networks only change at the gradient steps, so a run is evaluated at its checkpoints
+with the greedy policy it had when it finished the checkpoint's last episode: a table
+over the game's states where the seeds read one-hot state indices, its own side's greedy
+play where they read the game's features (:class:`cmarlcd.training.greedy.GreedyPolicy`).
 """
 
 from __future__ import annotations
@@ -23,15 +24,17 @@ import numpy as np
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep_config import DeepLearnerConfig
 from cmarlcd.training.deep_side import DeepGroup
+from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.loop import Play, PlayBatch
 
-#: Called as evaluate(seed index, episodes learnt, greedy policy (n_states, n_agents)).
-Evaluator = Callable[[int, int, np.ndarray], None]
+#: Called as evaluate(seed index, episodes learnt, greedy policy).
+Evaluator = Callable[[int, int, GreedyPolicy], None]
 
 
 class DeepBatch:
     """B seeds of a deep learner learning one game for ``total_episodes`` episodes each,
-    reading the game's state indices (one-hot)."""
+    reading the game's features where it has them, else its state indices (one-hot;
+    :func:`cmarlcd.training.deep_kernels.inputs_of`)."""
 
     def __init__(
         self,
@@ -46,7 +49,7 @@ class DeepBatch:
         self.total_episodes, self.n_seeds = int(total_episodes), len(seeds)
         replay_rngs = [np.random.default_rng(s) for s in replay]
         self.group = DeepGroup(
-            spec, [0] * self.n_seeds, config, init, replay_rngs, self.total_episodes, "index"
+            spec, [0] * self.n_seeds, config, init, replay_rngs, self.total_episodes
         )
         self.plays = [
             Play(spec, [view], np.random.default_rng(e), [np.random.default_rng(a)])
@@ -73,10 +76,21 @@ class DeepBatch:
         """(B, n_states): the states each seed has met."""
         return self.group.seen
 
+    @property
+    def inputs(self) -> str:
+        """What the seeds read: ``"features"`` or ``"index"``."""
+        return self.group.inputs
+
     def greedy_tables(self) -> np.ndarray:
-        """(B, n_states, n_agents): each seed's greedy joint action in every state, over
-        the masks it has read."""
+        """(B, n_states, n_agents) (index inputs): each seed's greedy joint action in
+        every state, over the masks it has read."""
         return self.group.greedy_tables()
+
+    def greedy_policies(self) -> list[GreedyPolicy]:
+        """Each seed's greedy policy now: its table (index inputs) or its play."""
+        if self.inputs == "index":
+            return [GreedyPolicy(self.spec, table=table) for table in self.greedy_tables()]
+        return [GreedyPolicy(self.spec, play=play) for play in self.plays]
 
     def train(self, checkpoints: Sequence[int], evaluate: Evaluator) -> None:
         """Learn until every seed has played ``total_episodes`` episodes, calling
@@ -94,9 +108,9 @@ class DeepBatch:
                 if evaluated[k] < point <= play.finished
             ]
             if reached:
-                table = self.greedy_tables()
+                policies = self.greedy_policies()
                 for k, point in reached:
-                    evaluate(k, point, table[k])
+                    evaluate(k, point, policies[k])
             evaluated[:] = [play.finished for play in self.plays]
 
         self.batch.learn(crossed)

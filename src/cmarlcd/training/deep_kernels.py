@@ -63,7 +63,9 @@ class FeatureData(NamedTuple):
     hidden: np.ndarray
     """Scratch: one agent's hidden layer."""
     obs: np.ndarray
-    """The episode so far: each turn's features, (max_steps + 1, n_features) ..."""
+    """The episode so far: each turn's features, (max_steps + 2, n_features), the last
+    row the greedy evaluation's own (it may run between two turns of a learning episode)
+    ..."""
     legal: np.ndarray
     """... its legal actions, (max_steps + 1, n_agents, width) ..."""
     joints: np.ndarray
@@ -201,7 +203,7 @@ def features_observe(side, t: int, next_key: int, terminal: bool) -> None:
 def features_greedy(side, env, team, offset, legal, rng, joint) -> None:
     """Template: every agent's greedy legal action at the side's features (``rng`` is not
     drawn from: a network has a greedy action in every state)."""
-    x = side.obs[0]
+    x = side.obs[side.obs.shape[0] - 1]
     game.features(env, team, x)
     game.legal(env, legal)
     for i in range(joint.shape[0]):

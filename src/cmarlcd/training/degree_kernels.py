@@ -99,7 +99,7 @@ def features_store(side, length: int) -> None:
 
 def features_greedy(side, env, team, offset, legal, rng, joint) -> None:
     """Template: every agent's greedy legal action at the side's features."""
-    x, raw = side.obs[0], side.scratch[1]
+    x, raw = side.obs[side.obs.shape[0] - 1], side.scratch[1]
     game.features(env, team, x)
     game.legal(env, legal)
     for i in range(joint.shape[0]):

@@ -198,6 +198,9 @@ class Play:
         require(len(sides) == spec.n_teams, "sides", "needs one side per team of the game")
         self.spec, self.sides = spec, list(sides)
         self.env = spec.new_env()
+        self._eval_env = spec.new_env()
+        """The evaluation's own game: an evaluation between two turns of a learning
+        episode leaves that episode as it was."""
         self.env_rng, self.agent_rngs = env_rng, tuple(agent_rngs)
         self._all = self.sides + [NoSide(spec.max_steps)] * (MAX_TEAMS - len(self.sides))
         self._rngs = self.agent_rngs + (env_rng,) * (MAX_TEAMS - len(self.agent_rngs))
@@ -256,9 +259,9 @@ class Play:
 
     def evaluate(self, episodes: int, rng: np.random.Generator) -> Outcome:
         """Every side's greedy strategy for ``episodes`` episodes, the game's randomness
-        drawn from ``rng``; what the sides draw themselves (a tabular side's unseen
-        states) comes from two streams spawned from ``rng``'s seed, which leave the
-        game's draws as they are."""
+        drawn from ``rng`` (on a game of its own: learning goes on where it stopped);
+        what the sides draw themselves (a tabular side's unseen states) comes from two
+        streams spawned from ``rng``'s seed, which leave the game's draws as they are."""
         episodes = int(episodes)
         returns = np.zeros((episodes, MAX_TEAMS))
         lengths = np.zeros(episodes, dtype=np.int64)
@@ -267,7 +270,7 @@ class Play:
         side_rngs = rng.spawn(MAX_TEAMS)
         spec = self.spec
         self._play_greedy(
-            self.env, a, b, spec.width, episodes, spec.max_steps, rng, *side_rngs,
+            self._eval_env, a, b, spec.width, episodes, spec.max_steps, rng, *side_rngs,
             returns, lengths, terminated,
         )  # fmt: skip
         return Outcome(returns[:, : spec.n_teams], lengths, terminated)
