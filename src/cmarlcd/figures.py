@@ -84,6 +84,32 @@ def learning_curves(curves: dict[str, np.ndarray], path: Path) -> Path:
     return _save(fig, path)
 
 
+def scaling_curves(series: dict[str, np.ndarray], title: str, path: Path) -> Path:
+    """Success and return per target against the state count (log axis), one line per
+    learner. ``series[name]`` has rows [states, success, std of success over runs,
+    return per target], one per size."""
+    plt = _pyplot()
+    fig, (ax_success, ax_return) = plt.subplots(1, 2, figsize=(11, 4))
+    for name, rows in series.items():
+        states, success, spread, per_target = rows.T
+        (line,) = ax_success.plot(states, 100 * success, marker="o", label=name)
+        ax_success.fill_between(
+            states, 100 * (success - spread), 100 * (success + spread),
+            color=line.get_color(), alpha=0.15,
+        )  # fmt: skip
+        ax_return.plot(states, per_target, marker="o", color=line.get_color(), label=name)
+    ax_success.set_ylabel("episodes with every target captured (%)")
+    ax_return.set_ylabel("mean return per target")
+    for ax in (ax_success, ax_return):
+        ax.set_xscale("log")
+        ax.set_xlabel("states of the network")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def dsn_policy_grid(policy: np.ndarray, title: str, path: Path) -> Path:
     """Fig. 4: the greedy joint action in each of the 42 non-terminal DSN states.
 

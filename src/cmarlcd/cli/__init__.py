@@ -1,6 +1,6 @@
 """The ``cmarl-cd`` command line: one module per command (:mod:`~.repeated`, :mod:`~.dsn`,
 :mod:`~.tournament`, :mod:`~.readings`, :mod:`~.reproduce`, :mod:`~.compare`,
-:mod:`~.report`, :mod:`~.play`, :mod:`~.theory`), each registering with the app of
+:mod:`~.scaling`, :mod:`~.report`, :mod:`~.play`, :mod:`~.theory`), each registering with the app of
 :mod:`~.app`; :mod:`~.sweeps` (the options and sweep every computing command shares),
 :mod:`~.options` (parsing and clean failures) and :mod:`~.progress` (the progress bar)."""
 
@@ -12,6 +12,7 @@ from cmarlcd.cli import (  # noqa: F401  (each registers its command)
     repeated,
     report,
     reproduce,
+    scaling,
     theory,
     tournament,
 )
@@ -29,6 +30,7 @@ ORDER = (
     "readings",
     "theory",
     "compare",
+    "scaling",
     "play",
     "report",
 )

@@ -25,12 +25,13 @@ from cmarlcd.cli.theory import theorem_sections
 from cmarlcd.compare_report import compare_section
 from cmarlcd.errors import require
 from cmarlcd.experiments import compare as cmp
-from cmarlcd.experiments import episodic_results, theorem
+from cmarlcd.experiments import episodic_results, scaling, theorem
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.render import say, show_section
+from cmarlcd.scaling_report import scaling_section
 from cmarlcd.section import Section, version_warning
 from cmarlcd.store import DEFAULT_STORE, ResultStore, RunRecord
 from cmarlcd.version import __version__
@@ -125,6 +126,8 @@ def _report_groups(
         for seed_, records in _groups(db.records(cmp.EXPERIMENT), _seed_key).items():
             ours = [r for r in dsn_runs if r.key.root_seed == seed_]
             found.append(("compare", compare_section, records + ours))
+        for records in _groups(db.records(scaling.EXPERIMENT), scaling.protocol_key).values():
+            found.append(("scaling", scaling_section, records))
     return [g for g in found if seed in (None, g[2][0].key.root_seed)]
 
 
@@ -189,7 +192,8 @@ def _document(
 
     sections = _sections(groups, figures)
     docs: dict[str, list] = {
-        kind: [] for kind in ("repeated", "dsn", "tournament", "readings", "theorem1", "compare")
+        kind: []
+        for kind in ("repeated", "dsn", "tournament", "readings", "theorem1", "compare", "scaling")
     }
     for kind, section in sections:
         docs[kind].append({**section.document(), "runs": section.runs})

@@ -5,14 +5,15 @@
 * :mod:`~.sensor_network` -- Section V-A on the DSN, Tables 3-7 and Fig. 4;
 * :mod:`~.tournament` -- Section V-B, the blood battlefield tournament, Figs. 6-7;
 * :mod:`~.theorem` -- Section IV-B, the numerical check of Theorem 1;
-* :mod:`~.compare` -- beyond the paper: CMARL-CD against the classic independent learners.
+* :mod:`~.compare` -- beyond the paper: CMARL-CD against the classic independent learners;
+* :mod:`~.scaling` -- beyond the paper: learners against the size of the sensor network.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from cmarlcd.experiments import compare, repeated, sensor_network, theorem, tournament
+from cmarlcd.experiments import compare, repeated, scaling, sensor_network, theorem, tournament
 from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.store import RunRecord
 
@@ -43,6 +44,7 @@ for _experiment in (
     tournament.TOURNAMENT,
     theorem.THEOREM1,
     compare.COMPARE,
+    scaling.SCALING,
 ):
     register(_experiment)
 
@@ -51,6 +53,7 @@ __all__ = [
     "get_experiment",
     "register",
     "repeated",
+    "scaling",
     "sensor_network",
     "settings_of",
     "theorem",

@@ -23,6 +23,7 @@ from cmarlcd.experiments.episodic import (
 )
 from cmarlcd.games import sensor_network as dsn
 from cmarlcd.games.sensor_network import sized
+from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.automata import AutomatonConfig
 from cmarlcd.learners.coordination import StochasticConfig
 from cmarlcd.paper import DSN_EPISODES, dsn_value
@@ -53,12 +54,10 @@ LAYOUT_OPTIONS = ("grid", "targets")
 MAX_POLICY_ENTRIES = 50_000_000
 
 
-@functools.lru_cache(maxsize=32)
-def larger_network(game: EpisodicGame, options: Options) -> EpisodicGame:
-    """The DSN at another size (:func:`cmarlcd.games.sensor_network.make_spec`): an
-    episode succeeds when every target is captured within the step cap (the paper's
-    success, 42 in 3 steps, is defined at its size only); no policy is stored, and there
-    are no paper values."""
+def layout_spec(options: Options) -> GameSpec:
+    """The DSN of a layout's options (``grid``, ``targets``; the paper's where not
+    given), refused where a table of every state's greedy joint action, which the
+    protocol evaluates for a tabular learner, would pass :data:`MAX_POLICY_ENTRIES`."""
     given = dict(options)
     unknown = sorted(set(given) - set(LAYOUT_OPTIONS))
     require(not unknown, unknown[0] if unknown else "game", "is no option of the DSN")
@@ -71,7 +70,16 @@ def larger_network(game: EpisodicGame, options: Options) -> EpisodicGame:
         f"this protocol evaluates a table of every state's joint action, here {entries:,} "
         f"entries, more than {MAX_POLICY_ENTRIES:,}",
     )
-    return EpisodicGame(game.experiment, spec, terminated_episodes, 0)
+    return spec
+
+
+@functools.lru_cache(maxsize=32)
+def larger_network(game: EpisodicGame, options: Options) -> EpisodicGame:
+    """The DSN at another size (:func:`cmarlcd.games.sensor_network.make_spec`): an
+    episode succeeds when every target is captured within the step cap (the paper's
+    success, 42 in 3 steps, is defined at its size only); no policy is stored, and there
+    are no paper values."""
+    return EpisodicGame(game.experiment, layout_spec(options), terminated_episodes, 0)
 
 
 DSN_GAME = EpisodicGame(
