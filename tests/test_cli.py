@@ -471,6 +471,14 @@ def test_dsn_deep_without_torch_names_the_extra(paths, monkeypatch) -> None:
     assert not store.exists()
 
 
+def test_compare_deep_without_torch_names_the_extra(paths, monkeypatch) -> None:
+    without_torch(monkeypatch)
+    store, _, where = paths
+    result = invoke("compare", "--learners", "deep-cmarl-cd", "--games", "climbing", *where)
+    assert result.exit_code == 2 and "cmarl-cd[deep]" in result.stderr
+    assert not store.exists()
+
+
 # ---------------------------------------------------- what a new user ran into
 
 

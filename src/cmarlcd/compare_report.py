@@ -19,7 +19,7 @@ TITLE = "Comparison: CMARL-CD and the classic independent learners"
 
 def _display(learner: str) -> str:
     config = registry.REPEATED_LEARNERS.get(learner)
-    return config.display_name if config is not None else learner
+    return config.display_name if config is not None else registry.display_name(learner)
 
 
 def _cell_text(cell: CompareCell | None) -> str:

@@ -37,7 +37,11 @@ from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.automata import AutomatonConfig
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD, RepeatedConfig, StochasticConfig
 from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig, DeepLearnerConfig
-from cmarlcd.learners.deep_coordination import BATTLEFIELD_DEEP_CMARLCD, DeepCMARLCDConfig
+from cmarlcd.learners.deep_coordination import (
+    BATTLEFIELD_DEEP_CMARLCD,
+    REPEATED_DEEP_CMARLCD,
+    DeepCMARLCDConfig,
+)
 from cmarlcd.learners.distributed_q import DistributedQConfig, DistributedQStochasticConfig
 from cmarlcd.learners.fmq import FMQConfig
 from cmarlcd.learners.hysteretic import HystereticConfig, HystereticStochasticConfig
@@ -64,6 +68,8 @@ RepeatedLearnerConfig = (
 TABULAR, DEEP = "tabular", "deep"
 #: The game whose learners have settings of their own (Section V-B).
 BATTLEFIELD = "battlefield"
+#: The preset of a deep learner on one-step (repeated) games: it plays ``compare`` there.
+ONE_STEP = "one-step"
 
 
 @dataclass(frozen=True)
@@ -115,7 +121,7 @@ REGISTRY: dict[str, Learner] = {
             DEEP,
             DeepCMARLCDConfig(),
             None,
-            {BATTLEFIELD: BATTLEFIELD_DEEP_CMARLCD},
+            {BATTLEFIELD: BATTLEFIELD_DEEP_CMARLCD, ONE_STEP: REPEATED_DEEP_CMARLCD},
         ),
         _tabular(IQLStochasticConfig(), IQLConfig()),
         _tabular(DistributedQStochasticConfig(), DistributedQConfig()),
@@ -290,5 +296,21 @@ def repeated_learner(name: str, settings: Mapping[str, Any] | None = None) -> Re
         f"unknown {name!r}; available: {repeated_learner_names()}",
     )
     default = REPEATED_LEARNERS[name]
+    own = {f.name for f in fields(default)}
+    return replace(default, **{k: v for k, v in (settings or {}).items() if k in own})
+
+
+def comparable_learners() -> dict[str, Any]:
+    """The learners ``compare`` plays, by name: the repeated-game learners, then the deep
+    learners with settings of their own on one-step games."""
+    return {**REPEATED_LEARNERS, **learners_on(ONE_STEP)}
+
+
+def comparable_learner(name: str, settings: Mapping[str, Any] | None = None) -> Any:
+    """Learner ``name`` as ``compare`` plays it, with those of ``settings`` that are its
+    fields, or a one-line error listing the known ones."""
+    known = comparable_learners()
+    require(name in known, "learners", f"unknown {name!r}; available: {', '.join(known)}")
+    default = known[name]
     own = {f.name for f in fields(default)}
     return replace(default, **{k: v for k, v in (settings or {}).items() if k in own})

@@ -7,7 +7,7 @@ import pytest
 
 from cmarlcd import registry
 from cmarlcd.errors import ConfigError
-from cmarlcd.experiments import compare
+from cmarlcd.experiments import compare, settings_of
 from cmarlcd.experiments.compare import (
     GAMES,
     CompareRun,
@@ -111,3 +111,28 @@ def test_summary_counts_runs_and_optimal_rates_per_learner_and_game() -> None:
         "n=3,m=2": {"runs": 1, "optimal_rate": 0.0},
     }
     assert list(GAMES).index("climbing") < list(GAMES).index("case1")
+
+
+def test_deep_cmarlcd_plays_the_comparison_with_its_one_step_settings() -> None:
+    """Deep CMARL-CD is a learner of ``compare`` with its one-step preset; its runs store
+    that preset and read back to it; it plays the small games only; on the climbing game
+    its greedy joint action ends on the optimum, and "settled" is a game at which its
+    greedy joint action was read (every train_every games)."""
+    pytest.importorskip("torch")
+    deep = registry.comparable_learner("deep-cmarl-cd")
+    assert deep.train_every == 10 and deep.lr == 1e-2  # the one-step preset, not the DSN's
+    sweep = Comparison((deep,), ("climbing", "case1"), runs=3)
+    specs = sweep.specs()
+    assert all(settings_of(s).learner == deep for s in specs)
+    sizes = [(s.config["agents"], s.config["actions"]) for s in specs if "agents" in s.config]
+    assert sizes and all(m**n <= 1_024 for n, m in sizes)
+    assert ("deep-cmarl-cd", "case1") in sweep.skipped()
+    for spec in specs[:3]:  # the climbing game
+        metrics = run_compare(settings_of(spec), spec.seed_sequence())
+        assert metrics["optimal"] and metrics["games"] == budget(9)
+        assert metrics["settled"] % deep.train_every == 0 and metrics["settled"] <= budget(9)
+
+
+def test_an_unknown_learner_lists_the_deep_ones_too() -> None:
+    with pytest.raises(ConfigError, match="deep-cmarl-cd"):
+        registry.comparable_learner("nope")

@@ -19,12 +19,15 @@ from cmarlcd.cli.reproduce import bar_name
 from cmarlcd.cli.sweeps import (
     Execution,
     compute_runs,
+    has_torch,
+    needs_torch,
     present,
     print_results,
     run_counts,
     with_execution,
 )
 from cmarlcd.compare_report import compare_section
+from cmarlcd.errors import require
 from cmarlcd.experiments import compare as cmp
 
 #: Every game of the comparison, the DSN last.
@@ -33,8 +36,12 @@ GAMES = (*cmp.GAMES, cmp.DSN)
 
 def comparison(learners: str, games: str, runs: int, seed: int) -> cmp.Comparison:
     """The comparison the options ask for (each learner with its paper's defaults)."""
+    names = parse_names(learners, "learners")
+    configs = tuple(registry.comparable_learner(n) for n in names)
+    deep = [name for name in names if registry.needs_torch(name)]
+    require(not deep or has_torch(), "learners", needs_torch(deep))
     return cmp.Comparison(
-        learners=tuple(registry.repeated_learner(n) for n in parse_names(learners, "learners")),
+        learners=configs,
         games=parse_names(games, "games"),
         runs=runs,
         seed=seed,
@@ -53,8 +60,9 @@ def run_comparison(
     if skipped and console is not None:
         pairs = ", ".join(f"{s['learner']} on {s['game']}" for s in skipped)
         console.print(
-            f"not played: {pairs} (FMQ, JAL and central Q are repeated-game learners; JAL "
-            f"and central Q play at most {cmp.joint_action.MAX_JOINT_ACTIONS:,} joint actions)",
+            f"not played: {pairs} (FMQ, JAL and central Q are repeated-game learners; JAL, "
+            f"central Q and the deep learners play at most "
+            f"{cmp.joint_action.MAX_JOINT_ACTIONS:,} joint actions)",
             soft_wrap=True,
         )
     return {**doc, "skipped": skipped, **run_counts(done, run.store, console)}
@@ -65,7 +73,11 @@ def run_comparison(
 @with_execution
 def compare(
     learners: Annotated[
-        str, typer.Option(help=f"Comma list of {registry.repeated_learner_names()}.")
+        str,
+        typer.Option(
+            help=f"Comma list of {', '.join(registry.comparable_learners())} (deep ones: "
+            "pip install 'cmarl-cd[deep]')."
+        ),
     ] = ",".join(registry.REPEATED_LEARNERS),
     games: Annotated[str, typer.Option(help=f"Comma list of {', '.join(GAMES)}.")] = ",".join(
         GAMES

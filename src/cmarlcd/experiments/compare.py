@@ -34,9 +34,11 @@ from cmarlcd.errors import require
 from cmarlcd.experiments import episodic, episodic_results
 from cmarlcd.experiments.sensor_network import DSN_GAME, DsnSweep
 from cmarlcd.learners import joint_action
+from cmarlcd.learners.deep_config import DeepLearnerConfig
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
 from cmarlcd.store import RunRecord
+from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.repeated import play_watching_greedy
 
 EXPERIMENT = "compare"
@@ -63,7 +65,8 @@ class CompareRun(Settings):
 
     game: str
     learner: Any
-    """The learner's settings (a repeated-game learner of :mod:`cmarlcd.registry`)."""
+    """The learner's settings (a repeated-game learner of :mod:`cmarlcd.registry`, or a
+    deep learner's one-step preset)."""
     budget: int
     size: registry.Size | None = None
     """(agents, actions) of a random game; None for a fixed one."""
@@ -81,7 +84,7 @@ class CompareRun(Settings):
     @classmethod
     def from_config(cls, config: Mapping[str, Any]) -> Self:
         size = (config["agents"], config["actions"]) if "agents" in config else None
-        learner = registry.repeated_learner(config["learner"], config)
+        learner = registry.comparable_learner(config["learner"], config)
         return cls(config["game"], learner, config["budget"], size)
 
 
@@ -100,8 +103,10 @@ JOINT_LEARNERS = (joint_action.JointActionConfig.name, joint_action.CentralQConf
 
 
 def plays(learner: str, joint_actions: int) -> bool:
-    """Whether ``learner`` plays a game that size (JAL and central Q only small ones)."""
-    return learner not in JOINT_LEARNERS or joint_actions <= joint_action.MAX_JOINT_ACTIONS
+    """Whether ``learner`` plays a game that size (JAL, central Q and [choice] the deep
+    learners, whose gradient steps make a game a thousand times dearer, only small ones)."""
+    small_only = learner in JOINT_LEARNERS or registry.needs_torch(learner)
+    return not small_only or joint_actions <= joint_action.MAX_JOINT_ACTIONS
 
 
 @dataclass(frozen=True)
@@ -214,6 +219,8 @@ def run_compare(cell: CompareRun, seed: np.random.SeedSequence) -> dict[str, Any
     make = GAMES[cell.game].make
     assert make is not None
     game = make(cell.size, np.random.default_rng(game_seed))
+    if isinstance(cell.learner, DeepLearnerConfig):
+        return _run_deep(cell, game, learner_seed)
     learner = cell.learner
     spec = game.spec()
     counts = spec.action_counts.copy()
@@ -240,6 +247,36 @@ def run_compare(cell: CompareRun, seed: np.random.SeedSequence) -> dict[str, Any
     }
 
 
+def _run_deep(cell: CompareRun, game: Any, seed: np.random.SeedSequence) -> dict[str, Any]:
+    """A deep learner on the repeated game as a one-state stochastic game of one-step
+    episodes (:class:`cmarlcd.training.deep.DeepBatch`), for the whole budget (it has no
+    stopping rule); its greedy joint action changes at gradient steps only, so it is read
+    every ``train_every`` games, and "settled" is the last such game it changed at."""
+    from cmarlcd.training.deep import DeepBatch  # needs the [deep] extra
+
+    every = cell.learner.train_every
+    batch = DeepBatch(game.spec(), cell.learner, [seed], cell.budget)
+    seen: list[tuple[int, tuple[int, ...]]] = []
+
+    def watch(k: int, games: int, policy: GreedyPolicy) -> None:
+        assert policy.table is not None  # one state, read one-hot
+        seen.append((games, tuple(int(a) for a in policy.table[0])))
+
+    batch.train(range(every, cell.budget + 1, every), watch)
+    seen.sort()
+    joint = seen[-1][1]
+    settled = max((g for (g, j), (_, before) in zip(seen[1:], seen, strict=False) if j != before),
+                  default=seen[0][0])  # fmt: skip
+    return {
+        "optimal": bool(game.is_optimal(joint)),
+        "greedy_payoff": game.payoff(joint),
+        "max_payoff": game.max_payoff,
+        "games": cell.budget,
+        "settled": int(settled),
+        "converged": False,
+    }
+
+
 def _warm_up() -> None:
     """Compile every learner's loop on deterministic and stochastic payoffs (a few games
     each)."""
@@ -254,6 +291,7 @@ def _warm_up() -> None:
 #: action (they sum over the joint actions every game): fitted to the quick preset's
 #: measured runs on the project's 2-core machine (benchmarks/fit_costs.py).
 SECONDS_PER_GAME_ACTION = {
+    "deep-cmarl-cd": 1.5e-5,
     "cmarl-cd": 6e-10,
     "iql": 2.9e-8,
     "hysteretic": 2.6e-8,
