@@ -110,6 +110,29 @@ def scaling_curves(series: dict[str, np.ndarray], title: str, path: Path) -> Pat
     return _save(fig, path)
 
 
+def environment_curves(
+    curves: dict[str, np.ndarray], baseline: str, title: str, path: Path
+) -> Path:
+    """Greedy return against learning episodes, mean over runs with a 10-90 % band, one
+    line per learner; ``baseline`` (the random policy) dashed. ``curves[name]`` has shape
+    (runs, points, 3): [episodes, return, steps]."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for name, data in curves.items():
+        x, values = data[0, :, 0], data[:, :, 1]
+        style = {"linestyle": "--", "color": "grey"} if name == baseline else {}
+        (line,) = ax.plot(x, values.mean(axis=0), label=f"{name} ({len(data)} runs)", **style)
+        lo, hi = np.percentile(values, [10, 90], axis=0)
+        ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.15)
+    ax.set_xlabel("learning episodes")
+    ax.set_ylabel("return of the greedy policy (team)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def dsn_policy_grid(policy: np.ndarray, title: str, path: Path) -> Path:
     """Fig. 4: the greedy joint action in each of the 42 non-terminal DSN states.
 

@@ -1,8 +1,9 @@
 """The ``cmarl-cd`` command line: one module per command (:mod:`~.repeated`, :mod:`~.dsn`,
 :mod:`~.tournament`, :mod:`~.readings`, :mod:`~.reproduce`, :mod:`~.compare`,
-:mod:`~.scaling`, :mod:`~.report`, :mod:`~.play`, :mod:`~.theory`), each registering with the app of
-:mod:`~.app`; :mod:`~.sweeps` (the options and sweep every computing command shares),
-:mod:`~.options` (parsing and clean failures) and :mod:`~.progress` (the progress bar)."""
+:mod:`~.scaling`, :mod:`~.train`, :mod:`~.report`, :mod:`~.play`, :mod:`~.theory`),
+each registering with the app of :mod:`~.app`; :mod:`~.sweeps` (the options and sweep
+every computing command shares), :mod:`~.options` (parsing and clean failures) and
+:mod:`~.progress` (the progress bar)."""
 
 from cmarlcd.cli import (  # noqa: F401  (each registers its command)
     compare,
@@ -15,6 +16,7 @@ from cmarlcd.cli import (  # noqa: F401  (each registers its command)
     scaling,
     theory,
     tournament,
+    train,
 )
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import parse_range
@@ -31,6 +33,7 @@ ORDER = (
     "theory",
     "compare",
     "scaling",
+    "train",
     "play",
     "report",
 )

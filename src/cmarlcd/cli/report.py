@@ -23,8 +23,11 @@ from cmarlcd.cli.options import (
 )
 from cmarlcd.cli.theory import theorem_sections
 from cmarlcd.compare_report import compare_section
+from cmarlcd.environment_report import environment_section
+from cmarlcd.environment_report import protocol_key as env_key
 from cmarlcd.errors import require
 from cmarlcd.experiments import compare as cmp
+from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments import episodic_results, scaling, theorem
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
@@ -128,6 +131,8 @@ def _report_groups(
             found.append(("compare", compare_section, records + ours))
         for records in _groups(db.records(scaling.EXPERIMENT), scaling.protocol_key).values():
             found.append(("scaling", scaling_section, records))
+        for records in _groups(db.records(envs.EXPERIMENT), env_key).values():
+            found.append(("train", environment_section, records))
     return [g for g in found if seed in (None, g[2][0].key.root_seed)]
 
 
@@ -193,7 +198,16 @@ def _document(
     sections = _sections(groups, figures)
     docs: dict[str, list] = {
         kind: []
-        for kind in ("repeated", "dsn", "tournament", "readings", "theorem1", "compare", "scaling")
+        for kind in (
+            "repeated",
+            "dsn",
+            "tournament",
+            "readings",
+            "theorem1",
+            "compare",
+            "scaling",
+            "train",
+        )
     }
     for kind, section in sections:
         docs[kind].append({**section.document(), "runs": section.runs})

@@ -6,14 +6,23 @@
 * :mod:`~.tournament` -- Section V-B, the blood battlefield tournament, Figs. 6-7;
 * :mod:`~.theorem` -- Section IV-B, the numerical check of Theorem 1;
 * :mod:`~.compare` -- beyond the paper: CMARL-CD against the classic independent learners;
-* :mod:`~.scaling` -- beyond the paper: learners against the size of the sensor network.
+* :mod:`~.scaling` -- beyond the paper: learners against the size of the sensor network;
+* :mod:`~.environment` -- beyond the paper: any learner on any PettingZoo ``ParallelEnv``.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from cmarlcd.experiments import compare, repeated, scaling, sensor_network, theorem, tournament
+from cmarlcd.experiments import (
+    compare,
+    environment,
+    repeated,
+    scaling,
+    sensor_network,
+    theorem,
+    tournament,
+)
 from cmarlcd.runs import Experiment, RunSpec
 from cmarlcd.store import RunRecord
 
@@ -45,11 +54,13 @@ for _experiment in (
     theorem.THEOREM1,
     compare.COMPARE,
     scaling.SCALING,
+    environment.TRAIN,
 ):
     register(_experiment)
 
 __all__ = [
     "compare",
+    "environment",
     "get_experiment",
     "register",
     "repeated",

@@ -1,0 +1,117 @@
+"""``cmarl-cd train``: any learner on any PettingZoo ``ParallelEnv`` with discrete actions
+(beyond the paper; :mod:`cmarlcd.experiments.environment`)."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+
+from cmarlcd import registry
+from cmarlcd.cli.app import app
+from cmarlcd.cli.options import (
+    SeedOption,
+    SetOption,
+    apply_settings,
+    fails_cleanly,
+    parse_count,
+    parse_names,
+)
+from cmarlcd.cli.sweeps import (
+    Execution,
+    compute_runs,
+    has_torch,
+    needs_torch,
+    present,
+    print_results,
+    run_counts,
+    with_execution,
+)
+from cmarlcd.environment_report import environment_section
+from cmarlcd.errors import ConfigError, require
+from cmarlcd.experiments import environment as envs
+
+DEFAULT_ALGORITHMS = "vdn,qmix,deep-cmarl-cd"
+
+
+def parse_env_kwargs(text: str) -> envs.EnvKwargs:
+    """``'{"N": 3}'`` -> (("N", 3),): a JSON object of keyword arguments."""
+    try:
+        given = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise ConfigError("env_kwargs", f"not JSON ({error.msg}): {text!r}") from None
+    require(isinstance(given, dict), "env_kwargs", f"expected a JSON object (got {text!r})")
+    return tuple(sorted(given.items()))
+
+
+def run_training(sweep: envs.EnvSweep, run: Execution, console: Console | None) -> dict[str, Any]:
+    """Run (or resume) the study and report it; return its JSON document."""
+    records, done = compute_runs(sweep.specs(), run, "train")
+    doc = present(environment_section(records, run.figures), console)
+    return {**doc, **run_counts(done, run.store, console)}
+
+
+@app.command(short_help="Beyond the paper: learners on any PettingZoo ParallelEnv.")
+@fails_cleanly
+@with_execution
+def train(
+    env: Annotated[
+        str,
+        typer.Option(
+            help="The environment, MODULE:FACTORY returning a PettingZoo ParallelEnv with "
+            "discrete actions, e.g. mpe2.simple_spread_v3:parallel_env."
+        ),
+    ],
+    env_kwargs: Annotated[
+        str,
+        typer.Option(help="Keyword arguments of the factory, a JSON object, e.g. '{\"N\": 3}'."),
+    ] = "{}",
+    algorithms: Annotated[
+        str, typer.Option(help=f"Comma list of {registry.learner_names()}.")
+    ] = DEFAULT_ALGORITHMS,
+    episodes: Annotated[
+        str, typer.Option(help="Learning episodes of each run (10k allowed).")
+    ] = "2000",
+    runs: Annotated[int, typer.Option(help="Runs per learner.")] = 3,
+    eval_episodes: Annotated[
+        str, typer.Option(help="Greedy evaluation episodes at each point of the curve.")
+    ] = "20",
+    curve_points: Annotated[
+        int, typer.Option(help="Evenly spaced points of the learning curve.")
+    ] = envs.CURVE_POINTS,
+    reward: Annotated[
+        str, typer.Option(help="The team's reward from the agents': sum or mean.")
+    ] = "sum",
+    inputs: Annotated[
+        str,
+        typer.Option(
+            help="What the learners read: state (the env's state()) or observations (joined)."
+        ),
+    ] = "state",
+    seed: SeedOption = 0,
+    settings: SetOption = "",
+    *,
+    run: Execution,
+) -> None:
+    """Learn on any PettingZoo ParallelEnv with discrete actions: each learner's learning
+    curve (greedy return, mean over runs) beside a uniform random policy's, stored and
+    resumable; a table and a figure."""
+    names = parse_names(algorithms, "algorithms")
+    configs = tuple(registry.require_learner(name) for name in names)
+    deep = [name for name in names if registry.needs_torch(name)]
+    require(not deep or has_torch(), "algorithms", needs_torch(deep))
+    sweep = envs.EnvSweep(
+        env=env,
+        learners=apply_settings(settings, configs),
+        episodes=parse_count(episodes, "episodes"),
+        runs=runs,
+        eval_episodes=parse_count(eval_episodes, "eval_episodes"),
+        env_kwargs=parse_env_kwargs(env_kwargs),
+        curve_points=curve_points,
+        reward=reward,
+        inputs=inputs,
+        seed=seed,
+    )
+    print_results(run, lambda console: run_training(sweep, run, console))

@@ -1,0 +1,130 @@
+"""The report of ``cmarl-cd train``: learning curves on a PettingZoo environment beside a
+uniform random policy, a table of the final returns and its JSON."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cmarlcd import registry
+from cmarlcd.experiments import environment as envs
+from cmarlcd.experiments import settings_of
+from cmarlcd.report import figure_name, new_section
+from cmarlcd.section import FigureBlock, Section, TableBlock, TextBlock, cells
+from cmarlcd.store import RunRecord
+
+STD_DDOF = 0
+
+
+@dataclass(frozen=True)
+class FinalReturn:
+    """One learner's greedy return after the whole budget, over its runs."""
+
+    algorithm: str
+    label: str
+    runs: int
+    mean_return: float
+    std_return: float
+    mean_steps: float
+    above_random: float
+    """Mean return minus the random policy's."""
+
+    def to_dict(self) -> dict:
+        return self.__dict__.copy()
+
+
+def _label(algorithm: str) -> str:
+    return "random policy" if algorithm == envs.RANDOM else registry.display_name(algorithm)
+
+
+def curves(records: Sequence[RunRecord]) -> dict[str, np.ndarray]:
+    """Per learner (the random policy first), (runs, points, 3): [episodes, return, steps]."""
+    found: dict[str, list] = defaultdict(list)
+    for rec in sorted(records, key=lambda r: (r.key.algorithm != envs.RANDOM, r.key.algorithm)):
+        found[_label(rec.key.algorithm)].append(rec.metrics["curve"])
+    return {label: np.array(runs) for label, runs in found.items()}
+
+
+def final_returns(records: Sequence[RunRecord]) -> list[FinalReturn]:
+    """Each learner's last curve point over its runs, against the random policy's."""
+    by_algorithm: dict[str, list] = defaultdict(list)
+    for rec in records:
+        by_algorithm[rec.key.algorithm].append(rec.metrics["curve"][-1])
+    random = by_algorithm.get(envs.RANDOM)
+    baseline = float(np.mean([p[1] for p in random])) if random else float("nan")
+    rows = []
+    for algorithm, points in sorted(by_algorithm.items(), key=lambda kv: kv[0] != envs.RANDOM):
+        returns = np.array([p[1] for p in points])
+        rows.append(
+            FinalReturn(
+                algorithm,
+                _label(algorithm),
+                len(points),
+                float(returns.mean()),
+                float(returns.std(ddof=STD_DDOF)),
+                float(np.mean([p[2] for p in points])),
+                float(returns.mean()) - baseline,
+            )
+        )
+    return rows
+
+
+def protocol_key(record: RunRecord) -> tuple:
+    """Runs of one study: same environment, budgets, choices and seed."""
+    s = settings_of(record)
+    return (s.env, s.env_kwargs, s.episodes, s.eval_episodes, s.curve_points, s.reward,
+            s.inputs, record.key.root_seed)  # fmt: skip
+
+
+def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
+    """The learning curves and final returns of one study."""
+    from cmarlcd import figures as figs
+
+    first = settings_of(records[0])
+    seed = records[0].key.root_seed
+    kwargs = ", ".join(f"{k}={v!r}" for k, v in first.env_kwargs)
+    where = f"{first.env}({kwargs})"
+    protocol = (
+        f"L = {first.episodes:,} episodes, greedy return over {first.eval_episodes:,} "
+        f"episodes at {len(first.budgets())} points, team reward = {first.reward} of the "
+        f"agents', inputs: {first.inputs}, seed {seed}"
+    )
+    rows = final_returns(records)
+    group = sorted({(r.key.algorithm, r.key.config) for r in records})
+    path = figures / figure_name(f"train-seed{seed}", group)
+    drawn = figs.environment_curves(curves(records), _label(envs.RANDOM), where, path)
+    table = TableBlock(
+        f"Greedy return after L = {first.episodes:,} episodes",
+        ["learner", "runs", "return", "vs random", "steps"],
+        [
+            cells(
+                r.label,
+                str(r.runs),
+                f"{r.mean_return:.2f} ± {r.std_return:.2f}",
+                f"{r.above_random:+.2f}",
+                f"{r.mean_steps:.1f}",
+            )
+            for r in rows
+        ],
+        protocol,
+        layout="compact",
+    )
+    section = new_section(
+        f"Learning on {where} (beyond the paper)",
+        protocol,
+        records,
+        experiment=envs.EXPERIMENT,
+        env=first.env,
+        env_kwargs=dict(first.env_kwargs),
+        seed=seed,
+        rows=[r.to_dict() for r in rows],
+        curves={label: data.tolist() for label, data in curves(records).items()},
+        figures={"curves": str(drawn)},
+    )
+    section.add(table, TextBlock("Mean over runs; ± the spread over runs (population std)."))
+    section.add(FigureBlock(drawn, "greedy return against learning episodes"))
+    return section

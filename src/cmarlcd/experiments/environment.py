@@ -1,0 +1,350 @@
+"""Beyond the paper: any learner on any PettingZoo ``ParallelEnv`` with discrete actions.
+
+A run makes the environment from ``MODULE:FACTORY`` (with keyword arguments), learns for
+``episodes`` episodes through the generic loop (:func:`cmarlcd.training.episodes.play_episodes`,
+one Python call per step: an environment of the user's is no compiled kernel), and
+evaluates the greedy joint policy for ``eval_episodes`` episodes on an environment of its
+own at ``curve_points`` evenly spaced budgets: a learning curve. The team's reward is the
+agents' rewards summed or averaged (``reward``, a named choice); the learners read the
+environment's ``state()`` or the agents' observations joined (``inputs``, a named
+choice). A uniform random policy is run beside them as the baseline (``"random"``).
+
+The deep learners read a ``Discrete`` state one-hot and anything else as a flat feature
+vector; the tabular learners need a discrete state (an integer, or any hashable value:
+their tables grow with the states met).
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass
+from typing import Any, Self
+
+import gymnasium
+import numpy as np
+
+from cmarlcd import registry
+from cmarlcd.errors import ConfigError, require
+from cmarlcd.learners.deep_config import DeepLearnerConfig
+from cmarlcd.limits import check_at_most, check_episodes, check_seed
+from cmarlcd.progress import report_progress
+from cmarlcd.registry import LearnerConfig
+from cmarlcd.runs import Experiment, RunSpec, Settings
+from cmarlcd.training.episodes import play_episodes
+
+EXPERIMENT = "train"
+#: The uniform random policy, run beside the learners as the baseline.
+RANDOM = "random"
+#: [choice] How the agents' rewards make the team's: their sum (default) or mean.
+REWARDS: dict[str, Callable[[Mapping[str, float]], float]] = {
+    "sum": lambda rewards: float(sum(rewards.values())),
+    "mean": lambda rewards: float(np.mean(list(rewards.values()))),
+}
+#: [choice] What the learners read: the environment's ``state()`` (default), or every
+#: agent's observation joined in agent order (for environments without a state).
+INPUTS = ("state", "observations")
+#: [choice] Points of the learning curve, each a greedy evaluation of ``eval_episodes``.
+CURVE_POINTS = 10
+MAX_CURVE_POINTS = 100
+
+EnvKwargs = tuple[tuple[str, Any], ...]
+
+
+def load_factory(path: str) -> Callable[..., Any]:
+    """``"mpe2.simple_spread_v3:parallel_env"`` -> that callable, or one clear error."""
+    module_name, colon, attribute = path.partition(":")
+    require(
+        bool(colon and module_name and attribute), "env", f"expected MODULE:FACTORY (got {path!r})"
+    )
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as error:
+        raise ConfigError("env", f"cannot import {module_name!r} ({error})") from None
+    factory = getattr(module, attribute, None)
+    require(callable(factory), "env", f"{module_name} has no callable {attribute!r}")
+    return factory
+
+
+def make_env(path: str, kwargs: EnvKwargs) -> Any:
+    """The environment of ``path`` called with ``kwargs``, checked: a ``ParallelEnv``
+    (``reset``, ``step``, ``possible_agents``) whose agents all act from ``Discrete``
+    spaces."""
+    try:
+        env = load_factory(path)(**dict(kwargs))
+    except ConfigError:
+        raise
+    except Exception as error:  # the user's factory: any failure is theirs to read
+        raise ConfigError("env", f"{path}({_kwargs_text(kwargs)}) failed: {error}") from None
+    for method in ("reset", "step", "action_space"):
+        require(hasattr(env, method), "env", f"{path} made no PettingZoo ParallelEnv (no {method})")
+    agents = list(getattr(env, "possible_agents", []))
+    require(len(agents) > 0, "env", f"{path} made an environment without possible_agents")
+    for agent in agents:
+        space = env.action_space(agent)
+        require(
+            isinstance(space, gymnasium.spaces.Discrete),
+            "env",
+            f"{agent} acts from {space}: the learners take discrete actions only",
+        )
+    return env
+
+
+def _kwargs_text(kwargs: EnvKwargs) -> str:
+    return ", ".join(f"{k}={v!r}" for k, v in kwargs)
+
+
+class JoinedObservations:
+    """An environment whose ``state()`` is every agent's last observation, flattened and
+    joined in agent order (``inputs="observations"``)."""
+
+    def __init__(self, env: Any) -> None:
+        self.env, self.possible_agents = env, list(env.possible_agents)
+        self._last: dict[str, Any] = {}
+
+    @property
+    def agents(self) -> list[str]:
+        return self.env.agents
+
+    def action_space(self, agent: str) -> Any:
+        return self.env.action_space(agent)
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        self._last, infos = self.env.reset(seed=seed, options=options)
+        return self._last, infos
+
+    def step(self, actions):
+        observations, *rest = self.env.step(actions)
+        self._last = {**self._last, **observations}
+        return (observations, *rest)
+
+    def state(self) -> np.ndarray:
+        return np.concatenate(
+            [np.asarray(self._last[a], dtype=np.float32).ravel() for a in self.possible_agents]
+        )
+
+
+@dataclass(frozen=True)
+class StateShape:
+    """What a learner reads: ``n_states`` discrete states, or ``dim`` features."""
+
+    n_states: int | None
+    dim: int | None
+
+
+def state_shape(env: Any, inputs: str) -> StateShape:
+    """How the learners read the environment's states (after a reset)."""
+    if inputs == "state":
+        require(hasattr(env, "state"), "inputs", "the environment has no state(): use observations")
+        space = getattr(env, "state_space", None)
+        if isinstance(space, gymnasium.spaces.Discrete):
+            return StateShape(int(space.n), None)
+        state = env.state()
+        if isinstance(state, int | np.integer):
+            return StateShape(None, None)  # discrete, count unknown: tables grow
+        return StateShape(None, int(np.asarray(state).size))
+    return StateShape(None, int(env.state().size))
+
+
+class RandomPolicy:
+    """The uniform random joint policy over the legal actions (acts the same greedily)."""
+
+    def __init__(self, counts: np.ndarray, seed: np.random.SeedSequence) -> None:
+        self.counts, self.rng = counts, np.random.default_rng(seed)
+
+    def act(self, state, masks=None) -> tuple[int, ...]:
+        joint = []
+        for i, count in enumerate(self.counts):
+            legal = np.arange(count) if masks is None else np.flatnonzero(masks[i])
+            joint.append(int(self.rng.choice(legal)))
+        return tuple(joint)
+
+    greedy = act
+
+    def observe(self, state, joint_action, reward: float) -> None:
+        """Nothing to learn."""
+
+    def end_episode(self, final_state=None, terminated: bool = True) -> None:
+        """Nothing to learn."""
+
+
+def new_learner(
+    config: LearnerConfig | None, counts: np.ndarray, shape: StateShape, total: int, seed
+) -> Any:
+    """The object-API learner of ``config`` (None: the random policy)."""
+    if config is None:
+        return RandomPolicy(counts, seed)
+    if isinstance(config, DeepLearnerConfig):
+        from cmarlcd.learners.deep_agent import DeepAgent  # needs the [deep] extra
+        from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+        from cmarlcd.learners.degree_agent import DegreeAgent
+
+        kind = DegreeAgent if isinstance(config, DeepCMARLCDConfig) else DeepAgent
+        inputs = {"n_states": shape.n_states} if shape.n_states else {"state_dim": shape.dim}
+        return kind(counts, config, total, **inputs, seed=seed)
+    from cmarlcd.learners.tabular import TabularLearner
+
+    require(
+        shape.dim is None,
+        "algorithms",
+        f"{config.name} keeps a table per state and needs discrete states; this "
+        f"environment's are vectors of {shape.dim} numbers: use a deep learner",
+    )
+    return TabularLearner(counts, config, n_states=shape.n_states, seed=seed)
+
+
+@dataclass(frozen=True)
+class EnvRun(Settings):
+    """One learner's runs on one environment."""
+
+    env: str
+    env_kwargs: EnvKwargs
+    learner: LearnerConfig | None
+    """None: the uniform random policy."""
+    episodes: int
+    eval_episodes: int
+    curve_points: int = CURVE_POINTS
+    reward: str = "sum"
+    inputs: str = "state"
+
+    @property
+    def algorithm(self) -> str:
+        return RANDOM if self.learner is None else self.learner.name
+
+    def to_config(self) -> dict[str, Any]:
+        config = {k: v for k, v in asdict(self).items() if k not in ("learner", "env_kwargs")}
+        config["env_kwargs"] = dict(self.env_kwargs)
+        config["algorithm"] = self.algorithm
+        if self.learner is not None:
+            config["learner"] = asdict(self.learner)
+        return config
+
+    @classmethod
+    def from_config(cls, config: Mapping[str, Any]) -> Self:
+        name = config["algorithm"]
+        learner = None if name == RANDOM else registry.learner_config(name, config["learner"])
+        kwargs = tuple(sorted(config["env_kwargs"].items()))
+        rest = {k: v for k, v in config.items() if k not in ("algorithm", "learner", "env_kwargs")}
+        return cls(**{**rest, "env_kwargs": kwargs, "learner": learner})
+
+    def stream(self) -> dict[str, Any]:
+        """Everything but the evaluation's budget."""
+        return {k: v for k, v in self.to_config().items() if k not in ("eval_episodes",)}
+
+    def budgets(self) -> list[int]:
+        """The budgets the curve evaluates at (the last is ``episodes``)."""
+        points = max(1, self.curve_points)
+        return sorted({round(self.episodes * k / points) for k in range(1, points + 1)})
+
+
+def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
+    """One run: learn, and evaluate greedily at every budget of the curve."""
+    start = time.perf_counter()
+    env_seed, learner_seed, eval_seed = seed.spawn(3)
+    env = _wrapped(make_env(settings.env, settings.env_kwargs), settings.inputs)
+    evaluation = _wrapped(make_env(settings.env, settings.env_kwargs), settings.inputs)
+    env.reset(seed=_int_seed(env_seed))
+    shape = state_shape(env, settings.inputs)
+    counts = np.array([env.action_space(a).n for a in env.possible_agents], np.int64)
+    learner = new_learner(settings.learner, counts, shape, settings.episodes, learner_seed)
+    reward = REWARDS[settings.reward]
+    curve, trained = [], 0
+    for budget in settings.budgets():
+        first = _int_seed(env_seed) if trained == 0 else None
+        play_episodes(env, learner, budget - trained, global_reward=reward, seed=first)
+        report_progress(budget - trained)
+        trained = budget
+        point = np.random.SeedSequence(eval_seed.entropy, spawn_key=(*eval_seed.spawn_key, budget))
+        stats = play_episodes(
+            evaluation, learner, settings.eval_episodes, learn=False,
+            seed=_int_seed(point), global_reward=reward,
+        )  # fmt: skip
+        report_progress(settings.eval_episodes)
+        curve.append([budget, float(stats.returns.mean()), float(stats.lengths.mean())])
+    return {"curve": curve, "seconds": time.perf_counter() - start}
+
+
+def _wrapped(env: Any, inputs: str) -> Any:
+    return JoinedObservations(env) if inputs == "observations" else env
+
+
+def _int_seed(seed: np.random.SeedSequence) -> int:
+    """An environment's ``reset(seed=…)`` takes an integer."""
+    return int(seed.generate_state(1)[0])
+
+
+@dataclass(frozen=True)
+class EnvSweep:
+    """Learners (and the random baseline) x runs on one environment."""
+
+    env: str
+    learners: tuple[LearnerConfig, ...]
+    episodes: int
+    runs: int
+    eval_episodes: int
+    env_kwargs: EnvKwargs = ()
+    curve_points: int = CURVE_POINTS
+    reward: str = "sum"
+    inputs: str = "state"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        require(
+            self.reward in REWARDS,
+            "reward",
+            f"must be one of {', '.join(REWARDS)} (got {self.reward!r})",
+        )
+        require(
+            self.inputs in INPUTS,
+            "inputs",
+            f"must be one of {', '.join(INPUTS)} (got {self.inputs!r})",
+        )
+        require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
+        require(self.episodes >= 1, "episodes", f"must be >= 1 (got {self.episodes})")
+        check_episodes(self.episodes, "episodes")
+        require(
+            self.eval_episodes >= 1, "eval_episodes", f"must be >= 1 (got {self.eval_episodes})"
+        )
+        check_episodes(self.eval_episodes, "eval_episodes")
+        require(self.curve_points >= 1, "curve_points", f"must be >= 1 (got {self.curve_points})")
+        check_at_most(self.curve_points, MAX_CURVE_POINTS, "curve_points")
+        check_seed(self.seed)
+        names = [c.name for c in self.learners]
+        require(len(set(names)) == len(names), "algorithms", f"each at most once (got {names})")
+        env = _wrapped(make_env(self.env, self.env_kwargs), self.inputs)  # checked before
+        env.reset(seed=0)  # anything runs, and every learner told whether it can read it
+        shape = state_shape(env, self.inputs)
+        for config in self.learners:
+            if not isinstance(config, DeepLearnerConfig):
+                new_learner(config, np.ones(1, np.int64), shape, 1, np.random.SeedSequence(0))
+
+    def settings(self, learner: LearnerConfig | None) -> EnvRun:
+        return EnvRun(
+            self.env, self.env_kwargs, learner, self.episodes, self.eval_episodes,
+            self.curve_points, self.reward, self.inputs,
+        )  # fmt: skip
+
+    def specs(self) -> list[RunSpec]:
+        """The random baseline's runs, then each learner's."""
+        return [
+            RunSpec.make(EXPERIMENT, s.algorithm, s, self.seed, r)
+            for s in (self.settings(None), *(self.settings(c) for c in self.learners))
+            for r in range(self.runs)
+        ]
+
+
+def _cost(settings: EnvRun) -> float:
+    """[choice] A rough estimate, for progress only: 5 ms per learning episode of a deep
+    learner, 1 ms otherwise, and 1 ms per evaluation episode."""
+    deep = isinstance(settings.learner, DeepLearnerConfig)
+    evaluated = settings.eval_episodes * len(settings.budgets())
+    return settings.episodes * (5e-3 if deep else 1e-3) + 1e-3 * evaluated
+
+
+def _work(settings: EnvRun) -> float:
+    """Episodes one run plays: learning and evaluation."""
+    return settings.episodes + settings.eval_episodes * len(settings.budgets())
+
+
+TRAIN = Experiment(EXPERIMENT, EnvRun, run, cost=_cost, work=_work, work_unit="episodes")

@@ -1,0 +1,124 @@
+"""Deep CMARL-CD for any PettingZoo ``ParallelEnv``, one seed, step by step (``[deep]``
+extra).
+
+:class:`DegreeAgent` has the object API of the tabular learners and of
+:class:`cmarlcd.learners.deep_agent.DeepAgent`, so the generic loop
+(:func:`cmarlcd.training.episodes.play_episodes`) drives it like them; the seed-batched
+compiled path for the games of :mod:`cmarlcd.games` is :mod:`cmarlcd.training.deep`.
+The rule (Algorithm 2 as regression targets) is :mod:`cmarlcd.learners.degree_model`'s:
+each agent samples from softmax(c/T) over its legal actions (eq. 17); every visit is
+stored with its discounted return when its episode ends; the schedule of gradient steps
+and record copies is every deep learner's (:func:`~cmarlcd.learners.deep_config.scheduled_work`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from cmarlcd.errors import require
+from cmarlcd.learners.deep_config import scheduled_work
+from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+from cmarlcd.learners.degree_model import DegreeModel
+from cmarlcd.training.replay import new_ring, push_visit, push_visit_row, sample, seed_view
+
+
+class DegreeAgent:
+    """Deep CMARL-CD for any ``ParallelEnv`` (one seed): ``act`` (softmax(c/T), eq. 17),
+    ``observe``, ``end_episode``, ``greedy`` (the largest clipped degree).
+
+    States are integers in ``[0, n_states)`` (one-hot) when ``n_states`` is given, else
+    feature vectors of length ``state_dim``; ``masks`` give each agent's legal actions.
+    """
+
+    def __init__(
+        self,
+        action_counts: Sequence[int],
+        config: DeepCMARLCDConfig,
+        total_episodes: int,
+        *,
+        n_states: int | None = None,
+        state_dim: int | None = None,
+        seed: int | np.random.SeedSequence | None = None,
+    ) -> None:
+        require((n_states is None) != (state_dim is None), "n_states", "give n_states or state_dim")
+        root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        init, act, replay = root.spawn(3)
+        self.config, self.total_episodes = config, int(total_episodes)
+        self.counts = np.array([int(k) for k in action_counts], dtype=np.int64)
+        self.width = int(self.counts.max())
+        self.integer_states = n_states is not None
+        self.model = DegreeModel(self.counts, n_states or state_dim, config, [init])
+        self.act_rng, self.replay_rng = np.random.default_rng(act), np.random.default_rng(replay)
+        self.episode, self.steps = 0, 0
+        n = len(self.counts)
+        self.ring = new_ring(1, config.buffer_size, n, self.width, n_states or 1, state_dim or 0)
+        self._view = seed_view(self.ring, 0)
+        self._visits: list[tuple[object, tuple[int, ...], float]] = []
+
+    def _degrees(self, state, masks) -> tuple[np.ndarray, np.ndarray]:
+        """Each agent's clipped degrees at ``state`` and its legal actions, (n, width)."""
+        c = self.config
+        x = (
+            torch.tensor([[int(state)]])
+            if self.integer_states
+            else torch.as_tensor(np.asarray(state, dtype=np.float32).ravel()[None, None])
+        )
+        with torch.no_grad():
+            degrees = self.model.agents(x)[0, 0].clamp(c.c_min, c.c_max).numpy()
+        legal = np.arange(self.width)[None, :] < self.counts[:, None]
+        if masks is not None:
+            for i, mask in enumerate(masks):
+                legal[i, : self.counts[i]] &= np.asarray(mask, dtype=bool)
+        return degrees, legal
+
+    def greedy(self, state, masks=None) -> tuple[int, ...]:
+        """Each agent's legal action of largest clipped degree (lowest index on ties)."""
+        degrees, legal = self._degrees(state, masks)
+        return tuple(
+            int(np.argmax(np.where(row, d, -np.inf))) for d, row in zip(degrees, legal, strict=True)
+        )
+
+    def act(self, state, masks=None) -> tuple[int, ...]:
+        """A draw from softmax(c/T) over each agent's legal actions (eq. 17)."""
+        degrees, legal = self._degrees(state, masks)
+        joint = []
+        for d, row in zip(degrees, legal, strict=True):
+            logits = np.where(row, d / self.config.temperature, -np.inf)
+            p = np.exp(logits - logits.max())
+            joint.append(int(self.act_rng.choice(self.width, p=p / p.sum())))
+        return tuple(joint)
+
+    def observe(self, state, joint_action, reward: float) -> None:
+        """Record a visit; the schedule of gradient steps counts environment steps."""
+        self._visits.append((state, tuple(int(a) for a in joint_action), float(reward)))
+        self.steps += 1
+        step, copy = scheduled_work(self.steps - 1, self.steps, self.stored, self.config)
+        if step:
+            batch = sample(self.ring, [self.replay_rng], self.config.batch_size)
+            self.model.learn({key: torch.from_numpy(a) for key, a in batch.items()})
+        if copy:
+            self.model.sync_target()
+
+    @property
+    def stored(self) -> int:
+        """Visits in the replay ring."""
+        return int(self.ring.size[0])
+
+    def end_episode(self, final_state=None, terminated: bool = True) -> None:
+        """Store every visit of the episode with its discounted return (the episode's
+        rewards from that visit on; nothing is bootstrapped: a cut episode's return is
+        what it collected)."""
+        value = 0.0
+        for state, joint, reward in reversed(self._visits):
+            value = reward + self.config.gamma * value
+            actions = np.array(joint, dtype=np.int64)
+            if self.integer_states:
+                push_visit(self._view, int(state), actions, value)
+            else:
+                obs = np.asarray(state, dtype=np.float32).ravel()
+                push_visit_row(self._view, obs, actions, value)
+        self._visits.clear()
+        self.episode += 1

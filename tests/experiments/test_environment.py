@@ -1,0 +1,110 @@
+"""``cmarl-cd train``: learners on any PettingZoo ParallelEnv, end to end on tiny budgets."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from cmarlcd.experiments import environment as envs
+from cmarlcd.experiments import settings_of
+from cmarlcd.store import ResultStore
+from tests.test_cli import assert_rejected_cleanly, invoke, paths  # noqa: F401
+from tests.tiny_env import TinyEnv
+
+TINY = "tests.tiny_env:make"
+
+
+def test_the_random_policy_earns_what_chance_gives() -> None:
+    """Uniform over 2 actions each: both choose 1 with probability 1/4 at each of 3 steps."""
+    from cmarlcd.training.episodes import play_episodes
+
+    env = TinyEnv()
+    policy = envs.RandomPolicy(np.array([2, 2]), np.random.SeedSequence(0))
+    stats = play_episodes(env, policy, 4_000, learn=False, seed=0, global_reward=envs.REWARDS["sum"])
+    assert stats.returns.mean() == pytest.approx(0.75, abs=0.05)
+    assert set(stats.lengths) == {3}
+
+
+def test_team_rewards_and_joined_observations() -> None:
+    assert envs.REWARDS["sum"]({"a": 0.5, "b": 0.5}) == 1.0
+    assert envs.REWARDS["mean"]({"a": 0.5, "b": 1.5}) == 1.0
+    joined = envs.JoinedObservations(TinyEnv())
+    joined.reset(seed=0)
+    assert joined.state().tolist() == [1, 0, 0, 1, 0, 0]  # a's observation, then b's
+
+
+def test_the_learners_end_to_end(paths) -> None:  # noqa: F811
+    """Deep CMARL-CD, VDN and the random baseline on the tiny env: stored curves, the
+    greedy deep CMARL-CD finds the optimum 3, the baseline earns about 3/4; a second call
+    computes nothing; report has the section."""
+    pytest.importorskip("torch")
+    store, figures, where = paths
+    args = (
+        "train", "--env", TINY, "--algorithms", "deep-cmarl-cd,vdn", "--episodes", "400",
+        "--runs", "2", "--eval-episodes", "20", "--curve-points", "4", "--json", *where,
+        "--set", "deep-cmarl-cd.batch_size=32,deep-cmarl-cd.train_every=3,"
+        "vdn.batch_size=32,vdn.train_every=3",
+    )  # fmt: skip
+    result = invoke(*args)
+    assert result.exit_code == 0, result.stderr
+    doc = json.loads(result.stdout)
+    assert doc["runs_computed"] == 6
+    rows = {r["algorithm"]: r for r in doc["rows"]}
+    assert set(rows) == {"random", "deep-cmarl-cd", "vdn"}
+    assert rows["deep-cmarl-cd"]["mean_return"] == 3.0
+    assert 0.2 <= rows["random"]["mean_return"] <= 1.5
+    with ResultStore(store) as db:
+        curves = [r.metrics["curve"] for r in db.records(envs.EXPERIMENT)]
+    assert all([p[0] for p in c] == [100, 200, 300, 400] for c in curves)
+    again = json.loads(invoke(*args).stdout)
+    assert again["runs_computed"] == 0 and again["rows"] == doc["rows"]
+    report = json.loads(invoke("report", "--json", *where).stdout)
+    assert report["train"][0]["rows"] == doc["rows"]
+
+
+def test_a_tabular_learner_on_the_dsn_environment(paths) -> None:  # noqa: F811
+    """The DSN's own ParallelEnv has integer states: CMARL-CD learns from them."""
+    _, _, where = paths
+    result = invoke(
+        "train", "--env", "cmarlcd.games.sensor_network:SensorNetworkEnv",
+        "--algorithms", "cmarl-cd", "--episodes", "300", "--runs", "1",
+        "--eval-episodes", "10", "--curve-points", "2", "--json", *where,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.stderr
+    rows = {r["algorithm"]: r for r in json.loads(result.stdout)["rows"]}
+    assert set(rows) == {"random", "cmarl-cd"}
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["--env", "tests.tiny_env"], "--env"),  # no factory
+        (["--env", "no_such_module:make"], "--env"),
+        (["--env", "tests.tiny_env:nothing"], "--env"),
+        (["--env", "tests.tiny_env:NOT_A_FACTORY"], "--env"),
+        (["--env", TINY, "--env-kwargs", '{"continuous": true}'], "--env"),
+        (["--env", TINY, "--env-kwargs", '{"colour": 1}'], "--env"),
+        (["--env", TINY, "--env-kwargs", "{nope"], "--env-kwargs"),
+        (["--env", TINY, "--env-kwargs", "[1]"], "--env-kwargs"),
+        (["--env", TINY, "--algorithms", "cmarl-cd"], "--algorithms"),  # vector states
+        (["--env", TINY, "--reward", "max"], "--reward"),
+        (["--env", TINY, "--inputs", "pixels"], "--inputs"),
+        (["--env", TINY, "--episodes", "0"], "--episodes"),
+        (["--env", TINY, "--runs", "0"], "--runs"),
+        (["--env", TINY, "--curve-points", "0"], "--curve-points"),
+    ],
+)
+def test_bad_input_is_one_line(paths, args, option) -> None:  # noqa: F811
+    store, figures, where = paths
+    result = invoke("train", "--algorithms", "cmarl-cd", *where, *args)
+    assert_rejected_cleanly(result, option, store, figures)
+
+
+def test_settings_read_back_to_themselves() -> None:
+    sweep = envs.EnvSweep(TINY, (), 10, 1, 5, env_kwargs=(("actions", 3),))
+    for spec in sweep.specs():
+        settings = settings_of(spec)
+        assert settings.to_config() == json.loads(spec.config_json)
+        assert settings.env_kwargs == (("actions", 3),)

@@ -1,0 +1,61 @@
+"""A tiny PettingZoo ParallelEnv for the tests of ``cmarl-cd train``: two agents, three
+steps; the team earns 1 at a step where both choose action 1 (each agent its half), so
+the optimal return is 3 and a uniform random policy's expected return 3/4."""
+
+from __future__ import annotations
+
+import functools
+
+import gymnasium
+import numpy as np
+from pettingzoo import ParallelEnv
+
+STEPS = 3
+
+
+class TinyEnv(ParallelEnv):
+    metadata = {"name": "tiny_v0"}
+
+    def __init__(self, continuous: bool = False, actions: int = 2) -> None:
+        self.possible_agents = ["a", "b"]
+        self.continuous, self.actions = continuous, actions
+        self.state_space = gymnasium.spaces.Box(0.0, 1.0, (STEPS,), np.float32)
+
+    @functools.cache  # noqa: B019
+    def action_space(self, agent):
+        if self.continuous:
+            return gymnasium.spaces.Box(-1.0, 1.0, (1,), np.float32)
+        return gymnasium.spaces.Discrete(self.actions)
+
+    @functools.cache  # noqa: B019
+    def observation_space(self, agent):
+        return self.state_space
+
+    def state(self) -> np.ndarray:
+        x = np.zeros(STEPS, np.float32)
+        x[min(self.t, STEPS - 1)] = 1.0
+        return x
+
+    def reset(self, seed=None, options=None):
+        self.agents, self.t = list(self.possible_agents), 0
+        return {a: self.state() for a in self.agents}, {a: {} for a in self.agents}
+
+    def step(self, actions):
+        both = all(int(actions[a]) == 1 for a in self.agents)
+        self.t += 1
+        done = self.t >= STEPS
+        rewards = {a: 0.5 * both for a in self.agents}
+        observations = {a: self.state() for a in self.agents}
+        terminations = {a: done for a in self.agents}
+        truncations = {a: False for a in self.agents}
+        infos = {a: {} for a in self.agents}
+        if done:
+            self.agents = []
+        return observations, rewards, terminations, truncations, infos
+
+
+def make(**kwargs) -> TinyEnv:
+    return TinyEnv(**kwargs)
+
+
+NOT_A_FACTORY = 3
