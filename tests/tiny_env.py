@@ -5,6 +5,7 @@ the optimal return is 3 and a uniform random policy's expected return 3/4."""
 from __future__ import annotations
 
 import functools
+from typing import ClassVar
 
 import gymnasium
 import numpy as np
@@ -14,7 +15,7 @@ STEPS = 3
 
 
 class TinyEnv(ParallelEnv):
-    metadata = {"name": "tiny_v0"}
+    metadata: ClassVar[dict] = {"name": "tiny_v0"}
 
     def __init__(self, continuous: bool = False, actions: int = 2) -> None:
         self.possible_agents = ["a", "b"]

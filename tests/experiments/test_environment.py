@@ -22,7 +22,8 @@ def test_the_random_policy_earns_what_chance_gives() -> None:
 
     env = TinyEnv()
     policy = envs.RandomPolicy(np.array([2, 2]), np.random.SeedSequence(0))
-    stats = play_episodes(env, policy, 4_000, learn=False, seed=0, global_reward=envs.REWARDS["sum"])
+    team = envs.REWARDS["sum"]
+    stats = play_episodes(env, policy, 4_000, learn=False, seed=0, global_reward=team)
     assert stats.returns.mean() == pytest.approx(0.75, abs=0.05)
     assert set(stats.lengths) == {3}
 
@@ -40,7 +41,7 @@ def test_the_learners_end_to_end(paths) -> None:  # noqa: F811
     greedy deep CMARL-CD finds the optimum 3, the baseline earns about 3/4; a second call
     computes nothing; report has the section."""
     pytest.importorskip("torch")
-    store, figures, where = paths
+    store, _, where = paths
     args = (
         "train", "--env", TINY, "--algorithms", "deep-cmarl-cd,vdn", "--episodes", "400",
         "--runs", "2", "--eval-episodes", "20", "--curve-points", "4", "--json", *where,
