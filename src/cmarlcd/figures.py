@@ -99,6 +99,7 @@ def scaling_curves(series: dict[str, np.ndarray], title: str, path: Path) -> Pat
         )  # fmt: skip
         ax_return.plot(states, per_target, marker="o", color=line.get_color(), label=name)
     ax_success.set_ylabel("episodes with every target captured (%)")
+    ax_success.set_ylim(-3, 103)
     ax_return.set_ylabel("mean return per target")
     for ax in (ax_success, ax_return):
         ax.set_xscale("log")

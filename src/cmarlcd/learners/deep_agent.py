@@ -18,47 +18,39 @@ from cmarlcd.learners.value_decomposition import ValueDecomposition
 from cmarlcd.training.replay import new_ring, push, push_row, sample, seed_view
 
 
-class DeepAgent:
-    """VDN / QMIX for any PettingZoo ``ParallelEnv`` (one seed), for
-    :func:`cmarlcd.training.episodes.play_episodes`: ``act`` (ε-greedy, eq. 18), ``observe``,
-    ``end_episode``, ``greedy``.
+class StepAgent:
+    """What the step-by-step deep learners share: a seed's streams (spawned in the order
+    parameters, acting, replay), the action counts, how states reach a network and the
+    legal actions.
 
     States are integers in ``[0, n_states)`` (one-hot encoding) when ``n_states`` is
     given, else feature vectors of length ``state_dim``. ``masks`` give the legal actions
-    of each agent (1 = legal); illegal actions are never chosen nor bootstrapped from.
+    of each agent (1 = legal).
     """
 
     def __init__(
         self,
         action_counts: Sequence[int],
-        config: DeepConfig,
         total_episodes: int,
-        *,
-        n_states: int | None = None,
-        state_dim: int | None = None,
-        seed: int | np.random.SeedSequence | None = None,
+        n_states: int | None,
+        state_dim: int | None,
+        seed: int | np.random.SeedSequence | None,
     ) -> None:
         require((n_states is None) != (state_dim is None), "n_states", "give n_states or state_dim")
         root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-        init, act, replay = root.spawn(3)
-        self.config, self.total_episodes = config, int(total_episodes)
+        self.init_seed, act, replay = root.spawn(3)
+        self.total_episodes = int(total_episodes)
         self.counts = np.array([int(k) for k in action_counts], dtype=np.int64)
         self.width = int(self.counts.max())
         self.integer_states = n_states is not None
-        self.model = ValueDecomposition(self.counts, n_states or state_dim, config, [init])
+        self.in_dim = int(n_states or state_dim)  # type: ignore[arg-type]
         self.act_rng, self.replay_rng = np.random.default_rng(act), np.random.default_rng(replay)
         self.episode, self.steps = 0, 0
-        self.ring = new_ring(
-            1, config.buffer_size, len(self.counts), self.width, n_states or 1, state_dim or 0,
-            masks=True,
-        )  # fmt: skip
-        self._view = seed_view(self.ring, 0)
-        self._pending: tuple | None = None
 
     @property
     def stored(self) -> int:
-        """Transitions in the replay ring."""
-        return int(self.ring.size[0])
+        """Entries in the replay ring."""
+        return int(self.ring.size[0])  # type: ignore[attr-defined]
 
     def _encode(self, state) -> torch.Tensor:
         return self._encode_many([state])
@@ -71,11 +63,40 @@ class DeepAgent:
         return torch.as_tensor(np.stack(rows)[None])
 
     def _legal(self, masks) -> torch.Tensor:
+        """(n_agents, width): each agent's legal actions."""
         legal = np.arange(self.width)[None, :] < self.counts[:, None]
         if masks is not None:
             for i, mask in enumerate(masks):
                 legal[i, : self.counts[i]] &= np.asarray(mask, dtype=bool)
         return torch.as_tensor(legal)
+
+
+class DeepAgent(StepAgent):
+    """VDN / QMIX for any PettingZoo ``ParallelEnv`` (one seed), for
+    :func:`cmarlcd.training.episodes.play_episodes`: ``act`` (ε-greedy, eq. 18), ``observe``,
+    ``end_episode``, ``greedy``; states and masks as :class:`StepAgent` reads them
+    (illegal actions are never chosen nor bootstrapped from).
+    """
+
+    def __init__(
+        self,
+        action_counts: Sequence[int],
+        config: DeepConfig,
+        total_episodes: int,
+        *,
+        n_states: int | None = None,
+        state_dim: int | None = None,
+        seed: int | np.random.SeedSequence | None = None,
+    ) -> None:
+        super().__init__(action_counts, total_episodes, n_states, state_dim, seed)
+        self.config = config
+        self.model = ValueDecomposition(self.counts, self.in_dim, config, [self.init_seed])
+        self.ring = new_ring(
+            1, config.buffer_size, len(self.counts), self.width, n_states or 1, state_dim or 0,
+            masks=True,
+        )  # fmt: skip
+        self._view = seed_view(self.ring, 0)
+        self._pending: tuple | None = None
 
     def greedy(self, state, masks=None) -> tuple[int, ...]:
         """The greedy legal joint action at ``state``."""

@@ -18,19 +18,17 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from cmarlcd.errors import require
+from cmarlcd.learners.deep_agent import StepAgent
 from cmarlcd.learners.deep_config import scheduled_work
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 from cmarlcd.learners.degree_model import DegreeModel
 from cmarlcd.training.replay import new_ring, push_visit, push_visit_row, sample, seed_view
 
 
-class DegreeAgent:
+class DegreeAgent(StepAgent):
     """Deep CMARL-CD for any ``ParallelEnv`` (one seed): ``act`` (softmax(c/T), eq. 17),
-    ``observe``, ``end_episode``, ``greedy`` (the largest clipped degree).
-
-    States are integers in ``[0, n_states)`` (one-hot) when ``n_states`` is given, else
-    feature vectors of length ``state_dim``; ``masks`` give each agent's legal actions.
+    ``observe``, ``end_episode``, ``greedy`` (the largest clipped degree); states and
+    masks as :class:`~cmarlcd.learners.deep_agent.StepAgent` reads them.
     """
 
     def __init__(
@@ -43,16 +41,9 @@ class DegreeAgent:
         state_dim: int | None = None,
         seed: int | np.random.SeedSequence | None = None,
     ) -> None:
-        require((n_states is None) != (state_dim is None), "n_states", "give n_states or state_dim")
-        root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-        init, act, replay = root.spawn(3)
-        self.config, self.total_episodes = config, int(total_episodes)
-        self.counts = np.array([int(k) for k in action_counts], dtype=np.int64)
-        self.width = int(self.counts.max())
-        self.integer_states = n_states is not None
-        self.model = DegreeModel(self.counts, n_states or state_dim, config, [init])
-        self.act_rng, self.replay_rng = np.random.default_rng(act), np.random.default_rng(replay)
-        self.episode, self.steps = 0, 0
+        super().__init__(action_counts, total_episodes, n_states, state_dim, seed)
+        self.config = config
+        self.model = DegreeModel(self.counts, self.in_dim, config, [self.init_seed])
         n = len(self.counts)
         self.ring = new_ring(1, config.buffer_size, n, self.width, n_states or 1, state_dim or 0)
         self._view = seed_view(self.ring, 0)
@@ -61,18 +52,9 @@ class DegreeAgent:
     def _degrees(self, state, masks) -> tuple[np.ndarray, np.ndarray]:
         """Each agent's clipped degrees at ``state`` and its legal actions, (n, width)."""
         c = self.config
-        x = (
-            torch.tensor([[int(state)]])
-            if self.integer_states
-            else torch.as_tensor(np.asarray(state, dtype=np.float32).ravel()[None, None])
-        )
         with torch.no_grad():
-            degrees = self.model.agents(x)[0, 0].clamp(c.c_min, c.c_max).numpy()
-        legal = np.arange(self.width)[None, :] < self.counts[:, None]
-        if masks is not None:
-            for i, mask in enumerate(masks):
-                legal[i, : self.counts[i]] &= np.asarray(mask, dtype=bool)
-        return degrees, legal
+            degrees = self.model.agents(self._encode(state))[0, 0].clamp(c.c_min, c.c_max)
+        return degrees.numpy(), self._legal(masks).numpy()
 
     def greedy(self, state, masks=None) -> tuple[int, ...]:
         """Each agent's legal action of largest clipped degree (lowest index on ties)."""
@@ -101,11 +83,6 @@ class DegreeAgent:
             self.model.learn({key: torch.from_numpy(a) for key, a in batch.items()})
         if copy:
             self.model.sync_target()
-
-    @property
-    def stored(self) -> int:
-        """Visits in the replay ring."""
-        return int(self.ring.size[0])
 
     def end_episode(self, final_state=None, terminated: bool = True) -> None:
         """Store every visit of the episode with its discounted return (the episode's
