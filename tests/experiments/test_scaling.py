@@ -35,7 +35,7 @@ def test_a_deep_learner_makes_one_run_per_seed_at_each_size() -> None:
 
 @pytest.mark.parametrize(
     ("sizes", "parameter"),
-    [((), "sizes"), (((2, 2, 1), (2, 2, 1)), "sizes"), (((2, 2, 5),), "targets")],
+    [((), "sizes"), (((2, 2, 1), (2, 2, 1)), "sizes"), (((2, 2, 5),), "sizes")],
 )
 def test_bad_sizes_are_refused(sizes, parameter) -> None:
     with pytest.raises(ConfigError) as error:
@@ -97,7 +97,8 @@ def test_the_study_end_to_end(paths) -> None:  # noqa: F811
         (["--sizes", "3x4"], "--sizes"),
         (["--sizes", "3x4/x"], "--sizes"),
         (["--sizes", "0x4/1"], "--sizes"),
-        (["--sizes", "2x2/5"], "--targets"),
+        (["--sizes", "2x2/5"], "--sizes"),
+        (["--sizes", "9x9/9"], "--sizes"),  # more than 50M states: refused at once
         (["--sizes", "2x2/1,2x2/1"], "--sizes"),
         (["--preset", "huge"], "--preset"),
         (["--episodes", "0"], "--episodes"),

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from cmarlcd import registry
-from cmarlcd.errors import require
+from cmarlcd.errors import ConfigError, require
 from cmarlcd.experiments.episodic import (
     STD_DDOF,
     EpisodicGame,
@@ -126,7 +126,12 @@ class ScalingStudy:
         require(len(self.sizes) > 0, "sizes", "needs at least one size")
         require(len(set(self.sizes)) == len(self.sizes), "sizes", "each at most once")
         check_run_count(len(self.sizes) * len(self.learners) * self.runs)
-        self.sweeps()  # every size and setting checked before anything runs
+        for size in self.sizes:  # every size checked before anything runs, named as given
+            try:
+                layout_spec(size_options(size))
+            except ConfigError as error:
+                raise ConfigError("sizes", f"{size_label(size)}: {error.message}") from None
+        self.sweeps()  # and every setting
 
     @functools.cache  # noqa: B019  (a frozen study: its sweeps do not change)
     def sweeps(self) -> tuple[EpisodicSweep, ...]:
