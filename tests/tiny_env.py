@@ -17,10 +17,21 @@ STEPS = 3
 class TinyEnv(ParallelEnv):
     metadata: ClassVar[dict] = {"name": "tiny_v0"}
 
-    def __init__(self, continuous: bool = False, actions: int = 2) -> None:
+    def __init__(
+        self,
+        continuous: bool = False,
+        actions: int = 2,
+        state: str = "vector",
+        labels: list | None = None,
+    ) -> None:
+        """``state``: "vector" (a Box), "integer" (the step, no state space) or "none"
+        (PettingZoo's default ``state()``, which raises); ``labels`` is ignored (a list
+        argument, as some factories take)."""
         self.possible_agents = ["a", "b"]
-        self.continuous, self.actions = continuous, actions
+        self.continuous, self.actions, self.kind = continuous, actions, state
         self.state_space = gymnasium.spaces.Box(0.0, 1.0, (STEPS,), np.float32)
+        if state == "integer":
+            del self.state_space
 
     @functools.cache  # noqa: B019
     def action_space(self, agent):
@@ -32,21 +43,28 @@ class TinyEnv(ParallelEnv):
     def observation_space(self, agent):
         return self.state_space
 
-    def state(self) -> np.ndarray:
+    def state(self):
+        if self.kind == "none":
+            return super().state()
+        if self.kind == "integer":
+            return np.int64(self.t)
+        return self._vector()
+
+    def _vector(self) -> np.ndarray:
         x = np.zeros(STEPS, np.float32)
         x[min(self.t, STEPS - 1)] = 1.0
         return x
 
     def reset(self, seed=None, options=None):
         self.agents, self.t = list(self.possible_agents), 0
-        return {a: self.state() for a in self.agents}, {a: {} for a in self.agents}
+        return {a: self._vector() for a in self.agents}, {a: {} for a in self.agents}
 
     def step(self, actions):
         both = all(int(actions[a]) == 1 for a in self.agents)
         self.t += 1
         done = self.t >= STEPS
         rewards = {a: 0.5 * both for a in self.agents}
-        observations = {a: self.state() for a in self.agents}
+        observations = {a: self._vector() for a in self.agents}
         terminations = {a: done for a in self.agents}
         truncations = {a: False for a in self.agents}
         infos = {a: {} for a in self.agents}

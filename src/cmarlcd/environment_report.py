@@ -10,14 +10,13 @@ from pathlib import Path
 
 import numpy as np
 
-from cmarlcd import registry
 from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments import settings_of
+from cmarlcd.experiments.episodic import STD_DDOF
+from cmarlcd.experiments.episodic_results import row_label
 from cmarlcd.report import figure_name, new_section
 from cmarlcd.section import FigureBlock, Section, TableBlock, TextBlock, cells
-from cmarlcd.store import RunRecord
-
-STD_DDOF = 0
+from cmarlcd.store import RunRecord, canonical_json
 
 
 @dataclass(frozen=True)
@@ -37,32 +36,51 @@ class FinalReturn:
         return self.__dict__.copy()
 
 
-def _label(algorithm: str) -> str:
-    return "random policy" if algorithm == envs.RANDOM else registry.display_name(algorithm)
+RANDOM_LABEL = "random policy"
+
+
+def _label(record: RunRecord) -> str:
+    """The learner's name, marked * when its settings are not its defaults."""
+    learner = settings_of(record).learner
+    return RANDOM_LABEL if learner is None else row_label(learner)
+
+
+def _by_learner(records: Sequence[RunRecord]) -> dict[tuple[str, str], list[RunRecord]]:
+    """Runs by (label, learner settings), the random policy first; a label that two
+    settings share is numbered."""
+    groups: dict[tuple[str, str], list[RunRecord]] = defaultdict(list)
+    for rec in sorted(records, key=lambda r: (r.key.algorithm != envs.RANDOM, r.key.algorithm)):
+        groups[(_label(rec), rec.key.config)].append(rec)
+    seen: dict[str, int] = defaultdict(int)
+    named = {}
+    for (label, config), runs in groups.items():
+        seen[label] += 1
+        named[(label if seen[label] == 1 else f"{label} ({seen[label]})", config)] = runs
+    return named
 
 
 def curves(records: Sequence[RunRecord]) -> dict[str, np.ndarray]:
     """Per learner (the random policy first), (runs, points, 3): [episodes, return, steps]."""
-    found: dict[str, list] = defaultdict(list)
-    for rec in sorted(records, key=lambda r: (r.key.algorithm != envs.RANDOM, r.key.algorithm)):
-        found[_label(rec.key.algorithm)].append(rec.metrics["curve"])
-    return {label: np.array(runs) for label, runs in found.items()}
+    return {
+        label: np.array([r.metrics["curve"] for r in runs])
+        for (label, _), runs in _by_learner(records).items()
+    }
 
 
 def final_returns(records: Sequence[RunRecord]) -> list[FinalReturn]:
     """Each learner's last curve point over its runs, against the random policy's."""
-    by_algorithm: dict[str, list] = defaultdict(list)
-    for rec in records:
-        by_algorithm[rec.key.algorithm].append(rec.metrics["curve"][-1])
-    random = by_algorithm.get(envs.RANDOM)
+    groups = _by_learner(records)
+    random = [r.metrics["curve"][-1] for (label, _), runs in groups.items()
+              if label == RANDOM_LABEL for r in runs]  # fmt: skip
     baseline = float(np.mean([p[1] for p in random])) if random else float("nan")
     rows = []
-    for algorithm, points in sorted(by_algorithm.items(), key=lambda kv: kv[0] != envs.RANDOM):
+    for (label, _), runs in groups.items():
+        points = [r.metrics["curve"][-1] for r in runs]
         returns = np.array([p[1] for p in points])
         rows.append(
             FinalReturn(
-                algorithm,
-                _label(algorithm),
+                runs[0].key.algorithm,
+                label,
                 len(points),
                 float(returns.mean()),
                 float(returns.std(ddof=STD_DDOF)),
@@ -76,8 +94,9 @@ def final_returns(records: Sequence[RunRecord]) -> list[FinalReturn]:
 def protocol_key(record: RunRecord) -> tuple:
     """Runs of one study: same environment, budgets, choices and seed."""
     s = settings_of(record)
-    return (s.env, s.env_kwargs, s.episodes, s.eval_episodes, s.curve_points, s.reward,
-            s.inputs, record.key.root_seed)  # fmt: skip
+    kwargs = canonical_json(dict(s.env_kwargs))
+    return (s.env, kwargs, s.episodes, s.eval_episodes, s.curve_points, s.reward, s.inputs,
+            record.key.root_seed)  # fmt: skip
 
 
 def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
@@ -86,8 +105,7 @@ def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
 
     first = settings_of(records[0])
     seed = records[0].key.root_seed
-    kwargs = ", ".join(f"{k}={v!r}" for k, v in first.env_kwargs)
-    where = f"{first.env}({kwargs})"
+    where = f"{first.env}({envs.kwargs_text(first.env_kwargs)})"
     protocol = (
         f"L = {first.episodes:,} episodes, greedy return over {first.eval_episodes:,} "
         f"episodes at {len(first.budgets())} points, team reward = {first.reward} of the "
@@ -96,7 +114,7 @@ def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
     rows = final_returns(records)
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
     path = figures / figure_name(f"train-seed{seed}", group)
-    drawn = figs.environment_curves(curves(records), _label(envs.RANDOM), where, path)
+    drawn = figs.environment_curves(curves(records), RANDOM_LABEL, where, path)
     table = TableBlock(
         f"Greedy return after L = {first.episodes:,} episodes",
         ["learner", "runs", "return", "vs random", "steps"],

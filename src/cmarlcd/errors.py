@@ -24,6 +24,10 @@ class ConfigError(ValueError):
         self.message = message
         super().__init__(f"{parameter}: {message}")
 
+    def __reduce__(self):
+        """Rebuilt from both fields, so it survives the trip back from a worker process."""
+        return (type(self), (self.parameter, self.message))
+
 
 def require(condition: bool, parameter: str, message: str) -> None:
     """Raise :class:`ConfigError` for ``parameter`` unless ``condition`` holds."""

@@ -95,12 +95,44 @@ def test_a_tabular_learner_on_the_dsn_environment(paths) -> None:  # noqa: F811
         (["--env", TINY, "--episodes", "0"], "--episodes"),
         (["--env", TINY, "--runs", "0"], "--runs"),
         (["--env", TINY, "--curve-points", "0"], "--curve-points"),
+        (["--env", TINY, "--runs", "1000000000"], "--runs"),  # refused before planning
+        (["--env", TINY, "--env-kwargs", '{"state": "none"}'], "--inputs"),  # no state()
+        (
+            ["--env", TINY, "--env-kwargs", '{"state": "integer"}', "--algorithms", "vdn"],
+            "--algorithms",
+        ),  # a one-hot state of unknown count
     ],
 )
 def test_bad_input_is_one_line(paths, args, option) -> None:  # noqa: F811
     store, figures, where = paths
     result = invoke("train", "--algorithms", "cmarl-cd", *where, *args)
     assert_rejected_cleanly(result, option, store, figures)
+
+
+def test_list_arguments_are_stored_and_reported(paths) -> None:  # noqa: F811
+    """A factory argument that is a list reads back (as a tuple) and ``report`` groups it."""
+    _, _, where = paths
+    args = ("--env", TINY, "--env-kwargs", '{"labels": [1, 2], "state": "integer"}',
+            "--algorithms", "cmarl-cd", "--episodes", "30", "--runs", "1",
+            "--eval-episodes", "5", "--curve-points", "2", "--json", *where)  # fmt: skip
+    result = invoke("train", *args)
+    assert result.exit_code == 0, result.stderr
+    report = invoke("report", "--json", *where)
+    assert report.exit_code == 0, report.stderr
+    assert json.loads(report.stdout)["train"][0]["env_kwargs"] == {
+        "labels": [1, 2],
+        "state": "integer",
+    }
+
+
+def test_a_config_error_survives_a_worker() -> None:
+    """Raised in a worker process, it must come back whole (one line, not a broken pool)."""
+    import pickle
+
+    from cmarlcd.errors import ConfigError
+
+    error = pickle.loads(pickle.dumps(ConfigError("inputs", "no state()")))
+    assert (error.parameter, error.message) == ("inputs", "no state()")
 
 
 def test_settings_read_back_to_themselves() -> None:

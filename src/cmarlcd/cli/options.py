@@ -204,7 +204,7 @@ def parse_grid(text: str, parameter: str = "grid") -> tuple[int, int]:
     """``"3x4"`` -> (3, 4): rows and columns of cells, each >= 1."""
     rows, sep, cols = text.strip().lower().partition("x")
     usage = f"expected ROWSxCOLS such as 3x4 (got {text!r})"
-    require(bool(sep) and rows.strip().isdigit() and cols.strip().isdigit(), parameter, usage)
+    require(bool(sep) and rows.strip().isdecimal() and cols.strip().isdecimal(), parameter, usage)
     shape = int(rows), int(cols)
     require(min(shape) >= 1, parameter, f"needs at least 1x1 cells (got {text!r})")
     return shape

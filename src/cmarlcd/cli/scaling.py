@@ -54,7 +54,7 @@ PRESETS = {
         scaling.DEFAULT_RUNS,
         scaling.DEFAULT_EVAL_EPISODES,
     ),
-    #: [choice] Within 5 minutes on 2 cores: every default size, a tenth of the budget.
+    #: [choice] Within 5 minutes on 2 cores: every default size, a twentieth of the budget.
     "quick": Preset(scaling.DEFAULT_SIZES, 1_000, 2, 500),
 }
 
@@ -65,7 +65,7 @@ def parse_sizes(text: str) -> tuple[scaling.Size, ...]:
     for part in (p.strip() for p in text.split(",") if p.strip()):
         grid, slash, targets = part.partition("/")
         usage = f"expected ROWSxCOLS/TARGETS such as 3x4/3 (got {part!r})"
-        require(bool(slash) and targets.strip().isdigit(), "sizes", usage)
+        require(bool(slash) and targets.strip().isdecimal(), "sizes", usage)
         sizes.append((*parse_grid(grid, "sizes"), int(targets)))
     require(len(sizes) > 0, "sizes", f"needs at least one size (got {text!r})")
     return tuple(sizes)

@@ -27,11 +27,13 @@ import numpy as np
 
 from cmarlcd import registry
 from cmarlcd.errors import ConfigError, require
+from cmarlcd.experiments.episodic import options_of
 from cmarlcd.learners.deep_config import DeepLearnerConfig
-from cmarlcd.limits import check_at_most, check_episodes, check_seed
+from cmarlcd.limits import check_at_most, check_episodes, check_run_count, check_seed
 from cmarlcd.progress import report_progress
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec, Settings
+from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
 from cmarlcd.training.episodes import play_episodes
 
 EXPERIMENT = "train"
@@ -76,7 +78,7 @@ def make_env(path: str, kwargs: EnvKwargs) -> Any:
     except ConfigError:
         raise
     except Exception as error:  # the user's factory: any failure is theirs to read
-        raise ConfigError("env", f"{path}({_kwargs_text(kwargs)}) failed: {error}") from None
+        raise ConfigError("env", f"{path}({kwargs_text(kwargs)}) failed: {error}") from None
     for method in ("reset", "step", "action_space"):
         require(hasattr(env, method), "env", f"{path} made no PettingZoo ParallelEnv (no {method})")
     agents = list(getattr(env, "possible_agents", []))
@@ -91,7 +93,8 @@ def make_env(path: str, kwargs: EnvKwargs) -> Any:
     return env
 
 
-def _kwargs_text(kwargs: EnvKwargs) -> str:
+def kwargs_text(kwargs: EnvKwargs) -> str:
+    """``(('N', 3),)`` -> ``"N=3"``."""
     return ", ".join(f"{k}={v!r}" for k, v in kwargs)
 
 
@@ -134,17 +137,42 @@ class StateShape:
 
 
 def state_shape(env: Any, inputs: str) -> StateShape:
-    """How the learners read the environment's states (after a reset)."""
-    if inputs == "state":
-        require(hasattr(env, "state"), "inputs", "the environment has no state(): use observations")
-        space = getattr(env, "state_space", None)
-        if isinstance(space, gymnasium.spaces.Discrete):
-            return StateShape(int(space.n), None)
-        state = env.state()
-        if isinstance(state, int | np.integer):
-            return StateShape(None, None)  # discrete, count unknown: tables grow
-        return StateShape(None, int(np.asarray(state).size))
-    return StateShape(None, int(env.state().size))
+    """How the learners read the environment's states (after a reset); one clear error
+    where they cannot (no ``state()``, observations that are not arrays of numbers)."""
+    try:
+        if inputs == "state":
+            space = getattr(env, "state_space", None)
+            if isinstance(space, gymnasium.spaces.Discrete):
+                return StateShape(int(space.n), None)
+            state = env.state()
+            if isinstance(state, int | np.integer):
+                return StateShape(None, None)  # discrete, count unknown: tables grow
+            return StateShape(None, int(np.asarray(state, dtype=np.float32).size))
+        return StateShape(None, int(env.state().size))
+    except (NotImplementedError, AttributeError):
+        raise ConfigError(
+            "inputs", "the environment has no state(): use --inputs observations"
+        ) from None
+    except (TypeError, ValueError) as error:
+        raise ConfigError("inputs", f"its {inputs} is not an array of numbers ({error})") from None
+
+
+def check_deep_inputs(shape: StateShape) -> None:
+    """A deep learner reads a discrete state one-hot (at most :data:`MAX_INDEX_STATES` of
+    them, counted by a ``Discrete`` state space) or a vector of features."""
+    require(
+        shape.dim is not None or shape.n_states is not None,
+        "algorithms",
+        "a deep learner reads a discrete state one-hot and needs its count: give the "
+        "environment a Discrete state_space, or use --inputs observations",
+    )
+    count = shape.n_states or 0
+    require(
+        count <= MAX_INDEX_STATES,
+        "algorithms",
+        f"a deep learner reads discrete states one-hot, at most {MAX_INDEX_STATES:,} "
+        f"(this environment has {count:,})",
+    )
 
 
 class RandomPolicy:
@@ -224,18 +252,20 @@ class EnvRun(Settings):
     def from_config(cls, config: Mapping[str, Any]) -> Self:
         name = config["algorithm"]
         learner = None if name == RANDOM else registry.learner_config(name, config["learner"])
-        kwargs = tuple(sorted(config["env_kwargs"].items()))
+        kwargs = options_of(config["env_kwargs"])
         rest = {k: v for k, v in config.items() if k not in ("algorithm", "learner", "env_kwargs")}
         return cls(**{**rest, "env_kwargs": kwargs, "learner": learner})
 
     def stream(self) -> dict[str, Any]:
-        """Everything but the evaluation's budget."""
+        """Everything but the evaluation's episodes (a stricter stream than needed:
+        ``curve_points`` and, for a learner that does not anneal over it, ``episodes``
+        change no draw either; kept, so that stored runs keep their seeds)."""
         return {k: v for k, v in self.to_config().items() if k not in ("eval_episodes",)}
 
     def budgets(self) -> list[int]:
-        """The budgets the curve evaluates at (the last is ``episodes``)."""
+        """The budgets the curve evaluates at (the last is ``episodes``; never 0)."""
         points = max(1, self.curve_points)
-        return sorted({round(self.episodes * k / points) for k in range(1, points + 1)})
+        return sorted({round(self.episodes * k / points) for k in range(1, points + 1)} - {0})
 
 
 def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
@@ -312,11 +342,17 @@ class EnvSweep:
         check_seed(self.seed)
         names = [c.name for c in self.learners]
         require(len(set(names)) == len(names), "algorithms", f"each at most once (got {names})")
+        check_run_count((len(self.learners) + 1) * self.runs)
         env = _wrapped(make_env(self.env, self.env_kwargs), self.inputs)  # checked before
-        env.reset(seed=0)  # anything runs, and every learner told whether it can read it
+        try:  # anything runs, and every learner told whether it can read it
+            env.reset(seed=0)
+        except Exception as error:  # the user's environment: its failure is theirs to read
+            raise ConfigError("env", f"{self.env}: reset(seed=0) failed: {error}") from None
         shape = state_shape(env, self.inputs)
         for config in self.learners:
-            if not isinstance(config, DeepLearnerConfig):
+            if isinstance(config, DeepLearnerConfig):
+                check_deep_inputs(shape)
+            else:
                 new_learner(config, np.ones(1, np.int64), shape, 1, np.random.SeedSequence(0))
 
     def settings(self, learner: LearnerConfig | None) -> EnvRun:
