@@ -19,15 +19,13 @@ from cmarlcd.cli.reproduce import bar_name
 from cmarlcd.cli.sweeps import (
     Execution,
     compute_runs,
-    has_torch,
-    needs_torch,
     present,
     print_results,
+    require_torch_for,
     run_counts,
     with_execution,
 )
 from cmarlcd.compare_report import compare_section
-from cmarlcd.errors import require
 from cmarlcd.experiments import compare as cmp
 
 #: Every game of the comparison, the DSN last.
@@ -38,8 +36,7 @@ def comparison(learners: str, games: str, runs: int, seed: int) -> cmp.Compariso
     """The comparison the options ask for (each learner with its paper's defaults)."""
     names = parse_names(learners, "learners")
     configs = tuple(registry.comparable_learner(n) for n in names)
-    deep = [name for name in names if registry.needs_torch(name)]
-    require(not deep or has_torch(), "learners", needs_torch(deep))
+    require_torch_for(names, "learners")
     return cmp.Comparison(
         learners=configs,
         games=parse_names(games, "games"),

@@ -25,14 +25,12 @@ from cmarlcd.cli.options import (
 from cmarlcd.cli.sweeps import (
     Execution,
     compute_runs,
-    has_torch,
-    needs_torch,
     present,
     print_results,
+    require_torch_for,
     run_counts,
     with_execution,
 )
-from cmarlcd.errors import require
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.limits import check_seed_batch
 from cmarlcd.registry import LearnerConfig
@@ -149,8 +147,7 @@ def dsn(
         options=dsn_exp.layout_options(*parse_grid(grid), targets),
     )
     check_seed_batch(seed_batch)
-    deep = [name for name in names if registry.needs_torch(name)]
-    require(not deep or has_torch(), "algorithms", needs_torch(deep))
+    require_torch_for(names)
     print_results(run, lambda console: run_dsn(sweep, run, console, seed_batch))
 
 

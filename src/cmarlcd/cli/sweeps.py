@@ -30,6 +30,7 @@ from cmarlcd.cli.options import (
     leave_now,
 )
 from cmarlcd.cli.progress import RichSweepView
+from cmarlcd.errors import require
 from cmarlcd.limits import check_workers
 from cmarlcd.render import say, show_section
 from cmarlcd.runner import SweepResult, run_sweep
@@ -180,6 +181,14 @@ def print_results(run: Execution, compute: Callable[[Console | None], dict]) -> 
 
 def has_torch() -> bool:
     return importlib.util.find_spec("torch") is not None
+
+
+def require_torch_for(names: Iterable[str], parameter: str = "algorithms") -> None:
+    """Refuse, in one line naming the extra, learners that need PyTorch where it is missing."""
+    from cmarlcd import registry
+
+    deep = [name for name in names if registry.needs_torch(name)]
+    require(not deep or has_torch(), parameter, needs_torch(deep))
 
 
 def needs_torch(algorithms: Iterable[str]) -> str:

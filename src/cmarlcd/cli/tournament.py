@@ -23,14 +23,12 @@ from cmarlcd.cli.options import (
 from cmarlcd.cli.sweeps import (
     Execution,
     compute_runs,
-    has_torch,
-    needs_torch,
     present,
     print_results,
+    require_torch_for,
     run_counts,
     with_execution,
 )
-from cmarlcd.errors import require
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games import battlefield
 from cmarlcd.limits import check_seed_batch
@@ -43,8 +41,7 @@ def tournament_learners(names: Sequence[str]) -> tuple[LearnerConfig, ...]:
     known = tour.battlefield_learners()
     for name in names:
         registry.require_learner(name)
-    deep = [name for name in names if registry.needs_torch(name)]
-    require(not deep or has_torch(), "algorithms", needs_torch(deep))
+    require_torch_for(names)
     return tuple(known[name] for name in names)
 
 

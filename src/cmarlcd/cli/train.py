@@ -22,10 +22,9 @@ from cmarlcd.cli.options import (
 from cmarlcd.cli.sweeps import (
     Execution,
     compute_runs,
-    has_torch,
-    needs_torch,
     present,
     print_results,
+    require_torch_for,
     run_counts,
     with_execution,
 )
@@ -100,8 +99,7 @@ def train(
     resumable; a table and a figure."""
     names = parse_names(algorithms, "algorithms")
     configs = tuple(registry.require_learner(name) for name in names)
-    deep = [name for name in names if registry.needs_torch(name)]
-    require(not deep or has_torch(), "algorithms", needs_torch(deep))
+    require_torch_for(names)
     sweep = envs.EnvSweep(
         env=env,
         learners=apply_settings(settings, configs),

@@ -202,14 +202,19 @@ def _rank(order: Sequence[str], name: str) -> int:
     return order.index(name) if name in order else len(order)
 
 
+def _spec(size: Size):
+    """The network of ``size`` (the cached game the runs played)."""
+    return network(SCALING_GAME, size_options(size)).spec
+
+
 def _states(size: Size) -> int:
-    return layout_spec(size_options(size)).n_states
+    return _spec(size).n_states
 
 
 def _row(
     size: Size, name: str, label: str, budget: int, results: list[dict[str, float]]
 ) -> ScalingRow:
-    spec = layout_spec(size_options(size))
+    spec = _spec(size)
     success = np.array([r["success_rate"] for r in results])
     paper = [r["paper_success"] for r in results if "paper_success" in r]
     return ScalingRow(
