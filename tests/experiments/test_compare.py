@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import numpy as np
 import pytest
 
@@ -44,14 +45,28 @@ def test_a_run_is_determined_by_its_seed() -> None:
     assert first == run_compare(cell, np.random.SeedSequence(1))
 
 
-def test_every_learner_meets_the_same_random_games() -> None:
-    """Runs' seeds leave the learner out: common random numbers across learners."""
-    sweep = Comparison((RepeatedConfig(), IQLConfig()), ("case1",), runs=2)
-    seeds = {}
+def test_every_learner_meets_the_same_random_games(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Common random numbers: at one (size, run) CMARL-CD and IQL play the same random game
+    (the same payoff table), and the runs of one size play different games."""
+    family = GAMES["case1"]
+    played: list[bytes] = []
+
+    def make(size: tuple[int, int], rng: np.random.Generator) -> object:
+        game = family.make(size, rng)
+        played.append(game.payoffs.tobytes())
+        return game
+
+    monkeypatch.setitem(compare.GAMES, "case1", dataclasses.replace(family, make=make))
+    sweep = Comparison((RepeatedConfig(), IQLConfig()), ("case1",), runs=3)
+    smallest = min(family.sizes, key=lambda size: size[1] ** size[0])
+    games: dict[int, set[bytes]] = {}
     for spec in sweep.specs():
-        where = (spec.config["agents"], spec.config["actions"], spec.key.run_index)
-        seeds.setdefault(where, set()).add(spec.seed_sequence().spawn(3)[0].entropy)
-    assert all(len(s) == 1 for s in seeds.values())
+        cell = settings_of(spec)
+        if cell.size == smallest:
+            run_compare(cell, spec.seed_sequence())
+            games.setdefault(spec.key.run_index, set()).add(played[-1])
+    assert len(games) == 3 and all(len(tables) == 1 for tables in games.values())
+    assert len(set.union(*games.values())) == 3
 
 
 def test_the_budget_grows_with_the_joint_actions() -> None:

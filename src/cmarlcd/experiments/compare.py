@@ -6,11 +6,12 @@ greedy joint action it ends on is optimal (by expected payoff, for stochastic pa
 and when that greedy joint action last changed (*settled*). The games are the climbing
 game, the penalty game for several ``k``, the partially and fully stochastic climbing
 games (Kapetanakis & Kudenko 2002), and the random games of Tables 1-2 at their sizes
-(a fresh game per run; every learner meets the same games: runs' seeds do not depend on
-the learner). On the DSN (a stochastic game) the learners that have a stochastic form
-(CMARL-CD's Algorithm 2, IQL, distributed Q, hysteretic, lenient; FMQ and JAL are defined
-for repeated games only) run the DSN protocol of :mod:`cmarlcd.experiments.sensor_network`
-at :data:`DSN_EPISODES` learning episodes; its column is the greedy policy's success rate.
+(a fresh game per run; every learner meets the same games: a random game's run is
+seeded by the family and size alone, :meth:`CompareRun.stream`). On the DSN (a
+stochastic game) the learners that have a stochastic form (CMARL-CD's Algorithm 2, IQL,
+distributed Q, hysteretic, lenient; FMQ and JAL are defined for repeated games only) run
+the DSN protocol of :mod:`cmarlcd.experiments.sensor_network` at :data:`DSN_EPISODES`
+learning episodes; its column is the greedy policy's success rate.
 
 [choice] Every learner gets the same budget, ``max(MIN_GAMES, GAMES_PER_JOINT_ACTION ·
 |A|)`` games for ``|A|`` joint actions; CMARL-CD stops earlier when its strategies are
@@ -86,6 +87,14 @@ class CompareRun(Settings):
         size = (config["agents"], config["actions"]) if "agents" in config else None
         learner = registry.comparable_learner(config["learner"], config)
         return cls(config["game"], learner, config["budget"], size)
+
+    def stream(self) -> dict[str, Any] | None:
+        """A random game's run is seeded by the game alone (family and size), so every
+        learner meets the same games run for run (common random numbers); a fixed
+        game's run by its whole config, the learner's settings included."""
+        if self.size is None:
+            return None
+        return {"game": self.game, "agents": self.size[0], "actions": self.size[1]}
 
 
 def compare_run_of(record: RunRecord) -> CompareRun:
