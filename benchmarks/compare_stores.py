@@ -1,6 +1,7 @@
 """Check that two results stores hold the same runs with the same metrics, bit for bit.
 
-Timings (a run's ``seconds`` and ``*_seconds``, wall times) are left out. Used to show that a
+Timings (a run's ``seconds`` and ``*_seconds``, wall times) and the ``device`` a deep run
+records (where it ran, not what it computed) are left out. Used to show that a
 restructuring changed no number: run the same command with the old and the new code
 into two fresh stores, then compare them.
 
@@ -21,14 +22,15 @@ from typing import Any
 
 
 def load(path: str, ignore: Sequence[str] = ()) -> dict[tuple, dict[str, Any]]:
-    """Every run of a store: its key and its metrics without timings (nor ``ignore``)."""
+    """Every run of a store: its key and its metrics without timings and device (nor
+    ``ignore``)."""
     query = "SELECT experiment, algorithm, config, root_seed, run_index, metrics FROM runs"
     with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as conn:
         rows = conn.execute(query).fetchall()
     runs = {}
     for *key, metrics in rows:
         values = json.loads(metrics)
-        timings = [k for k in values if k == "seconds" or k.endswith("_seconds")]
+        timings = [k for k in values if k in ("seconds", "device") or k.endswith("_seconds")]
         for name in timings + [k for k in ignore if k in values]:
             del values[name]
         runs[tuple(key)] = values

@@ -35,6 +35,7 @@ from typing import Any
 
 from cmarlcd.backends import check_backend, default_workers, make_backend
 from cmarlcd.claims import CLAIM_TIMEOUT, HEARTBEAT_SECONDS, Owner
+from cmarlcd.devices import DEFAULT_DEVICE, resolve
 from cmarlcd.experiments import get_experiment, settings_of
 from cmarlcd.limits import check_seed_batch, check_workers
 from cmarlcd.runs import RunSpec
@@ -147,6 +148,7 @@ def run_sweep(
     address: str | None = None,
     section: Callable[[RunSpec], str] | None = None,
     claim_timeout: float = CLAIM_TIMEOUT,
+    device: str = DEFAULT_DEVICE,
 ) -> SweepResult:
     """Compute every spec not yet in ``store`` and commit each as it finishes.
 
@@ -156,6 +158,8 @@ def run_sweep(
         section: names the progress section of a spec (default: ``description``).
         backend: ``process`` or ``ray``; ``address`` joins a running Ray cluster.
         claim_timeout: seconds after which another host's silent claim is stale.
+        device: where deep learners compute (:mod:`cmarlcd.devices`; ``cpu``, ``cuda``,
+            ``cuda:N``, ``auto``); a run's identity and seeds do not depend on it.
 
     Runs of one config whose experiment can batch them are computed ``seed_batch`` at a
     time in one call (the results are the same as one by one).
@@ -165,6 +169,8 @@ def run_sweep(
         workers = default_workers()
     check_workers(workers)
     check_seed_batch(seed_batch)
+    if backend != "ray":  # a GPU asked for where there is none: refused before anything runs
+        device = resolve(device)
     named = section or (lambda _: description)
     sweep = _Sweep(
         specs, store, version, observer or SweepObserver(), one_unit_sections(specs, named)
@@ -172,7 +178,7 @@ def run_sweep(
 
     def start_backend(progress: Callable[[int, float, float], None], batches: int) -> Any:
         used = workers if workers is None else min(workers, batches)
-        return make_backend(backend, used, progress, address)
+        return make_backend(backend, used, progress, address, device)
 
     return sweep.run(seed_batch, claim_timeout, start_backend)
 

@@ -78,6 +78,10 @@ def _no_work_reported(settings: Any) -> float | None:
     return None
 
 
+def _no_device(settings: Any) -> bool:
+    return False
+
+
 @dataclass(frozen=True)
 class Experiment:
     """What the runner needs to know about an experiment.
@@ -101,6 +105,9 @@ class Experiment:
             :func:`cmarlcd.progress.report_progress`, or None when it reports none (the
             runner then counts the run itself as one unit).
         work_unit: what ``work`` counts, for progress displays.
+        uses_device: whether a run of a config trains a deep learner, which computes on
+            the sweep's device (:mod:`cmarlcd.devices`); such a run records the device in
+            its metrics, and on Ray its task asks for a GPU when the device is one.
     """
 
     name: str
@@ -112,6 +119,7 @@ class Experiment:
     batchable: Callable[[Any], bool] = _not_batchable
     work: Callable[[Any], float | None] = _no_work_reported
     work_unit: str = "runs"
+    uses_device: Callable[[Any], bool] = _no_device
 
     def settings_of(self, config_json: str) -> Any:
         """The typed settings of a run of this experiment, from its stored config."""

@@ -24,6 +24,7 @@ from typing import Protocol
 
 from cmarlcd.backends.local import InlineBackend, ProcessBackend, default_workers
 from cmarlcd.backends.tasks import Finished, ProgressCallback, Task
+from cmarlcd.devices import DEFAULT_DEVICE, resolve
 from cmarlcd.errors import require
 
 __all__ = ["BACKENDS", "Backend", "check_backend", "default_workers", "make_backend"]
@@ -72,13 +73,20 @@ class Backend(Protocol):
 
 
 def make_backend(
-    name: str, workers: int, on_progress: ProgressCallback, address: str | None = None
+    name: str,
+    workers: int,
+    on_progress: ProgressCallback,
+    address: str | None = None,
+    device: str = DEFAULT_DEVICE,
 ) -> Backend:
-    """The backend called ``name`` (``process``: in-process when ``workers`` is 1)."""
+    """The backend called ``name`` (``process``: in-process when ``workers`` is 1), its
+    deep learners on ``device`` (``cpu``, ``cuda``, ``cuda:N``, ``auto``: resolved here
+    for local workers, on each node for Ray)."""
     if name == "ray":
         from cmarlcd.backends.ray_cluster import RayBackend
 
-        return RayBackend(workers, on_progress, address)
+        return RayBackend(workers, on_progress, address, device)
+    local = resolve(device)
     if workers == 1:
-        return InlineBackend(on_progress)
-    return ProcessBackend(workers, on_progress)
+        return InlineBackend(on_progress, local)
+    return ProcessBackend(workers, on_progress, local)

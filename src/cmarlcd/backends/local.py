@@ -17,6 +17,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from queue import Empty
 from typing import Any
 
+from cmarlcd import devices
 from cmarlcd.backends.tasks import (
     Finished,
     ProgressCallback,
@@ -32,13 +33,13 @@ PARENT_CHECK_SECONDS = 0.5
 
 
 class InlineBackend:
-    """This process, one task per :meth:`poll`."""
+    """This process, one task per :meth:`poll`, deep learners on ``device`` (resolved)."""
 
     capacity = 1
     task_seconds = 0.0  # nothing to save by packing
 
-    def __init__(self, on_progress: ProgressCallback) -> None:
-        self.on_progress = on_progress
+    def __init__(self, on_progress: ProgressCallback, device: str = devices.DEFAULT_DEVICE) -> None:
+        self.on_progress, self.device = on_progress, device
         self.queue: deque[tuple[int, Task]] = deque()
 
     def submit(self, tag: int, task: Task) -> None:
@@ -50,7 +51,7 @@ class InlineBackend:
             return []
         tag, task = self.queue.popleft()
         with progress_sink(lambda amount, seconds: self.on_progress(tag, amount, seconds)):
-            return [(tag, execute_task(task))]
+            return [(tag, execute_task(task, self.device))]
 
     def close(self, cancel: bool) -> None:
         self.queue.clear()
@@ -67,8 +68,8 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
-def _execute_in_worker(tag: int, task: Task) -> Finished:
-    return tag, execute_reporting(tag, task, _progress_queue.put)
+def _execute_in_worker(tag: int, task: Task, device: str) -> Finished:
+    return tag, execute_reporting(tag, task, _progress_queue.put, device)
 
 
 def _worker_init(queue: Any, threads: int, parent: int) -> None:
@@ -99,12 +100,15 @@ def _exit_with_parent(parent: int) -> None:
 
 class ProcessBackend:
     """A pool of ``workers`` local processes (forked where the system can), each with
-    an equal share of the cores for its threads."""
+    an equal share of the cores for its threads, deep learners on ``device`` (resolved;
+    the parent has not started CUDA, :mod:`cmarlcd.devices`, so each worker can)."""
 
     task_seconds = 0.05  # a task costs a fraction of a millisecond to send
 
-    def __init__(self, workers: int, on_progress: ProgressCallback) -> None:
-        self.on_progress = on_progress
+    def __init__(
+        self, workers: int, on_progress: ProgressCallback, device: str = devices.DEFAULT_DEVICE
+    ) -> None:
+        self.on_progress, self.device = on_progress, device
         self.capacity = 2 * workers  # one running and one queued per worker
         method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
         context = multiprocessing.get_context(method)
@@ -119,7 +123,7 @@ class ProcessBackend:
         self.pending: set[Future] = set()
 
     def submit(self, tag: int, task: Task) -> None:
-        self.pending.add(self.pool.submit(_execute_in_worker, tag, task))
+        self.pending.add(self.pool.submit(_execute_in_worker, tag, task, self.device))
 
     def poll(self, timeout: float) -> list[Finished]:
         if self.pending:

@@ -42,7 +42,14 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from cmarlcd.backends.tasks import Finished, ProgressCallback, Task, execute_reporting
+from cmarlcd import devices
+from cmarlcd.backends.tasks import (
+    Finished,
+    ProgressCallback,
+    Task,
+    execute_reporting,
+    uses_device,
+)
 from cmarlcd.errors import BackendLost, ConfigError, require
 from cmarlcd.version import __version__
 
@@ -63,6 +70,10 @@ LOST_SECONDS = 20.0
 VERSION_MISMATCH = "this Ray node runs cmarl-cd"
 #: Ray reads this switch when it is imported: off, its client keeps a loopback address.
 KEEP_LOOPBACK_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+#: [choice] The GPUs a task that trains a deep learner asks Ray for, when the sweep's
+#: device is a GPU: a whole one (a task is a seed batch stacked in one model, which keeps
+#: a card busy by itself); tabular tasks ask for none.
+GPUS_PER_DEEP_TASK = 1.0
 #: [choice] Memory for Ray's object store when this sweep starts a local Ray: results are
 #: small (a few kB a run), so the smallest store Ray accepts is plenty.
 LOCAL_OBJECT_STORE_BYTES = 80 * 1024**2
@@ -197,8 +208,22 @@ def _is_loopback_ip(address: ipaddress.IPv4Address | ipaddress.IPv6Address) -> b
     return address.is_loopback or (mapped is not None and mapped.is_loopback)
 
 
-def _compute(tag: int, task: Task, relay: Any, version: str) -> Finished:
-    """One task: its outcomes, its progress sent to ``relay`` on the way."""
+def cluster_device(device: str, gpus: int) -> str:
+    """The device the cluster's deep tasks use (resolved on each node): ``cpu``, or
+    ``device`` where the cluster has a GPU; ``auto`` takes one if it has any. A GPU asked
+    for where the cluster has none is refused (its tasks would wait forever)."""
+    devices.check_device(device)
+    if device == "auto":
+        return "cuda" if gpus else devices.DEFAULT_DEVICE
+    if device != devices.DEFAULT_DEVICE and gpus == 0:
+        raise ConfigError("device", f"{device}: the Ray cluster has no GPU")
+    return device
+
+
+def _compute(tag: int, task: Task, relay: Any, version: str, device: str) -> Finished:
+    """One task: its outcomes, its progress sent to ``relay`` on the way, its deep
+    learners on ``device`` as this node resolves it (a task given a GPU by Ray sees that
+    one as ``cuda:0``)."""
     if version != __version__:
         raise RuntimeError(
             f"{VERSION_MISMATCH} {__version__}, the sweep {version}: install the same "
@@ -211,7 +236,8 @@ def _compute(tag: int, task: Task, relay: Any, version: str) -> Finished:
         torch.set_num_threads(1)
     except ImportError:
         pass
-    return tag, execute_reporting(tag, task, lambda item: relay.add.remote(*item))
+    resolved = devices.resolve(device)
+    return tag, execute_reporting(tag, task, lambda item: relay.add.remote(*item), resolved)
 
 
 @contextlib.contextmanager
@@ -314,7 +340,11 @@ class RayBackend:
     task_seconds = 1.0
 
     def __init__(
-        self, workers: int | None, on_progress: ProgressCallback, address: str | None = None
+        self,
+        workers: int | None,
+        on_progress: ProgressCallback,
+        address: str | None = None,
+        device: str = devices.DEFAULT_DEVICE,
     ) -> None:
         head = reach(address) if address not in (None, "auto") else None
         joined = join_address(address, head)
@@ -330,7 +360,9 @@ class RayBackend:
         self.watch = HeadWatch(self.head, self.address)
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.capacity = 2 * (workers or cpus)
+        self.device = cluster_device(device, int(ray.cluster_resources().get("GPU", 0)))
         self.task: Callable[..., Any] = ray.remote(num_cpus=1, max_retries=TASK_RETRIES)(_compute)
+        self.gpu_task = self.task.options(num_gpus=GPUS_PER_DEEP_TASK)
         self.relay = ray.remote(num_cpus=0)(_Relay).remote()
         self.pending: dict[Any, int] = {}
 
@@ -381,7 +413,9 @@ class RayBackend:
             raise ConfigError(parameter, f"cannot {verb} {where}: {first}") from None
 
     def submit(self, tag: int, task: Task) -> None:
-        ref = self.task.remote(tag, task, self.relay, __version__)
+        on_gpu = self.device != devices.DEFAULT_DEVICE and uses_device(task)
+        remote = self.gpu_task if on_gpu else self.task
+        ref = remote.remote(tag, task, self.relay, __version__, self.device)
         self.pending[ref] = tag
 
     def poll(self, timeout: float) -> list[Finished]:

@@ -23,7 +23,7 @@ from cmarlcd.cli.sweeps import (
     print_results,
     require_torch_for,
     run_counts,
-    with_execution,
+    with_deep_execution,
 )
 from cmarlcd.compare_report import compare_section
 from cmarlcd.experiments import compare as cmp
@@ -67,7 +67,7 @@ def run_comparison(
 
 @app.command(short_help="Beyond the paper: CMARL-CD against the classic independent learners.")
 @fails_cleanly
-@with_execution
+@with_deep_execution
 def compare(
     learners: Annotated[
         str,

@@ -29,7 +29,7 @@ from cmarlcd.cli.sweeps import (
     print_results,
     require_torch_for,
     run_counts,
-    with_execution,
+    with_deep_execution,
 )
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.limits import check_seed_batch
@@ -81,7 +81,7 @@ LaocaRate = _setting(LAOCA, "rate", "LA-OCA λ")
 
 @app.command(short_help="Tables 3-7 and Fig. 4: the distributed sensor network task.")
 @fails_cleanly
-@with_execution
+@with_deep_execution
 def dsn(
     algorithms: Annotated[
         str, typer.Option(help=f"Comma list of {registry.learner_names()}.")

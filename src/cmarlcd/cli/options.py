@@ -61,6 +61,16 @@ AddressOption = Annotated[
 ]
 
 
+DeviceOption = Annotated[
+    str,
+    typer.Option(
+        "--device",
+        help="Where the deep learners compute: cpu, cuda, cuda:N or auto (a GPU where torch "
+        "sees one); not part of a run's identity or seeds.",
+    ),
+]
+
+
 def leave_now(message: str) -> None:
     """Print ``error: message`` and end the process at once, exit status 2 (a backend
     that is gone may hold threads that never end; the store's committed runs are safe)."""

@@ -21,7 +21,7 @@ from cmarlcd.cli.sweeps import (
     present,
     print_results,
     run_counts,
-    with_execution,
+    with_deep_execution,
 )
 from cmarlcd.cli.tournament import (
     ALL_ALGORITHMS,
@@ -83,7 +83,7 @@ def _total(parts: list[SweepResult]) -> SweepResult:
 
 @app.command(short_help="Figs. 6-7 under each reading of what the paper leaves open.")
 @fails_cleanly
-@with_execution
+@with_deep_execution
 def readings(
     algorithms: AlgorithmsOption = ALL_ALGORITHMS,
     rounds: Annotated[int, typer.Option(help="Rounds of each tournament.")] = (

@@ -24,7 +24,7 @@ from cmarlcd.cli.sweeps import (
     present,
     run_counts,
     where,
-    with_execution,
+    with_deep_execution,
 )
 from cmarlcd.cli.theory import theorem_documents
 from cmarlcd.cli.tournament import tournament_learners
@@ -116,7 +116,7 @@ def _reproduced_tournament(
 
 @app.command(short_help="Reproduce the paper: Tables 1-7, Figs. 4, 6, 7, Theorem 1 (resumable).")
 @fails_cleanly
-@with_execution
+@with_deep_execution
 def reproduce(
     preset: Annotated[
         str,

@@ -28,7 +28,7 @@ from cmarlcd.cli.sweeps import (
     present,
     print_results,
     run_counts,
-    with_execution,
+    with_deep_execution,
 )
 from cmarlcd.errors import require
 from cmarlcd.experiments import scaling
@@ -101,7 +101,7 @@ def run_scaling(
 
 @app.command("scaling", short_help="Beyond the paper: learners against the sensor network's size.")
 @fails_cleanly
-@with_execution
+@with_deep_execution
 def scaling_command(
     preset: Annotated[
         str, typer.Option(help=f"Budget: {', '.join(PRESETS)} (the options below override it).")

@@ -21,6 +21,7 @@ from cmarlcd.cli.options import (
     DEFAULT_FIGURES,
     AddressOption,
     BackendOption,
+    DeviceOption,
     FiguresOption,
     JsonOption,
     ProgressOption,
@@ -30,6 +31,7 @@ from cmarlcd.cli.options import (
     leave_now,
 )
 from cmarlcd.cli.progress import RichSweepView
+from cmarlcd.devices import DEFAULT_DEVICE, check_device, resolve
 from cmarlcd.errors import require
 from cmarlcd.limits import check_workers
 from cmarlcd.render import say, show_section
@@ -55,11 +57,13 @@ class Execution:
     backend: str = "process"
     address: str | None = None
     as_json: bool = False
+    device: str = DEFAULT_DEVICE
 
     def check(self) -> None:
         """Every choice is valid and every output path usable, before anything runs."""
         check_workers(self.workers)
         check_backend(self.backend, self.address)
+        check_device_here(self.device, self.backend)
         check_outputs(self.store, self.figures)
 
 
@@ -73,11 +77,31 @@ EXECUTION_OPTIONS: dict[str, tuple[Any, Any]] = {
     "figures": (FiguresOption, DEFAULT_FIGURES),
     "progress": (ProgressOption, True),
 }
+#: The option a command that trains deep learners adds (last).
+DEVICE_OPTION = {"device": (DeviceOption, DEFAULT_DEVICE)}
 
 
-def with_execution(command: F) -> F:
-    """A command that computes: its signature gains the options of :class:`Execution`,
-    which are checked before the command runs and handed to it as ``run``."""
+def check_device_here(device: str, backend: str) -> None:
+    """``device`` is spelt right and, for local workers, torch is installed and sees the
+    GPU asked for (a Ray cluster's GPUs are counted when the sweep joins it)."""
+    check_device(device)
+    if device == DEFAULT_DEVICE or backend == "ray":
+        return
+    require(has_torch(), "device", f"{device} needs PyTorch: pip install 'cmarl-cd[deep]'")
+    resolve(device)
+
+
+def with_deep_execution(command: F) -> F:
+    """:func:`with_execution` for a command that trains deep learners: it also takes
+    ``--device``."""
+    return with_execution(command, {**EXECUTION_OPTIONS, **DEVICE_OPTION})
+
+
+def with_execution(command: F, options: dict[str, tuple[Any, Any]] | None = None) -> F:
+    """A command that computes: its signature gains the options of :class:`Execution`
+    (``options``, default :data:`EXECUTION_OPTIONS`), which are checked before the
+    command runs and handed to it as ``run``."""
+    declared = EXECUTION_OPTIONS if options is None else options
     hints = typing.get_type_hints(command, include_extras=True)
     own = [
         p.replace(annotation=hints[p.name])
@@ -86,12 +110,12 @@ def with_execution(command: F) -> F:
     ]
     shared = [
         inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=kind)
-        for name, (kind, default) in EXECUTION_OPTIONS.items()
+        for name, (kind, default) in declared.items()
     ]
 
     @functools.wraps(command)
     def wrapper(**options: Any) -> Any:
-        run = Execution(**{name: options.pop(name) for name in EXECUTION_OPTIONS})
+        run = Execution(**{name: options.pop(name) for name in declared})
         run.check()
         return command(run=run, **options)
 
@@ -124,6 +148,7 @@ def compute_runs(
                 backend=run.backend,
                 address=run.address,
                 section=section,
+                device=run.device,
             )
             return store.get(s.key for s in specs), done
     except BaseException:

@@ -27,7 +27,7 @@ from cmarlcd.cli.sweeps import (
     print_results,
     require_torch_for,
     run_counts,
-    with_execution,
+    with_deep_execution,
 )
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games import battlefield
@@ -67,7 +67,7 @@ def _unit_text(unit: battlefield.Unit) -> str:
 
 @app.command(short_help="Figs. 6-7: the blood battlefield tournament (resumable).")
 @fails_cleanly
-@with_execution
+@with_deep_execution
 def tournament(
     algorithms: AlgorithmsOption = ALL_ALGORITHMS,
     rounds: Annotated[int, typer.Option(help="Rounds; each plays every pairing once.")] = (

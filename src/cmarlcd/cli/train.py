@@ -26,7 +26,7 @@ from cmarlcd.cli.sweeps import (
     print_results,
     require_torch_for,
     run_counts,
-    with_execution,
+    with_deep_execution,
 )
 from cmarlcd.environment_report import environment_section
 from cmarlcd.errors import ConfigError, require
@@ -54,7 +54,7 @@ def run_training(sweep: envs.EnvSweep, run: Execution, console: Console | None) 
 
 @app.command(short_help="Beyond the paper: learners on any PettingZoo ParallelEnv.")
 @fails_cleanly
-@with_execution
+@with_deep_execution
 def train(
     env: Annotated[
         str,

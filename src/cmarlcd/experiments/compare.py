@@ -322,7 +322,14 @@ def _cost(cell: CompareRun) -> float:
     return 0.001 + per_game * cell.budget
 
 
-COMPARE = Experiment(EXPERIMENT, CompareRun, run_compare, _warm_up, _cost)
+COMPARE = Experiment(
+    EXPERIMENT,
+    CompareRun,
+    run_compare,
+    _warm_up,
+    _cost,
+    uses_device=lambda cell: isinstance(cell.learner, DeepLearnerConfig),
+)
 
 
 # ------------------------------------------------------------------------ summary

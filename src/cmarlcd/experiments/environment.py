@@ -383,4 +383,12 @@ def _work(settings: EnvRun) -> float:
     return settings.episodes + settings.eval_episodes * len(settings.budgets())
 
 
-TRAIN = Experiment(EXPERIMENT, EnvRun, run, cost=_cost, work=_work, work_unit="episodes")
+TRAIN = Experiment(
+    EXPERIMENT,
+    EnvRun,
+    run,
+    cost=_cost,
+    work=_work,
+    work_unit="episodes",
+    uses_device=lambda settings: isinstance(settings.learner, DeepLearnerConfig),
+)

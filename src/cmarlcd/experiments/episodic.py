@@ -450,4 +450,5 @@ def experiment(game: EpisodicGame) -> Experiment:
         batchable=lambda settings: is_deep(settings.learner),
         work=EpisodicRun.work,
         work_unit="episodes",
+        uses_device=lambda settings: is_deep(settings.learner),
     )

@@ -438,4 +438,5 @@ TOURNAMENT = Experiment(
     batchable=lambda pairing: pairing.has_deep,
     work=_work,
     work_unit="episodes",
+    uses_device=lambda pairing: pairing.has_deep,
 )

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
+from cmarlcd import devices
 from cmarlcd.errors import require
 from cmarlcd.learners.deep_config import DeepConfig, epsilon, scheduled_work
 from cmarlcd.learners.value_decomposition import ValueDecomposition
@@ -25,7 +26,8 @@ class StepAgent:
 
     States are integers in ``[0, n_states)`` (one-hot encoding) when ``n_states`` is
     given, else feature vectors of length ``state_dim``. ``masks`` give the legal actions
-    of each agent (1 = legal).
+    of each agent (1 = legal). The model computes on ``device`` (default: this
+    process's, :func:`cmarlcd.devices.current`); what the agent hands back is on the host.
     """
 
     def __init__(
@@ -35,8 +37,10 @@ class StepAgent:
         n_states: int | None,
         state_dim: int | None,
         seed: int | np.random.SeedSequence | None,
+        device: str | None = None,
     ) -> None:
         require((n_states is None) != (state_dim is None), "n_states", "give n_states or state_dim")
+        self.device = devices.current() if device is None else devices.resolve(device)
         root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
         self.init_seed, act, replay = root.spawn(3)
         self.total_episodes = int(total_episodes)
@@ -58,9 +62,9 @@ class StepAgent:
     def _encode_many(self, states) -> torch.Tensor:
         """States as the model's input: (1, N) integers or (1, N, state_dim) features."""
         if self.integer_states:
-            return torch.tensor([[int(x) for x in states]])
+            return torch.tensor([[int(x) for x in states]], device=self.device)
         rows = [np.asarray(x, dtype=np.float32).ravel() for x in states]
-        return torch.as_tensor(np.stack(rows)[None])
+        return torch.as_tensor(np.stack(rows)[None], device=self.device)
 
     def _legal(self, masks) -> torch.Tensor:
         """(n_agents, width): each agent's legal actions."""
@@ -68,7 +72,12 @@ class StepAgent:
         if masks is not None:
             for i, mask in enumerate(masks):
                 legal[i, : self.counts[i]] &= np.asarray(mask, dtype=bool)
-        return torch.as_tensor(legal)
+        return torch.as_tensor(legal, device=self.device)
+
+    def _replay_batch(self) -> dict[str, torch.Tensor]:
+        """A replay batch, drawn with the agent's replay stream, on its device."""
+        batch = sample(self.ring, [self.replay_rng], self.config.batch_size)  # type: ignore[attr-defined]
+        return {key: torch.from_numpy(a).to(self.device) for key, a in batch.items()}
 
 
 class DeepAgent(StepAgent):
@@ -87,10 +96,13 @@ class DeepAgent(StepAgent):
         n_states: int | None = None,
         state_dim: int | None = None,
         seed: int | np.random.SeedSequence | None = None,
+        device: str | None = None,
     ) -> None:
-        super().__init__(action_counts, total_episodes, n_states, state_dim, seed)
+        super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device)
         self.config = config
-        self.model = ValueDecomposition(self.counts, self.in_dim, config, [self.init_seed])
+        self.model = ValueDecomposition(
+            self.counts, self.in_dim, config, [self.init_seed], self.device
+        )
         self.ring = new_ring(
             1, config.buffer_size, len(self.counts), self.width, n_states or 1, state_dim or 0,
             masks=True,
@@ -108,7 +120,7 @@ class DeepAgent(StepAgent):
         transition with this state as its successor."""
         self._complete(state, masks, terminal=False)
         eps = epsilon(self.episode + 1, self.total_episodes, self.config)
-        greedy, legal = self.greedy(state, masks), self._legal(masks).numpy()
+        greedy, legal = self.greedy(state, masks), self._legal(masks).cpu().numpy()
         joint = []
         for i, best in enumerate(greedy):
             if self.act_rng.random() < eps:
@@ -133,7 +145,7 @@ class DeepAgent(StepAgent):
         self._pending = None
         if terminal or next_state is None:
             next_state, terminal = state, True
-        legal = self._legal(next_masks).numpy()
+        legal = self._legal(next_masks).cpu().numpy()
         joint_array = np.array(joint, dtype=np.int64)
         if self.integer_states:
             row = int(self._view.position[0])
@@ -149,7 +161,6 @@ class DeepAgent(StepAgent):
         self.steps += 1
         step, copy = scheduled_work(self.steps - 1, self.steps, self.stored, self.config)
         if step:
-            batch = sample(self.ring, [self.replay_rng], self.config.batch_size)
-            self.model.td_step({key: torch.from_numpy(a) for key, a in batch.items()})
+            self.model.td_step(self._replay_batch())
         if copy:
             self.model.sync_target()

@@ -22,7 +22,7 @@ from cmarlcd.learners.deep_agent import StepAgent
 from cmarlcd.learners.deep_config import scheduled_work
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 from cmarlcd.learners.degree_model import DegreeModel
-from cmarlcd.training.replay import new_ring, push_visit, push_visit_row, sample, seed_view
+from cmarlcd.training.replay import new_ring, push_visit, push_visit_row, seed_view
 
 
 class DegreeAgent(StepAgent):
@@ -40,10 +40,11 @@ class DegreeAgent(StepAgent):
         n_states: int | None = None,
         state_dim: int | None = None,
         seed: int | np.random.SeedSequence | None = None,
+        device: str | None = None,
     ) -> None:
-        super().__init__(action_counts, total_episodes, n_states, state_dim, seed)
+        super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device)
         self.config = config
-        self.model = DegreeModel(self.counts, self.in_dim, config, [self.init_seed])
+        self.model = DegreeModel(self.counts, self.in_dim, config, [self.init_seed], self.device)
         n = len(self.counts)
         self.ring = new_ring(1, config.buffer_size, n, self.width, n_states or 1, state_dim or 0)
         self._view = seed_view(self.ring, 0)
@@ -54,7 +55,7 @@ class DegreeAgent(StepAgent):
         c = self.config
         with torch.no_grad():
             degrees = self.model.agents(self._encode(state))[0, 0].clamp(c.c_min, c.c_max)
-        return degrees.numpy(), self._legal(masks).numpy()
+        return degrees.cpu().numpy(), self._legal(masks).cpu().numpy()
 
     def greedy(self, state, masks=None) -> tuple[int, ...]:
         """Each agent's legal action of largest clipped degree (lowest index on ties)."""
@@ -79,8 +80,7 @@ class DegreeAgent(StepAgent):
         self.steps += 1
         step, copy = scheduled_work(self.steps - 1, self.steps, self.stored, self.config)
         if step:
-            batch = sample(self.ring, [self.replay_rng], self.config.batch_size)
-            self.model.learn({key: torch.from_numpy(a) for key, a in batch.items()})
+            self.model.learn(self._replay_batch())
         if copy:
             self.model.sync_target()
 

@@ -103,6 +103,7 @@ class DegreeModel(StackedModel):
         action_counts: actions of each agent.
         in_dim: state features, or the number of states for integer (one-hot) states.
         seeds: one :class:`numpy.random.SeedSequence` per seed (parameter initialisation).
+        device: where it computes (``cpu``, ``cuda:N``; :mod:`cmarlcd.devices`).
     """
 
     def __init__(
@@ -111,8 +112,9 @@ class DegreeModel(StackedModel):
         in_dim: int,
         config: DeepCMARLCDConfig,
         seeds: Sequence[np.random.SeedSequence],
+        device: str = "cpu",
     ) -> None:
-        super().__init__(action_counts, config, seeds)
+        super().__init__(action_counts, config, seeds, device)
         gens, width = self.generators, self.width
         self.agents: nn.Module
         if config.share:
@@ -126,6 +128,7 @@ class DegreeModel(StackedModel):
             )
         self.record = RecordNetwork(in_dim, config.record_hidden, [g[-1] for g in gens])
         self.target_record = copy.deepcopy(self.record).requires_grad_(False)
+        self.place()
         self.optimizer = torch.optim.Adam(
             [
                 {"params": list(self.agents.parameters()), "lr": config.lr},
@@ -152,9 +155,14 @@ class DegreeModel(StackedModel):
         return moved.clamp(c.c_min, c.c_max), new_record | tie
 
     def learn(self, batch: dict[str, torch.Tensor]) -> float:
-        """One Adam step on a batch of visits: ``state`` (B, N[, in]), ``actions``
-        (B, N, n), ``reward`` (B, N): each visit's discounted return. Returns the mean
-        loss per seed."""
+        """One Adam step on :meth:`loss`; returns the mean loss per seed."""
+        return self.optimise(self.loss(batch))
+
+    def loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The seeds' summed losses on a batch of visits: ``state`` (B, N[, in]),
+        ``actions`` (B, N, n), ``reward`` (B, N): each visit's discounted return (every
+        tensor on the model's device). The degrees' squared distance to their targets,
+        averaged over the visits that have one, plus the record's expectile loss."""
         state, actions, returns = batch["state"], batch["actions"], batch["reward"]
         degrees = self.agents(state)
         with torch.no_grad():
@@ -168,11 +176,7 @@ class DegreeModel(StackedModel):
         tau = self.config.expectile
         below = (returns < estimate).to(estimate.dtype).detach()
         expectile = (tau + (1 - 2 * tau) * below) * (returns - estimate) ** 2
-        loss = degree_loss + expectile.mean(dim=1).sum()
-        self.optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        self.optimizer.step()
-        return float(loss.detach()) / self.n_seeds
+        return degree_loss + expectile.mean(dim=1).sum()
 
     def sync_target(self) -> None:
         """Clone the record network into its target copy."""

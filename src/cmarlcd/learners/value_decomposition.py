@@ -178,8 +178,8 @@ class QMixer(nn.Module):
             w1 = torch.abs(self.hyper_w1(state)).view(b, n, agents, self.hidden)
             return (q[..., None] * w1).sum(dim=2)
         w1 = torch.abs(self.hyper_w1.table())  # (B, S, agents * hidden)
-        seed_state = torch.arange(b)[:, None] * w1.shape[1] + state  # (B, N)
-        bags = seed_state[..., None] * agents + torch.arange(agents)  # rows (seed, s, i)
+        seed_state = torch.arange(b, device=state.device)[:, None] * w1.shape[1] + state
+        bags = seed_state[..., None] * agents + torch.arange(agents, device=state.device)
         out = nn.functional.embedding_bag(
             bags.view(b * n, agents),
             w1.view(-1, self.hidden),
@@ -195,19 +195,41 @@ class QMixer(nn.Module):
 class StackedModel(nn.Module):
     """What the stacked model of every deep learner has: B seeds of agents with these
     action counts (``valid``: each agent's real actions), each seed's generators (one
-    per agent network, then one more), and the per-state masks of integer states."""
+    per agent network, then one more), the per-state masks of integer states, and the
+    device it computes on.
+
+    Parameters are drawn on the CPU from each seed's generators, then moved with
+    :meth:`place` (so a seed starts from the same weights on every device); every tensor
+    a step makes is made on :attr:`device`.
+    """
 
     def __init__(
-        self, action_counts: Sequence[int], config, seeds: Sequence[np.random.SeedSequence]
+        self,
+        action_counts: Sequence[int],
+        config,
+        seeds: Sequence[np.random.SeedSequence],
+        device: str = "cpu",
     ) -> None:
         super().__init__()
-        self.config = config
+        self.config, self.device = config, torch.device(device)
         counts = torch.as_tensor(list(action_counts))
         self.n_agents, self.n_seeds = len(counts), len(seeds)
         self.width = int(counts.max())
         self.register_buffer("valid", torch.arange(self.width)[None, :] < counts[:, None])
         self.generators = [generators_of(s, self.n_agents + 1) for s in seeds]
         self.state_legal: torch.Tensor | None = None
+
+    def optimise(self, loss: torch.Tensor) -> float:
+        """One Adam step on ``loss`` (the seeds' summed losses); the mean loss per seed."""
+        self.optimizer.zero_grad(set_to_none=True)  # type: ignore[attr-defined]
+        loss.backward()
+        self.optimizer.step()  # type: ignore[attr-defined]
+        return float(loss.detach()) / self.n_seeds
+
+    def place(self) -> None:
+        """Move every parameter and buffer to :attr:`device` (before the optimiser is
+        built on them)."""
+        self.to(self.device)
 
     def _masked(self, values: torch.Tensor, legal: torch.Tensor | None) -> torch.Tensor:
         """``values`` with illegal and padded actions at -inf."""
@@ -217,8 +239,9 @@ class StackedModel(nn.Module):
     def set_state_legal(self, legal: torch.Tensor) -> None:
         """The legal actions of every integer state, (S, n, A) bool for all seeds or
         (B, S, n, A) for each seed its own, for games whose masks depend on the state
-        (default: every action legal everywhere)."""
-        self.state_legal = legal
+        (default: every action legal everywhere); on the CPU the model reads ``legal``
+        itself (no copy)."""
+        self.state_legal = legal.to(self.device)
 
 
 class ValueDecomposition(StackedModel):
@@ -228,6 +251,7 @@ class ValueDecomposition(StackedModel):
         action_counts: actions of each agent.
         in_dim: state features, or the number of states for integer (one-hot) states.
         seeds: one :class:`numpy.random.SeedSequence` per seed (parameter initialisation).
+        device: where it computes (``cpu``, ``cuda:N``; :mod:`cmarlcd.devices`).
     """
 
     def __init__(
@@ -236,8 +260,9 @@ class ValueDecomposition(StackedModel):
         in_dim: int,
         config: DeepConfig,
         seeds: Sequence[np.random.SeedSequence],
+        device: str = "cpu",
     ) -> None:
-        super().__init__(action_counts, config, seeds)
+        super().__init__(action_counts, config, seeds, device)
         gens, width = self.generators, self.width
         self.agents = AgentNetworks(self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens)
         self.mixer: nn.Module = (
@@ -248,10 +273,11 @@ class ValueDecomposition(StackedModel):
         self.target_agents = copy.deepcopy(self.agents).requires_grad_(False)
         self.target_mixer = copy.deepcopy(self.mixer).requires_grad_(False)
         self._next_value_table: torch.Tensor | None = None  # see _next_values
+        self.place()
         self.optimizer = torch.optim.Adam(
             list(self.agents.parameters()) + list(self.mixer.parameters()),
             lr=config.lr,
-            fused=True,  # one pass over the parameters: ~10x the default on CPU
+            fused=True,  # one pass over the parameters: ~10x the default on CPU (CUDA too)
         )
 
     def q_values(self, state: torch.Tensor, legal: torch.Tensor | None = None) -> torch.Tensor:
@@ -279,12 +305,16 @@ class ValueDecomposition(StackedModel):
         return self.td_step(batch)
 
     def td_step(self, batch: dict[str, torch.Tensor]) -> float:
-        """One Adam step on the summed per-seed one-step TD losses; returns the mean loss.
+        """One Adam step on :meth:`td_loss`; returns the mean loss per seed."""
+        return self.optimise(self.td_loss(batch))
+
+    def td_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The summed per-seed one-step TD losses of VDN or QMIX (paper Section V-A/B).
 
         ``batch``: state (B, N[, in]), actions (B, N, n), reward (B, N), next_state,
         terminal (B, N) bool, and optionally next_legal (B, N, n, A) bool (default: the
         per-state masks of :meth:`set_state_legal` for integer states, else every action
-        legal).
+        legal); every tensor on the model's device.
         """
         chosen = self._chosen_q(batch["state"], batch["actions"])
         q_tot = self.mixer(chosen, batch["state"])
@@ -292,11 +322,7 @@ class ValueDecomposition(StackedModel):
             next_tot = self._next_values(batch["next_state"], batch.get("next_legal"))
             alive = (~batch["terminal"]).to(q_tot.dtype)
             target = batch["reward"] + self.config.gamma * alive * next_tot
-        loss = ((q_tot - target) ** 2).mean(dim=1).sum()
-        self.optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        self.optimizer.step()
-        return float(loss.detach()) / self.n_seeds
+        return ((q_tot - target) ** 2).mean(dim=1).sum()
 
     def _chosen_q(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Each agent's online Q of its action in ``actions`` (B, N, n)."""
@@ -304,7 +330,7 @@ class ValueDecomposition(StackedModel):
             return self.agents(state).gather(-1, actions[..., None])[..., 0]
         table = self.agents.tables()  # (B, S, n, A): pick entries, build no (B, N, n, A)
         b, _, n, width = table.shape
-        flat = (state[..., None] * n + torch.arange(n)) * width + actions
+        flat = (state[..., None] * n + torch.arange(n, device=state.device)) * width + actions
         return table.reshape(b, -1).gather(1, flat.view(b, -1)).view(actions.shape)
 
     def _next_values(self, state: torch.Tensor, legal: torch.Tensor | None) -> torch.Tensor:
@@ -317,7 +343,7 @@ class ValueDecomposition(StackedModel):
         if self._next_value_table is None:
             masked = self._masked(self.target_agents.tables(), self.state_legal)
             best = masked.max(dim=-1).values
-            every_state = torch.arange(best.shape[1]).expand(best.shape[0], -1)
+            every_state = torch.arange(best.shape[1], device=best.device).expand(best.shape[0], -1)
             self._next_value_table = self.target_mixer(best, every_state)
         return torch.gather(self._next_value_table, 1, state)
 

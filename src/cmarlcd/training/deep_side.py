@@ -36,6 +36,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import torch
 
+from cmarlcd import devices
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep_config import DeepConfig, DeepLearnerConfig, scheduled_work
@@ -109,6 +110,10 @@ class DeepGroup(Group):
         replay_rngs: each seed's replay stream.
         learn_episodes: each play's learning stage (ε is annealed over it).
         inputs: what the sides read (default: :func:`inputs_of` the game).
+        device: where the stacked model computes (default: this process's,
+            :func:`cmarlcd.devices.current`). Its replay ring stays in host memory, where
+            the compiled loop writes it; each gradient step sends its batch over, and the
+            loop's copy of the weights (or Q-table) comes back after it.
     """
 
     def __init__(
@@ -120,6 +125,7 @@ class DeepGroup(Group):
         replay_rngs: Sequence[np.random.Generator],
         learn_episodes: int,
         inputs: str | None = None,
+        device: str | None = None,
     ) -> None:
         inputs = inputs_of(spec) if inputs is None else inputs
         require(inputs in INPUTS, "inputs", f"must be one of {', '.join(INPUTS)} (got {inputs!r})")
@@ -133,7 +139,8 @@ class DeepGroup(Group):
         """Whether the group trains itself between loop calls (a play on its own) rather
         than when its batch says (:class:`cmarlcd.training.loop.PlayBatch`)."""
         new_kernels, new_model = parts_of(config)
-        self.model = new_model(counts, features or spec.n_states, config, init_seeds)
+        device = devices.current() if device is None else device
+        self.model = new_model(counts, features or spec.n_states, config, init_seeds, device)
         self.replay_rngs = list(replay_rngs)
         self.ring = new_ring(seeds, config.buffer_size, n, width, spec.n_states, features)
         if inputs == "features":
@@ -150,7 +157,7 @@ class DeepGroup(Group):
             """Each seed's masks of each state, read when the seed first meets it."""
             self.seen = np.zeros((seeds, spec.n_states), np.bool_)
             """The states each seed has met."""
-            self.model.set_state_legal(torch.from_numpy(self.legal))  # shares the memory
+            self.model.set_state_legal(torch.from_numpy(self.legal))  # on a CPU: shared
         kernels = new_kernels(spec, inputs)
         self.views = [DeepSide(self, b, counts, kernels, learn_episodes) for b in range(len(teams))]
         self._copy_weights()
@@ -190,22 +197,23 @@ class DeepGroup(Group):
     def sample(self) -> dict[str, torch.Tensor]:
         """A replay batch per seed, drawn with that seed's own generator."""
         batch = sample(self.ring, self.replay_rngs, self.config.batch_size)
-        return {key: torch.from_numpy(array) for key, array in batch.items()}
+        device = self.model.device
+        return {key: torch.from_numpy(array).to(device) for key, array in batch.items()}
 
     def greedy_tables(self) -> np.ndarray:
         """(B, n_states, n_agents) (index inputs): each seed's greedy joint action in every
         state, over the masks it has read."""
-        return self.model.greedy_table().numpy()
+        return self.model.greedy_table().cpu().numpy()
 
     def _copy_weights(self) -> None:
         """The loops' copy of the networks := the networks."""
         agents = self.model.agents
         with torch.no_grad():
             if self.inputs == "index":
-                np.copyto(self.values, agents.tables().numpy())
+                np.copyto(self.values, agents.tables().cpu().numpy())
                 return
             for copy, weight in zip(self.weights, agents.feature_weights(), strict=True):
-                np.copyto(copy, weight.numpy())
+                np.copyto(copy, weight.cpu().numpy())
 
     def memory_bytes(self) -> int:
         """Parameters (online and target networks, Adam's two moments)."""

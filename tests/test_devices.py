@@ -1,0 +1,231 @@
+"""Where the deep learners compute: choosing the device, its errors, and models that
+make no tensor off their device. The tests marked ``gpu`` run only where torch sees a GPU
+(skipped elsewhere, with the reason in pytest's summary)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cmarlcd import devices
+from cmarlcd.errors import ConfigError
+
+torch = pytest.importorskip("torch")
+
+HAS_GPU = torch.cuda.is_available()
+gpu = pytest.mark.skipif(not HAS_GPU, reason="no GPU here (torch.cuda.is_available() is False)")
+
+
+@pytest.mark.parametrize("device", ["cpu", "cuda", "cuda:0", "cuda:12", "auto"])
+def test_every_spelling_of_a_device_is_accepted(device: str) -> None:
+    devices.check_device(device)
+
+
+@pytest.mark.parametrize("device", ["gpu", "CUDA", "cuda:", "cuda:-1", "cuda:x", "", "cpu:0"])
+def test_a_device_misspelt_is_refused_with_the_choices(device: str) -> None:
+    with pytest.raises(ConfigError, match="cpu, cuda, cuda:N, auto"):
+        devices.check_device(device)
+
+
+@pytest.fixture
+def gpus(monkeypatch: pytest.MonkeyPatch):
+    """Pretend torch sees ``count`` GPUs."""
+
+    def pretend(count: int) -> None:
+        monkeypatch.setattr(torch.cuda, "is_available", lambda: count > 0)
+        monkeypatch.setattr(torch.cuda, "device_count", lambda: count)
+
+    return pretend
+
+
+def test_auto_takes_the_cpu_where_torch_sees_no_gpu(gpus) -> None:
+    gpus(0)
+    assert devices.resolve("auto") == "cpu"
+    assert devices.resolve("cpu") == "cpu"
+
+
+@pytest.mark.parametrize("device", ["cuda", "cuda:0", "cuda:1"])
+def test_a_gpu_asked_for_where_there_is_none_is_refused(gpus, device: str) -> None:
+    gpus(0)
+    with pytest.raises(ConfigError, match="torch sees no GPU"):
+        devices.resolve(device)
+
+
+def test_gpus_are_named_as_torch_names_them(gpus) -> None:
+    gpus(2)
+    assert devices.resolve("auto") == "cuda:0"
+    assert devices.resolve("cuda") == "cuda:0"
+    assert devices.resolve("cuda:1") == "cuda:1"
+    with pytest.raises(ConfigError, match="torch sees 2 GPU"):
+        devices.resolve("cuda:2")
+
+
+def test_using_sets_the_device_of_the_block_only() -> None:
+    assert devices.current() == "cpu"
+    with devices.using("cpu") as device:
+        assert device == devices.current() == "cpu"
+    with pytest.raises(ConfigError, match="resolved first"):
+        devices.set_current("cuda")  # a name to resolve, not a device
+    assert devices.current() == "cpu"
+
+
+# ------------------------------------------------------------- device-agnostic models
+
+
+def _td_batch(seeds: int, visits: int, agents: int, integer: bool, device: str) -> dict:
+    state = (
+        torch.zeros((seeds, visits), dtype=torch.int64)
+        if integer
+        else torch.rand((seeds, visits, 5), generator=torch.Generator().manual_seed(0))
+    )
+    batch = {
+        "state": state,
+        "actions": torch.ones((seeds, visits, agents), dtype=torch.int64),
+        "reward": torch.arange(seeds * visits, dtype=torch.float32).view(seeds, visits) / 10,
+        "next_state": state.clone(),
+        "terminal": torch.zeros((seeds, visits), dtype=torch.bool),
+    }
+    return {key: value.to(device) for key, value in batch.items()}
+
+
+def _value_decomposition(mixer: str, device: str):
+    from cmarlcd.learners.deep_config import DeepConfig
+    from cmarlcd.learners.value_decomposition import ValueDecomposition
+
+    seeds = [np.random.SeedSequence(k) for k in range(2)]
+    model = ValueDecomposition([3, 3, 2], 5, DeepConfig(mixer=mixer), seeds, device)
+    model.set_state_legal(torch.ones((5, 3, 3), dtype=torch.bool))
+    return model
+
+
+def _degree_model(share: bool, device: str):
+    from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+    from cmarlcd.learners.degree_model import DegreeModel
+
+    seeds = [np.random.SeedSequence(k) for k in range(2)]
+    config = DeepCMARLCDConfig(share=share)
+    model = DegreeModel([3, 3, 2], 5, config, seeds, device)
+    model.set_state_legal(torch.ones((5, 3, 3), dtype=torch.bool))
+    return model
+
+
+@pytest.mark.parametrize("mixer", ["vdn", "qmix"])
+@pytest.mark.parametrize("integer", [True, False], ids=["one-hot", "features"])
+def test_a_td_loss_makes_no_tensor_off_the_models_device(mixer: str, integer: bool) -> None:
+    """On torch's ``meta`` device every tensor a step makes on the CPU by mistake (an
+    ``arange`` without ``device=``) raises: the loss, its gradients and the greedy table
+    run there, as they would on a GPU (fused Adam's step itself has no meta kernel)."""
+    model = _value_decomposition(mixer, "meta")
+    model.td_loss(_td_batch(2, 4, 3, integer, "meta")).backward()
+    learnt = [p for p in model.parameters() if p.requires_grad]
+    assert learnt and all(p.grad is not None and p.grad.device.type == "meta" for p in learnt)
+    assert model.greedy_table().device.type == "meta"
+
+
+@pytest.mark.parametrize("share", [False, True], ids=["per-agent", "shared"])
+@pytest.mark.parametrize("integer", [True, False], ids=["one-hot", "features"])
+def test_a_degree_loss_makes_no_tensor_off_the_models_device(share: bool, integer: bool) -> None:
+    model = _degree_model(share, "meta")
+    model.loss(_td_batch(2, 4, 3, integer, "meta")).backward()
+    assert all(p.grad is not None for p in model.parameters() if p.requires_grad)
+    assert model.greedy_table().device.type == "meta"
+
+
+# ------------------------------------------------------------- the commands
+
+DEEP_COMMANDS = {
+    "dsn": ["dsn", "--algorithms", "vdn", "--runs", "1", "--episodes", "30"],
+    "tournament": ["tournament", "--algorithms", "vdn,qmix", "--rounds", "1"],
+    "compare": ["compare", "--learners", "deep-cmarl-cd", "--games", "climbing", "--runs", "1"],
+    "scaling": ["scaling", "--preset", "quick", "--algorithms", "vdn", "--runs", "1"],
+    "readings": ["readings", "--rounds", "1"],
+    "reproduce": ["reproduce", "--preset", "quick"],
+    "train": ["train", "--env", "tests.tiny_env:make", "--algorithms", "vdn"],
+}
+
+
+@pytest.mark.parametrize("command", sorted(DEEP_COMMANDS))
+@pytest.mark.parametrize(
+    ("device", "says"),
+    [("cuda", "torch sees no GPU"), ("cuda:1", "torch sees no GPU"), ("gpu", "cpu, cuda")],
+)
+def test_a_gpu_that_is_not_there_is_refused_before_anything_runs(
+    gpus, tmp_path, command: str, device: str, says: str
+) -> None:
+    """Every command that trains deep learners takes ``--device``; a GPU torch does not
+    see, or a device misspelt: one line, exit 2, no store and no figures."""
+    from tests.test_cli import assert_rejected_cleanly, invoke
+
+    gpus(0)
+    store, figures = tmp_path / "store.sqlite", tmp_path / "figures"
+    where = ["--store", str(store), "--figures", str(figures), "--no-progress"]
+    result = invoke(*DEEP_COMMANDS[command], *where, "--device", device)
+    assert_rejected_cleanly(result, "--device", store, figures)
+    assert says in result.stderr
+
+
+def test_a_tabular_command_has_no_device_option() -> None:
+    from tests.test_cli import invoke
+
+    result = invoke("repeated", "--device", "cpu")
+    assert result.exit_code == 2 and "No such option" in result.output + result.stderr
+
+
+def test_a_deep_run_records_its_device_and_a_tabular_one_none(tmp_path) -> None:
+    from tests.test_cli import invoke
+
+    store = tmp_path / "store.sqlite"
+    args = ["dsn", "--algorithms", "vdn,cmarl-cd", "--runs", "1", "--episodes", "30"]
+    where = ["--store", str(store), "--figures", str(tmp_path / "f"), "--workers", "1"]
+    result = invoke(*args, "--eval-episodes", "5", *where, "--device", "auto", "--no-progress")
+    assert result.exit_code == 0, result.output
+    from cmarlcd.store import ResultStore
+
+    with ResultStore(store) as opened:
+        recorded = {r.key.algorithm: r.metrics.get("device") for r in opened.records()}
+    assert recorded == {"vdn": devices.describe(devices.resolve("auto")), "cmarl-cd": None}
+
+
+# ------------------------------------------------------------- on a GPU (skipped here)
+
+
+@gpu
+@pytest.mark.parametrize("mixer", ["vdn", "qmix"])
+@pytest.mark.parametrize("integer", [True, False], ids=["one-hot", "features"])
+def test_one_td_step_agrees_on_cpu_and_gpu(mixer: str, integer: bool) -> None:
+    """From the same weights and batch, one Adam step gives the same loss and the same
+    new weights within float tolerance."""
+    on_cpu, on_gpu = _value_decomposition(mixer, "cpu"), _value_decomposition(mixer, "cuda:0")
+    loss_cpu = on_cpu.td_step(_td_batch(2, 16, 3, integer, "cpu"))
+    loss_gpu = on_gpu.td_step(_td_batch(2, 16, 3, integer, "cuda:0"))
+    assert loss_gpu == pytest.approx(loss_cpu, rel=1e-4, abs=1e-6)
+    for cpu_param, gpu_param in zip(on_cpu.parameters(), on_gpu.parameters(), strict=True):
+        torch.testing.assert_close(gpu_param.cpu(), cpu_param, rtol=1e-4, atol=1e-5)
+
+
+@gpu
+@pytest.mark.parametrize("integer", [True, False], ids=["one-hot", "features"])
+def test_one_degree_step_agrees_on_cpu_and_gpu(integer: bool) -> None:
+    on_cpu, on_gpu = _degree_model(False, "cpu"), _degree_model(False, "cuda:0")
+    loss_cpu = on_cpu.learn(_td_batch(2, 16, 3, integer, "cpu"))
+    loss_gpu = on_gpu.learn(_td_batch(2, 16, 3, integer, "cuda:0"))
+    assert loss_gpu == pytest.approx(loss_cpu, rel=1e-4, abs=1e-6)
+    for cpu_param, gpu_param in zip(on_cpu.parameters(), on_gpu.parameters(), strict=True):
+        torch.testing.assert_close(gpu_param.cpu(), cpu_param, rtol=1e-4, atol=1e-5)
+
+
+@gpu
+def test_a_tiny_tournament_runs_on_the_gpu(tmp_path) -> None:
+    from tests.test_cli import invoke
+
+    store = tmp_path / "store.sqlite"
+    args = ["tournament", "--algorithms", "vdn,qmix,deep-cmarl-cd", "--rounds", "2"]
+    budget = ["--learn-episodes", "300", "--eval-episodes", "100", "--seed-batch", "2"]
+    where = ["--store", str(store), "--figures", str(tmp_path / "f"), "--workers", "1"]
+    result = invoke(*args, *budget, *where, "--device", "cuda", "--no-progress")
+    assert result.exit_code == 0, result.output
+    from cmarlcd.store import ResultStore
+
+    with ResultStore(store) as opened:
+        recorded = {r.metrics["device"] for r in opened.records()}
+    assert len(recorded) == 1 and recorded.pop().startswith("cuda:0 (")
