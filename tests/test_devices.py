@@ -4,11 +4,18 @@ make no tensor off their device. The tests marked ``gpu`` run only where torch s
 
 from __future__ import annotations
 
+import os
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 
 from cmarlcd import devices
 from cmarlcd.errors import ConfigError
+from cmarlcd.experiments import register
+from cmarlcd.runner import run_sweep
+from cmarlcd.runs import Experiment, RunSpec, Settings
+from cmarlcd.store import ResultStore
 
 torch = pytest.importorskip("torch")
 
@@ -229,3 +236,70 @@ def test_a_tiny_tournament_runs_on_the_gpu(tmp_path) -> None:
     with ResultStore(store) as opened:
         recorded = {r.metrics["device"] for r in opened.records()}
     assert len(recorded) == 1 and recorded.pop().startswith("cuda:0 (")
+
+
+# ------------------------------------------------------------- sweeps
+
+
+@dataclass(frozen=True)
+class Chore(Settings):
+    """A toy run that says where it ran; ``deep`` runs count as training a deep learner."""
+
+    deep: bool
+    index: int
+
+
+def _where(chore: Chore, seed: np.random.SeedSequence) -> dict:
+    return {"built_on": devices.current(), "pid": os.getpid()}
+
+
+register(Experiment("chore", Chore, _where, uses_device=lambda chore: chore.deep))
+
+
+def _chores(deep: bool, count: int) -> list[RunSpec]:
+    return [RunSpec.make("chore", "toy", Chore(deep, k), 0, 0) for k in range(count)]
+
+
+@pytest.mark.slow
+def test_with_a_gpu_the_deep_tasks_go_to_one_gpu_worker(tmp_path, monkeypatch) -> None:
+    """Three workers and a (pretended) GPU: every deep run is built on the card by one
+    and the same worker process and records the card; the tabular runs run on the CPU in
+    the other workers and record no device."""
+    monkeypatch.setattr(devices, "gpu_count", lambda: 1)
+    monkeypatch.setattr(devices, "describe", lambda device: f"{device} (a pretended card)")
+    deep, tabular = _chores(True, 6), _chores(False, 12)
+    with ResultStore(tmp_path / "store.sqlite") as store:
+        run_sweep(deep + tabular, store, workers=3, device="cuda")
+        deep_runs = [r.metrics for r in store.get(s.key for s in deep)]
+        tabular_runs = [r.metrics for r in store.get(s.key for s in tabular)]
+    assert {(m["built_on"], m["device"]) for m in deep_runs} == {
+        ("cuda:0", "cuda:0 (a pretended card)")
+    }
+    assert {m["built_on"] for m in tabular_runs} == {"cpu"}
+    assert not any("device" in m for m in tabular_runs)
+    gpu_worker = {m["pid"] for m in deep_runs}
+    assert len(gpu_worker) == 1 and not gpu_worker & {m["pid"] for m in tabular_runs}
+
+
+def test_on_the_cpu_a_deep_run_records_the_cpu(tmp_path) -> None:
+    with ResultStore(tmp_path / "store.sqlite") as store:
+        run_sweep(_chores(True, 2) + _chores(False, 2), store, workers=1)
+        recorded = {(r.key.config, r.metrics.get("device")) for r in store.records()}
+    assert {device for _, device in recorded} == {"cpu", None}
+
+
+@pytest.mark.parametrize(
+    ("device", "gpus", "expected"),
+    [("cpu", 2, "cpu"), ("auto", 0, "cpu"), ("auto", 2, "cuda"), ("cuda:1", 2, "cuda:1")],
+)
+def test_a_ray_cluster_takes_a_gpu_where_it_has_one(device: str, gpus: int, expected: str) -> None:
+    from cmarlcd.backends.ray_cluster import cluster_device
+
+    assert cluster_device(device, gpus) == expected
+
+
+def test_a_gpu_asked_of_a_ray_cluster_without_one_is_refused() -> None:
+    from cmarlcd.backends.ray_cluster import cluster_device
+
+    with pytest.raises(ConfigError, match="the Ray cluster has no GPU"):
+        cluster_device("cuda", 0)

@@ -302,8 +302,7 @@ class _Sweep:
         self.tags: dict[int, _Tag] = {}
         next_poll = 0.0
         while self.queue or self.inflight or self.waiting:
-            while self.queue and len(self.inflight) < backend.capacity:
-                self._hand_out(backend, self.queue.popleft())
+            self._fill(backend)
             for tag, outcomes in backend.poll(0.2 if self.inflight else WAIT_POLL_SECONDS):
                 del self.inflight[tag]
                 for outcome in outcomes:
@@ -312,6 +311,20 @@ class _Sweep:
             if self.waiting and time.monotonic() >= next_poll:
                 self._check_waiting()
                 next_poll = time.monotonic() + WAIT_POLL_SECONDS
+
+    def _fill(self, backend: Any) -> None:
+        """Hand out tasks in queue order while the backend has room, passing over those
+        whose lane is full (a backend with a GPU lane beside its CPU workers)."""
+        has_room = getattr(backend, "has_room", None)
+        full = getattr(backend, "full", lambda: False)
+        passed: list[list[list[RunSpec]]] = []
+        while self.queue and len(self.inflight) < backend.capacity and not full():
+            task = self.queue.popleft()
+            if has_room is None or has_room(task):
+                self._hand_out(backend, task)
+            else:
+                passed.append(task)
+        self.queue.extendleft(reversed(passed))
 
     def _tasks(self, task_seconds: float) -> list[list[list[RunSpec]]]:
         """The batches, in order, with short batches of one section packed into tasks of

@@ -24,12 +24,18 @@ from cmarlcd.backends.tasks import (
     Task,
     execute_reporting,
     execute_task,
+    uses_device,
 )
 from cmarlcd.progress import progress_sink
 
 #: How often a worker checks that its parent is still alive, in seconds (where the
 #: operating system cannot tell it, as Linux's parent-death signal does).
 PARENT_CHECK_SECONDS = 0.5
+#: [choice] With a GPU, the worker processes that run the deep learners' tasks (one of
+#: the ``workers``): one process holds the card's context and the models, and a task
+#: is already a seed batch stacked in one model; the other workers run the tabular tasks
+#: on the CPU.
+GPU_WORKERS = 1
 
 
 class InlineBackend:
@@ -100,34 +106,57 @@ def _exit_with_parent(parent: int) -> None:
 
 class ProcessBackend:
     """A pool of ``workers`` local processes (forked where the system can), each with
-    an equal share of the cores for its threads, deep learners on ``device`` (resolved;
-    the parent has not started CUDA, :mod:`cmarlcd.devices`, so each worker can)."""
+    an equal share of the cores for its threads.
+
+    On the CPU every worker takes any task. With a GPU (``device``, resolved; the parent
+    has not started CUDA, :mod:`cmarlcd.devices`, so a worker can) the tasks that train
+    deep learners go to :data:`GPU_WORKERS` of the workers, which compute on the card,
+    and the others to the rest, on the CPU (:meth:`has_room` tells the sweep which lane
+    has room).
+    """
 
     task_seconds = 0.05  # a task costs a fraction of a millisecond to send
 
     def __init__(
         self, workers: int, on_progress: ProgressCallback, device: str = devices.DEFAULT_DEVICE
     ) -> None:
-        self.on_progress, self.device = on_progress, device
+        self.on_progress = on_progress
         self.capacity = 2 * workers  # one running and one queued per worker
         method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
         context = multiprocessing.get_context(method)
         self.queue = context.Queue()
         threads = max(1, default_workers() // workers)
-        self.pool = ProcessPoolExecutor(
-            workers,
-            mp_context=context,
-            initializer=_worker_init,
-            initargs=(self.queue, threads, os.getpid()),
-        )
-        self.pending: set[Future] = set()
+        on_gpu = device != devices.DEFAULT_DEVICE
+        gpu_workers = min(GPU_WORKERS, workers - 1) if on_gpu else 0
+        self.lanes = [
+            _Lane(workers - gpu_workers, devices.DEFAULT_DEVICE, context, self.queue, threads)
+        ]
+        if gpu_workers:
+            self.lanes.append(_Lane(gpu_workers, device, context, self.queue, threads))
+
+    def _lane(self, task: Task) -> _Lane:
+        return self.lanes[-1] if len(self.lanes) > 1 and uses_device(task) else self.lanes[0]
+
+    def has_room(self, task: Task) -> bool:
+        """Whether the lane ``task`` goes to has a free place (one running and one queued
+        per worker)."""
+        lane = self._lane(task)
+        return len(lane.pending) < 2 * lane.workers
+
+    def full(self) -> bool:
+        """Whether every lane is full."""
+        return all(len(lane.pending) >= 2 * lane.workers for lane in self.lanes)
 
     def submit(self, tag: int, task: Task) -> None:
-        self.pending.add(self.pool.submit(_execute_in_worker, tag, task, self.device))
+        lane = self._lane(task)
+        lane.pending.add(lane.pool.submit(_execute_in_worker, tag, task, lane.device))
 
     def poll(self, timeout: float) -> list[Finished]:
-        if self.pending:
-            done, self.pending = wait(self.pending, timeout=timeout, return_when=FIRST_COMPLETED)
+        pending = {future for lane in self.lanes for future in lane.pending}
+        if pending:
+            done, _ = wait(pending, timeout=timeout, return_when=FIRST_COMPLETED)
+            for lane in self.lanes:
+                lane.pending -= done
         else:
             done = set()
             time.sleep(timeout)
@@ -144,4 +173,19 @@ class ProcessBackend:
 
     def close(self, cancel: bool) -> None:
         # On Ctrl-C the workers got the signal too and end; do not wait for queued runs.
-        self.pool.shutdown(wait=not cancel, cancel_futures=cancel)
+        for lane in self.lanes:
+            lane.pool.shutdown(wait=not cancel, cancel_futures=cancel)
+
+
+class _Lane:
+    """Worker processes that compute on one device, and their tasks not yet polled."""
+
+    def __init__(self, workers: int, device: str, context: Any, queue: Any, threads: int) -> None:
+        self.workers, self.device = workers, device
+        self.pool = ProcessPoolExecutor(
+            workers,
+            mp_context=context,
+            initializer=_worker_init,
+            initargs=(queue, threads, os.getpid()),
+        )
+        self.pending: set[Future] = set()
