@@ -8,6 +8,9 @@ Prints, for each device (the CPU first, as the baseline, then ``--device``):
     and the ratio to the CPU;
   * the DSN's deep rows (VDN, QMIX, deep CMARL-CD, ``--dsn-seeds`` seeds stacked):
     environment steps/s over all seeds, and the ratio to the CPU;
+  * what one gradient step of the stacked pairing costs in its three parts: the batch
+    drawn on the host and sent over, the step, the weights copied back for the compiled
+    loop (the copies are what the device adds);
 
 then projects the paper's full tournament (30 rounds x 6 pairings x (500k + 500k)
 episodes per match; 5 pairings have a deep side) on one such device: the deep pairings'
@@ -66,6 +69,41 @@ def stacked_match_turns(rounds: int, episodes: int) -> tuple[float, float]:
     return turns / (time.perf_counter() - start), turns / (rounds * episodes)
 
 
+def step_costs(rounds: int, episodes: int, repeats: int = 30) -> dict[str, float]:
+    """Milliseconds of the three parts of one gradient step of the VDN side of ``rounds``
+    stacked VDN vs QMIX matches, after ``episodes`` learning episodes filled its ring: the
+    batch drawn on the host and sent to the device, the step itself, and the weights
+    copied back for the compiled loop."""
+    positions = [(0, 1) if r % 2 == 0 else (1, 0) for r in range(rounds)]
+    streams = [np.random.default_rng(r).spawn(3) for r in range(rounds)]
+    played = MatchBatch(
+        battlefield.SPEC,
+        (LEARNERS["vdn"], LEARNERS["qmix"]),
+        positions,
+        [env for env, _, _ in streams],
+        [(s0, s1) for _, s0, s1 in streams],
+        episodes,
+    )
+    played.learn()
+    group = played.groups[0]
+    batch = group.sample()
+
+    def timed(part) -> float:
+        part()
+        _synchronise()
+        start = time.perf_counter()
+        for _ in range(repeats):
+            part()
+        _synchronise()
+        return 1000 * (time.perf_counter() - start) / repeats
+
+    return {
+        "batch to the device": timed(group.sample),
+        "gradient step": timed(lambda: group.model.learn(batch)),
+        "weights back": timed(group._copy_weights),
+    }
+
+
 def evaluation_turns(a: str, b: str, episodes: int) -> float:
     """Greedy evaluation turns/s of one match after a short learning stage (compiled,
     on the CPU whatever the device: acting reads a copy of the weights)."""
@@ -122,6 +160,9 @@ def measure(device: str, args: argparse.Namespace, rounds: list[int]) -> dict:
             rates["dsn"][name] = dsn_steps(config, args.dsn_seeds, args.dsn_episodes)
             print(f"  DSN {name}, {args.dsn_seeds} seeds stacked: "
                   f"{rates['dsn'][name]:>9,.0f} env steps/s")  # fmt: skip
+        costs = step_costs(max(rounds), max(args.episodes // 4, 200))
+        parts = ", ".join(f"{part} {ms:.2f} ms" for part, ms in costs.items())
+        print(f"  one gradient step of {max(rounds)} stacked rounds: {parts}")
     return rates
 
 
