@@ -200,7 +200,7 @@ def main() -> None:
         f"{args.episodes} learning episodes a match"
     )
     print("cpu (the baseline):")
-    cpu_rounds = [r for r in args.rounds if r <= args.cpu_rounds]
+    cpu_rounds = [r for r in args.rounds if r <= args.cpu_rounds] or [min(args.rounds)]
     cpu = measure("cpu", args, cpu_rounds)
     cpu_eval = evaluation_turns("vdn", "qmix", 2_000)
     cpu_tabular = tabular_learning_turns(args.episodes)

@@ -290,7 +290,7 @@ def test_on_the_cpu_a_deep_run_records_the_cpu(tmp_path) -> None:
 
 @pytest.mark.parametrize(
     ("device", "gpus", "expected"),
-    [("cpu", 2, "cpu"), ("auto", 0, "cpu"), ("auto", 2, "cuda"), ("cuda:1", 2, "cuda:1")],
+    [("cpu", 2, "cpu"), ("auto", 0, "cpu"), ("auto", 2, "cuda"), ("cuda:0", 2, "cuda")],
 )
 def test_a_ray_cluster_takes_a_gpu_where_it_has_one(device: str, gpus: int, expected: str) -> None:
     from cmarlcd.backends.ray_cluster import cluster_device
@@ -303,3 +303,5 @@ def test_a_gpu_asked_of_a_ray_cluster_without_one_is_refused() -> None:
 
     with pytest.raises(ConfigError, match="the Ray cluster has no GPU"):
         cluster_device("cuda", 0)
+    with pytest.raises(ConfigError, match="use --device cuda"):  # Ray picks each task's GPU
+        cluster_device("cuda:1", 2)

@@ -11,14 +11,17 @@ unless :func:`using` or :func:`set_current` says otherwise): the runner sets it 
 worker, and the deep learners read it when they are built, unless they are given one.
 
 Only :func:`resolve` and :func:`describe` import torch; checking the spelling does not.
-Whether a GPU is present is asked through NVML (``PYTORCH_NVML_BASED_CUDA_CHECK``), which
-does not start CUDA in this process, so worker processes forked afterwards can.
+Whether a GPU is present is asked through NVML (``PYTORCH_NVML_BASED_CUDA_CHECK``, unless
+the environment sets it otherwise), which does not start CUDA in this process, so worker
+processes forked afterwards can (a worker pool for the GPU is spawned instead where this
+process has started CUDA, :class:`cmarlcd.backends.local.ProcessBackend`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import functools
+import importlib.util
 import os
 import re
 from collections.abc import Iterator
@@ -45,7 +48,10 @@ def check_device(device: str) -> None:
 
 
 def gpu_count() -> int:
-    """The GPUs torch sees, asked without starting CUDA here (0 without torch's CUDA)."""
+    """The GPUs torch sees, asked without starting CUDA here (0 without torch, or with a
+    torch built without CUDA)."""
+    if importlib.util.find_spec("torch") is None:
+        return 0
     os.environ.setdefault("PYTORCH_NVML_BASED_CUDA_CHECK", "1")
     import torch
 

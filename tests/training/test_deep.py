@@ -203,3 +203,27 @@ def test_evaluating_on_the_way_leaves_a_feature_reading_seed_as_it_was(name: str
     busy, played = learn(list(range(1, 120, 3)))
     assert len(played) == 41 and all(steps >= 15 for steps in played)
     assert all(torch.equal(a, b) for a, b in zip(quiet, busy, strict=True))
+
+
+def test_greedy_tables_read_the_masks_met_since_the_last_step(monkeypatch) -> None:
+    """A model that holds a copy of the masks (as one on a GPU does) is told of the masks
+    read since its last gradient step before a greedy table is read: state 1's illegal
+    action is never greedy once state 1 has been met."""
+    config = DeepConfig(buffer_size=100, batch_size=10, train_every=4, target_every=8)
+    illegal = []
+    for seed in range(6):
+        run = DeepBatch(TRAP, config, [np.random.SeedSequence(seed)], 20)
+        model, group = run.group.model, run.group
+
+        def keep_a_copy(legal, model=model) -> None:
+            type(model).set_state_legal(model, legal.clone())
+
+        monkeypatch.setattr(model, "set_state_legal", keep_a_copy)
+        model.set_state_legal(torch.from_numpy(group.legal))
+
+        def evaluate(k, episodes, policy, group=group) -> None:
+            if group.seen[k, 1]:
+                illegal.append(int(policy.table[1, 0]) == 1)
+
+        run.train(list(range(1, 21)), evaluate)
+    assert illegal and not any(illegal)

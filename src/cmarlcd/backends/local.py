@@ -124,15 +124,16 @@ class ProcessBackend:
         self.capacity = 2 * workers  # one running and one queued per worker
         method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
         context = multiprocessing.get_context(method)
-        self.queue = context.Queue()
         threads = max(1, default_workers() // workers)
         on_gpu = device != devices.DEFAULT_DEVICE
         gpu_workers = min(GPU_WORKERS, workers - 1) if on_gpu else 0
-        self.lanes = [
-            _Lane(workers - gpu_workers, devices.DEFAULT_DEVICE, context, self.queue, threads)
-        ]
+        self.lanes = [_Lane(workers - gpu_workers, devices.DEFAULT_DEVICE, context, threads)]
         if gpu_workers:
-            self.lanes.append(_Lane(gpu_workers, device, context, self.queue, threads))
+            # CUDA cannot start in a process forked after its parent started it (an
+            # earlier sweep in this process on the GPU alone): such a lane is spawned
+            started = "torch" in sys.modules and sys.modules["torch"].cuda.is_initialized()
+            gpu_context = multiprocessing.get_context("spawn") if started else context
+            self.lanes.append(_Lane(gpu_workers, device, gpu_context, threads))
 
     def _lane(self, task: Task) -> _Lane:
         return self.lanes[-1] if len(self.lanes) > 1 and uses_device(task) else self.lanes[0]
@@ -164,12 +165,14 @@ class ProcessBackend:
         return [future.result() for future in done]
 
     def _drain(self) -> None:
-        while True:
-            try:
-                tag, amount, seconds = self.queue.get_nowait()
-            except Empty:
-                return
-            self.on_progress(tag, amount, seconds)
+        """Hand on the progress every lane's workers reported."""
+        for lane in self.lanes:
+            while True:
+                try:
+                    tag, amount, seconds = lane.queue.get_nowait()
+                except Empty:
+                    break
+                self.on_progress(tag, amount, seconds)
 
     def close(self, cancel: bool) -> None:
         # On Ctrl-C the workers got the signal too and end; do not wait for queued runs.
@@ -178,14 +181,16 @@ class ProcessBackend:
 
 
 class _Lane:
-    """Worker processes that compute on one device, and their tasks not yet polled."""
+    """Worker processes that compute on one device, the queue their progress comes
+    back on, and their tasks not yet polled."""
 
-    def __init__(self, workers: int, device: str, context: Any, queue: Any, threads: int) -> None:
+    def __init__(self, workers: int, device: str, context: Any, threads: int) -> None:
         self.workers, self.device = workers, device
+        self.queue = context.Queue()
         self.pool = ProcessPoolExecutor(
             workers,
             mp_context=context,
             initializer=_worker_init,
-            initargs=(queue, threads, os.getpid()),
+            initargs=(self.queue, threads, os.getpid()),
         )
         self.pending: set[Future] = set()

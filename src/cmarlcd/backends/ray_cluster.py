@@ -209,15 +209,22 @@ def _is_loopback_ip(address: ipaddress.IPv4Address | ipaddress.IPv6Address) -> b
 
 
 def cluster_device(device: str, gpus: int) -> str:
-    """The device the cluster's deep tasks use (resolved on each node): ``cpu``, or
-    ``device`` where the cluster has a GPU; ``auto`` takes one if it has any. A GPU asked
-    for where the cluster has none is refused (its tasks would wait forever)."""
+    """The device the cluster's deep tasks use: ``cpu``, or ``cuda`` where the cluster
+    has a GPU (``auto`` takes one if it has any). Ray gives each deep task its GPU, which
+    the task sees as ``cuda:0``, so ``cuda:N`` other than ``cuda:0`` is refused, and so is a
+    GPU asked of a cluster without one (its tasks would wait forever)."""
     devices.check_device(device)
     if device == "auto":
         return "cuda" if gpus else devices.DEFAULT_DEVICE
-    if device != devices.DEFAULT_DEVICE and gpus == 0:
-        raise ConfigError("device", f"{device}: the Ray cluster has no GPU")
-    return device
+    if device == devices.DEFAULT_DEVICE:
+        return device
+    require(
+        device in ("cuda", "cuda:0"),
+        "device",
+        f"{device}: on Ray each task is given its GPU by Ray; use --device cuda",
+    )
+    require(gpus > 0, "device", f"{device}: the Ray cluster has no GPU")
+    return "cuda"
 
 
 def _compute(tag: int, task: Task, relay: Any, version: str, device: str) -> Finished:
@@ -356,15 +363,27 @@ class RayBackend:
         self.started_here = not ray.is_initialized()
         if self.started_here:
             self._connect(joined, workers)
+        resources = ray.cluster_resources()
+        try:
+            self.device = cluster_device(device, int(resources.get("GPU", 0)))
+        except ConfigError:
+            if self.started_here:
+                ray.shutdown()
+            raise
         self.head = head or gcs_head(ray)
         self.watch = HeadWatch(self.head, self.address)
-        cpus = int(ray.cluster_resources().get("CPU", 1))
+        cpus = int(resources.get("CPU", 1))
         self.capacity = 2 * (workers or cpus)
-        self.device = cluster_device(device, int(ray.cluster_resources().get("GPU", 0)))
+        self.gpu_capacity = 2 * int(resources.get("GPU", 0) / GPUS_PER_DEEP_TASK)
         self.task: Callable[..., Any] = ray.remote(num_cpus=1, max_retries=TASK_RETRIES)(_compute)
-        self.gpu_task = self.task.options(num_gpus=GPUS_PER_DEEP_TASK)
+        # a function of its own (not .options): Ray then ends a GPU task's worker after it,
+        # so no process keeps a card's context for a task Ray gives another card
+        self.gpu_task = ray.remote(
+            num_cpus=1, num_gpus=GPUS_PER_DEEP_TASK, max_retries=TASK_RETRIES
+        )(_compute)
         self.relay = ray.remote(num_cpus=0)(_Relay).remote()
         self.pending: dict[Any, int] = {}
+        self.on_gpu: set[Any] = set()
 
     def _connect(self, address: str | None, workers: int | None) -> None:
         """``ray.init``, given :data:`CONNECT_SECONDS` to finish (in a thread of its own:
@@ -412,10 +431,20 @@ class RayBackend:
             verb = "join" if address else "start"
             raise ConfigError(parameter, f"cannot {verb} {where}: {first}") from None
 
+    def _on_gpu(self, task: Task) -> bool:
+        return self.device != devices.DEFAULT_DEVICE and uses_device(task)
+
+    def has_room(self, task: Task) -> bool:
+        """Whether ``task`` may be sent now: a task for a GPU while fewer than two per GPU
+        of the cluster wait or run, so that tabular tasks are not held behind them."""
+        return not self._on_gpu(task) or len(self.on_gpu) < self.gpu_capacity
+
     def submit(self, tag: int, task: Task) -> None:
-        on_gpu = self.device != devices.DEFAULT_DEVICE and uses_device(task)
-        remote = self.gpu_task if on_gpu else self.task
-        ref = remote.remote(tag, task, self.relay, __version__, self.device)
+        if self._on_gpu(task):
+            ref = self.gpu_task.remote(tag, task, self.relay, __version__, self.device)
+            self.on_gpu.add(ref)
+        else:
+            ref = self.task.remote(tag, task, self.relay, __version__, devices.DEFAULT_DEVICE)
         self.pending[ref] = tag
 
     def poll(self, timeout: float) -> list[Finished]:
@@ -436,6 +465,7 @@ class RayBackend:
         finished = []
         for ref in done:
             del self.pending[ref]
+            self.on_gpu.discard(ref)
             try:
                 finished.append(self.ray.get(ref, timeout=LOST_SECONDS))
             except self.ray.exceptions.RayError as exc:

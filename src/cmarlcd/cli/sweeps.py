@@ -85,7 +85,7 @@ def check_device_here(device: str, backend: str) -> None:
     """``device`` is spelt right and, for local workers, torch is installed and sees the
     GPU asked for (a Ray cluster's GPUs are counted when the sweep joins it)."""
     check_device(device)
-    if device == DEFAULT_DEVICE or backend == "ray":
+    if device in (DEFAULT_DEVICE, "auto") or backend == "ray":  # auto: the CPU without torch
         return
     require(has_torch(), "device", f"{device} needs PyTorch: pip install 'cmarl-cd[deep]'")
     resolve(device)

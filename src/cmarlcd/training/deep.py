@@ -34,7 +34,8 @@ Evaluator = Callable[[int, int, GreedyPolicy], None]
 class DeepBatch:
     """B seeds of a deep learner learning one game for ``total_episodes`` episodes each,
     reading the game's features where it has them, else its state indices (one-hot;
-    :func:`cmarlcd.training.deep_kernels.inputs_of`)."""
+    :func:`cmarlcd.training.deep_kernels.inputs_of`), its stacked model on ``device``
+    (default: this process's, :func:`cmarlcd.devices.current`)."""
 
     def __init__(
         self,
@@ -42,6 +43,7 @@ class DeepBatch:
         config: DeepLearnerConfig,
         seeds: Sequence[np.random.SeedSequence],
         total_episodes: int,
+        device: str | None = None,
     ) -> None:
         spec.require_one_team("DeepBatch")
         init, env, act, replay = zip(*(s.spawn(4) for s in seeds), strict=True)
@@ -49,8 +51,9 @@ class DeepBatch:
         self.total_episodes, self.n_seeds = int(total_episodes), len(seeds)
         replay_rngs = [np.random.default_rng(s) for s in replay]
         self.group = DeepGroup(
-            spec, [0] * self.n_seeds, config, init, replay_rngs, self.total_episodes
-        )
+            spec, [0] * self.n_seeds, config, init, replay_rngs, self.total_episodes,
+            device=device,
+        )  # fmt: skip
         self.plays = [
             Play(spec, [view], np.random.default_rng(e), [np.random.default_rng(a)])
             for view, e, a in zip(self.group.views, env, act, strict=True)

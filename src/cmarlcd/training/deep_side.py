@@ -185,8 +185,8 @@ class DeepGroup(Group):
 
     def masks_changed(self) -> None:
         """Tell the model when a side has read the masks of a new state (index inputs:
-        the model's per-state masks share the group's memory, its cached target values
-        must be recomputed)."""
+        on a CPU the model's per-state masks share the group's memory, on a GPU they are
+        sent again; either way its cached target values must be recomputed)."""
         if self.inputs != "index":
             return
         if any(view.counters[NEW_STATES] for view in self.views):
@@ -202,7 +202,8 @@ class DeepGroup(Group):
 
     def greedy_tables(self) -> np.ndarray:
         """(B, n_states, n_agents) (index inputs): each seed's greedy joint action in every
-        state, over the masks it has read."""
+        state, over the masks it has read (including those read since the last step)."""
+        self.masks_changed()
         return self.model.greedy_table().cpu().numpy()
 
     def _copy_weights(self) -> None:
