@@ -196,26 +196,23 @@ def test_a_deep_run_records_its_device_and_a_tabular_one_none(tmp_path) -> None:
 # ------------------------------------------------------------- on a GPU (skipped here)
 
 
-@gpu
-@pytest.mark.parametrize("mixer", ["vdn", "qmix"])
-@pytest.mark.parametrize("integer", [True, False], ids=["one-hot", "features"])
-def test_one_td_step_agrees_on_cpu_and_gpu(mixer: str, integer: bool) -> None:
-    """From the same weights and batch, one Adam step gives the same loss and the same
-    new weights within float tolerance."""
-    on_cpu, on_gpu = _value_decomposition(mixer, "cpu"), _value_decomposition(mixer, "cuda:0")
-    loss_cpu = on_cpu.td_step(_td_batch(2, 16, 3, integer, "cpu"))
-    loss_gpu = on_gpu.td_step(_td_batch(2, 16, 3, integer, "cuda:0"))
-    assert loss_gpu == pytest.approx(loss_cpu, rel=1e-4, abs=1e-6)
-    for cpu_param, gpu_param in zip(on_cpu.parameters(), on_gpu.parameters(), strict=True):
-        torch.testing.assert_close(gpu_param.cpu(), cpu_param, rtol=1e-4, atol=1e-5)
+STEPPED_MODELS = {
+    "vdn": (lambda device: _value_decomposition("vdn", device), "td_step"),
+    "qmix": (lambda device: _value_decomposition("qmix", device), "td_step"),
+    "deep-cmarl-cd": (lambda device: _degree_model(False, device), "learn"),
+}
 
 
 @gpu
+@pytest.mark.parametrize("learner", sorted(STEPPED_MODELS))
 @pytest.mark.parametrize("integer", [True, False], ids=["one-hot", "features"])
-def test_one_degree_step_agrees_on_cpu_and_gpu(integer: bool) -> None:
-    on_cpu, on_gpu = _degree_model(False, "cpu"), _degree_model(False, "cuda:0")
-    loss_cpu = on_cpu.learn(_td_batch(2, 16, 3, integer, "cpu"))
-    loss_gpu = on_gpu.learn(_td_batch(2, 16, 3, integer, "cuda:0"))
+def test_one_gradient_step_agrees_on_cpu_and_gpu(learner: str, integer: bool) -> None:
+    """From the same weights and batch, one Adam step (a TD step of VDN or QMIX, a step of
+    deep CMARL-CD) gives the same loss and the same new weights within float tolerance."""
+    build, step = STEPPED_MODELS[learner]
+    on_cpu, on_gpu = build("cpu"), build("cuda:0")
+    loss_cpu = getattr(on_cpu, step)(_td_batch(2, 16, 3, integer, "cpu"))
+    loss_gpu = getattr(on_gpu, step)(_td_batch(2, 16, 3, integer, "cuda:0"))
     assert loss_gpu == pytest.approx(loss_cpu, rel=1e-4, abs=1e-6)
     for cpu_param, gpu_param in zip(on_cpu.parameters(), on_gpu.parameters(), strict=True):
         torch.testing.assert_close(gpu_param.cpu(), cpu_param, rtol=1e-4, atol=1e-5)
