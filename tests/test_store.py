@@ -135,3 +135,39 @@ def test_an_empty_store_is_discarded_only_when_no_one_holds_it(tmp_path) -> None
         store.put(RunKey("e", "a", "{}", 0, 0), {"v": 1}, 0.0, "x")
     discard_if_empty(full)
     assert full.exists()
+
+
+READ_AND_CLOSE = (
+    "import sqlite3, sys\n"
+    "c = sqlite3.connect(sys.argv[1])\n"
+    "print(c.execute('SELECT COUNT(*) FROM runs').fetchone()[0])\n"
+    "c.close()\n"
+)
+
+
+def _count_from_another_process(path) -> int:
+    """What another process reads in the store (its connection closed afterwards, as
+    ``cmarl-cd report`` does while a sweep writes)."""
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-c", READ_AND_CLOSE, str(path)], capture_output=True, text=True
+    )
+    return int(done.stdout)
+
+
+def test_a_second_store_on_the_file_keeps_the_first_ones_log(tmp_path) -> None:
+    """A sweep opens the store twice (its claims' heartbeat has a connection of its own).
+    Opening and closing the second must leave the first's SQLite locks alone: otherwise a
+    reader in another process takes itself for the last connection, deletes the
+    write-ahead log under the open store, and the sweep's later runs reach no reader."""
+    path = tmp_path / "store.sqlite"
+    with ResultStore(path) as sweep:
+        sweep.put(RunKey("e", "a", "{}", 0, 0), {"x": 1}, 1.0, "v")
+        with ResultStore(path):
+            pass
+        assert _count_from_another_process(path) == 1
+        sweep.put(RunKey("e", "a", "{}", 0, 1), {"x": 2}, 1.0, "v")
+        assert (tmp_path / "store.sqlite-wal").exists()
+        assert _count_from_another_process(path) == 2

@@ -29,6 +29,7 @@ import contextlib
 import json
 import os
 import sqlite3
+import threading
 import time
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
@@ -114,8 +115,7 @@ def check_store(path: Path, create: bool = True) -> None:
     require(os.access(path, os.R_OK), "store", f"cannot read {path}")
     if path.stat().st_size == 0:
         return  # an empty file is an empty SQLite database
-    with path.open("rb") as file:
-        magic = file.read(len(_SQLITE_MAGIC))
+    magic = _first_bytes(path, len(_SQLITE_MAGIC))
     require(magic == _SQLITE_MAGIC, "store", f"{path} is not an SQLite database")
     try:
         # immutable: read the file as it is, creating no -wal or -shm beside it
@@ -137,24 +137,73 @@ def check_store(path: Path, create: bool = True) -> None:
         check_output_directory(path.parent, "store")
 
 
-def _hold_shared(path: Path) -> int | None:
-    """A descriptor of ``path`` holding a shared lock on it while a :class:`ResultStore`
-    is open (so that :func:`discard_if_empty` never removes a store in use); None where
+#: The descriptors this process holds on open stores' files, by (device, inode): the
+#: descriptor and how many open :class:`ResultStore` objects share it. Closing *any*
+#: descriptor of a file drops every POSIX lock this process holds on it, SQLite's
+#: included; with SQLite's locks gone, another process that closes its connection takes
+#: itself for the last one and deletes the write-ahead log under the open store (its
+#: later writes then reach no reader). So while a store is open here, its file is never
+#: opened and closed again by hand: every store of the process shares one descriptor,
+#: closed with the last of them, after their connections.
+_HELD: dict[tuple[int, int], list[int]] = {}
+_HELD_LOCK = threading.Lock()
+
+
+def _first_bytes(path: Path, count: int) -> bytes:
+    """The first ``count`` bytes of ``path``, read through the descriptor this process
+    holds on it if it holds one (see :data:`_HELD`)."""
+    with _HELD_LOCK:
+        try:
+            stat = path.stat()
+            held = _HELD.get((stat.st_dev, stat.st_ino))
+        except FileNotFoundError:
+            held = None
+        if held is not None:
+            return os.pread(held[0], count, 0)
+    with path.open("rb") as file:
+        return file.read(count)
+
+
+def _hold_shared(path: Path) -> tuple[int, int] | None:
+    """Hold a shared ``flock`` on ``path`` while a :class:`ResultStore` is open (so that
+    :func:`discard_if_empty` never removes a store in use), on the descriptor every
+    store of this process on that file shares (:data:`_HELD`); its key, or None where
     the system has no ``flock``. The lock is taken again if the file was replaced
     meanwhile (removed and created anew by another process)."""
     if fcntl is None:
         return None
-    while True:
-        flags = os.O_RDONLY if path.exists() else os.O_RDWR | os.O_CREAT
-        fd = os.open(path, flags, 0o644)
-        fcntl.flock(fd, fcntl.LOCK_SH)
-        try:
-            same = os.stat(path).st_ino == os.fstat(fd).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            return fd
-        os.close(fd)
+    with _HELD_LOCK:
+        with contextlib.suppress(FileNotFoundError):
+            stat = path.stat()
+            held = _HELD.get((stat.st_dev, stat.st_ino))
+            if held is not None:
+                held[1] += 1
+                return (stat.st_dev, stat.st_ino)
+        while True:
+            flags = os.O_RDONLY if path.exists() else os.O_RDWR | os.O_CREAT
+            fd = os.open(path, flags, 0o644)
+            fcntl.flock(fd, fcntl.LOCK_SH)
+            try:
+                same = os.stat(path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                opened = os.fstat(fd)
+                key = (opened.st_dev, opened.st_ino)
+                _HELD[key] = [fd, 1]
+                return key
+            os.close(fd)  # a file no store of this process has open
+
+
+def _release(key: tuple[int, int]) -> None:
+    """One store of the process is closed (its connection first): the shared descriptor
+    goes with the last one."""
+    with _HELD_LOCK:
+        held = _HELD[key]
+        held[1] -= 1
+        if held[1] == 0:
+            del _HELD[key]
+            os.close(held[0])
 
 
 def discard_if_empty(path: Path) -> None:
@@ -237,7 +286,7 @@ class ResultStore:
 
     def __init__(self, path: str | Path = DEFAULT_STORE, create: bool = True) -> None:
         self.path = Path(path)
-        self._lock: int | None = None
+        self._lock: tuple[int, int] | None = None
         check_store(self.path, create)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -250,15 +299,25 @@ class ResultStore:
                 for statement in filter(str.strip, SCHEMA.split(";")):
                     conn.execute(statement)
         except ConfigError:
+            self._let_go()
             raise
         except (OSError, sqlite3.Error) as exc:
+            self._let_go()
             reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
             raise ConfigError("store", f"cannot open {self.path} ({reason})") from None
 
     def close(self) -> None:
-        self._conn.close()
+        self._let_go()
+
+    def _let_go(self) -> None:
+        """Close the connection, then the shared descriptor if it was the last store of
+        this process on the file (:data:`_HELD`)."""
+        conn = getattr(self, "_conn", None)
+        if conn is not None:
+            conn.close()
+            self._conn = None  # type: ignore[assignment]
         if self._lock is not None:
-            os.close(self._lock)
+            _release(self._lock)
             self._lock = None
 
     def __enter__(self) -> ResultStore:
