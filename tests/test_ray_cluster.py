@@ -149,7 +149,7 @@ def test_a_cluster_that_goes_away_ends_the_sweep_in_one_line(cluster, tmp_path):
     nodes.shutdown()
     out, err = sweep.communicate(timeout=LOST_SECONDS + GRACE_SECONDS + 60)
     took = time.monotonic() - gone
-    assert sweep.returncode == 2
+    assert sweep.returncode == 2, err.decode()[-3000:]
     assert took < LOST_SECONDS + HEAD_CHECK_SECONDS + GRACE_SECONDS + 10
     lines = err.decode().strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: --backend: the Ray cluster at"), lines

@@ -440,11 +440,25 @@ class RayBackend:
         return not self._on_gpu(task) or len(self.on_gpu) < self.gpu_capacity
 
     def submit(self, tag: int, task: Task) -> None:
-        if self._on_gpu(task):
-            ref = self.gpu_task.remote(tag, task, self.relay, __version__, self.device)
+        if self.watch.lost is not None:
+            self.lost = True
+            raise BackendLost(self.watch.lost)
+        on_gpu = self._on_gpu(task)
+        try:
+            if on_gpu:
+                ref = self.gpu_task.remote(tag, task, self.relay, __version__, self.device)
+            else:
+                ref = self.task.remote(tag, task, self.relay, __version__, devices.DEFAULT_DEVICE)
+        except Exception as exc:  # the cluster went away as the task was sent
+            self.lost = True
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            raise BackendLost(
+                f"--backend: the Ray cluster at {self.address} went away as a task was sent "
+                f"({first}); the runs stored before are kept: run the same command again "
+                "to resume"
+            ) from None
+        if on_gpu:
             self.on_gpu.add(ref)
-        else:
-            ref = self.task.remote(tag, task, self.relay, __version__, devices.DEFAULT_DEVICE)
         self.pending[ref] = tag
 
     def poll(self, timeout: float) -> list[Finished]:
