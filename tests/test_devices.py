@@ -5,6 +5,7 @@ make no tensor off their device. The tests marked ``gpu`` run only where torch s
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -171,6 +172,18 @@ def test_a_gpu_that_is_not_there_is_refused_before_anything_runs(
     assert says in result.stderr
 
 
+@pytest.mark.parametrize("command", ["dsn", "tournament", "train"])
+@pytest.mark.parametrize(("count", "says"), [("0", "must be >= 1"), ("257", "must be <= 256")])
+def test_gpu_tasks_out_of_range_are_refused(tmp_path, command: str, count: str, says: str) -> None:
+    from tests.test_cli import assert_rejected_cleanly, invoke
+
+    store, figures = tmp_path / "store.sqlite", tmp_path / "figures"
+    where = ["--store", str(store), "--figures", str(figures), "--no-progress"]
+    result = invoke(*DEEP_COMMANDS[command], *where, "--gpu-tasks", count)
+    assert_rejected_cleanly(result, "--gpu-tasks", store, figures)
+    assert says in result.stderr
+
+
 def test_a_tabular_command_has_no_device_option() -> None:
     from tests.test_cli import invoke
 
@@ -247,6 +260,8 @@ class Chore(Settings):
 
 
 def _where(chore: Chore, seed: np.random.SeedSequence) -> dict:
+    if chore.deep:  # long enough for every worker of the GPU's lane to take one
+        time.sleep(0.2)
     return {"built_on": devices.current(), "pid": os.getpid()}
 
 
@@ -258,15 +273,18 @@ def _chores(deep: bool, count: int) -> list[RunSpec]:
 
 
 @pytest.mark.slow
-def test_with_a_gpu_the_deep_tasks_go_to_one_gpu_worker(tmp_path, monkeypatch) -> None:
-    """Three workers and a (pretended) GPU: every deep run is built on the card by one
-    and the same worker process and records the card; the tabular runs run on the CPU in
-    the other workers and record no device."""
+@pytest.mark.parametrize(("gpu_tasks", "gpu_workers"), [(1, 1), (8, 3)])
+def test_with_a_gpu_the_deep_tasks_go_to_the_gpu_workers(
+    tmp_path, monkeypatch, gpu_tasks: int, gpu_workers: int
+) -> None:
+    """Four workers and a (pretended) GPU: every deep run is built on the card by one of
+    ``gpu_tasks`` worker processes (at most all workers but one) and records the card;
+    the tabular runs run on the CPU in the other workers and record no device."""
     monkeypatch.setattr(devices, "gpu_count", lambda: 1)
     monkeypatch.setattr(devices, "describe", lambda device: f"{device} (a pretended card)")
-    deep, tabular = _chores(True, 6), _chores(False, 12)
+    deep, tabular = _chores(True, 12), _chores(False, 12)
     with ResultStore(tmp_path / "store.sqlite") as store:
-        run_sweep(deep + tabular, store, workers=3, device="cuda")
+        run_sweep(deep + tabular, store, workers=4, device="cuda", gpu_tasks=gpu_tasks)
         deep_runs = [r.metrics for r in store.get(s.key for s in deep)]
         tabular_runs = [r.metrics for r in store.get(s.key for s in tabular)]
     assert {(m["built_on"], m["device"]) for m in deep_runs} == {
@@ -274,8 +292,9 @@ def test_with_a_gpu_the_deep_tasks_go_to_one_gpu_worker(tmp_path, monkeypatch) -
     }
     assert {m["built_on"] for m in tabular_runs} == {"cpu"}
     assert not any("device" in m for m in tabular_runs)
-    gpu_worker = {m["pid"] for m in deep_runs}
-    assert len(gpu_worker) == 1 and not gpu_worker & {m["pid"] for m in tabular_runs}
+    on_the_card = {m["pid"] for m in deep_runs}
+    assert len(on_the_card) == gpu_workers
+    assert not on_the_card & {m["pid"] for m in tabular_runs}
 
 
 def test_on_the_cpu_a_deep_run_records_the_cpu(tmp_path) -> None:

@@ -34,6 +34,16 @@ DEVICES = ("cpu", "cuda", "cuda:N", "auto")
 #: The default: stored results and every fixed-seed number were computed there.
 DEFAULT_DEVICE = "cpu"
 
+#: [choice] Deep tasks that share one GPU at a time (``--gpu-tasks``): local worker
+#: processes that take the deep learners' tasks, or on Ray each such task's share of a
+#: GPU (``1 / GPU_TASKS``). Several, not one, because a deep task holds a core with its
+#: acting and evaluation (compiled loops on the CPU, over a copy of the weights) however
+#: fast the card: measured on the CPU, a task of 10 stacked battlefield rounds at the
+#: paper's budget holds its core for at least 5 minutes, so the paper's tournament (21
+#: such tasks) takes at least 105 minutes with one at a time, 15 with 8 (docs: GPU). Each
+#: such process holds a CUDA context (a few hundred MB of the card).
+GPU_TASKS = 8
+
 _SPELLING = re.compile(r"cpu|auto|cuda(:\d+)?")
 _current = DEFAULT_DEVICE
 

@@ -29,6 +29,10 @@ MAX_SEED_BATCH = 1_000
 """Seeds (or rounds) of a deep learner trained together in one stacked model (default:
 10); each holds its own replay buffer, so memory grows with the batch."""
 
+MAX_GPU_TASKS = 256
+"""Deep tasks that share one GPU (default 8): each local one is a process with a CUDA
+context of its own."""
+
 MAX_SEED = 2**63 - 1
 """The largest root seed: the store keeps seeds as SQLite's 64-bit integers."""
 
@@ -74,6 +78,12 @@ def check_workers(workers: int | None) -> None:
     require(workers is None or workers >= 1, "workers", f"must be >= 1 (got {workers})")
     if workers is not None:
         check_at_most(workers, MAX_WORKERS, "workers")
+
+
+def check_gpu_tasks(gpu_tasks: int) -> None:
+    """Deep tasks sharing one GPU, in ``[1, MAX_GPU_TASKS]``."""
+    require(gpu_tasks >= 1, "gpu_tasks", f"must be >= 1 (got {gpu_tasks})")
+    check_at_most(gpu_tasks, MAX_GPU_TASKS, "gpu_tasks")
 
 
 def check_seed_batch(seed_batch: int) -> None:

@@ -35,9 +35,9 @@ from typing import Any
 
 from cmarlcd.backends import check_backend, default_workers, make_backend
 from cmarlcd.claims import CLAIM_TIMEOUT, HEARTBEAT_SECONDS, Owner
-from cmarlcd.devices import DEFAULT_DEVICE, resolve
+from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, resolve
 from cmarlcd.experiments import get_experiment, settings_of
-from cmarlcd.limits import check_seed_batch, check_workers
+from cmarlcd.limits import check_gpu_tasks, check_seed_batch, check_workers
 from cmarlcd.runs import RunSpec
 from cmarlcd.store import ResultStore, RunKey, StoreWriteError
 
@@ -149,6 +149,7 @@ def run_sweep(
     section: Callable[[RunSpec], str] | None = None,
     claim_timeout: float = CLAIM_TIMEOUT,
     device: str = DEFAULT_DEVICE,
+    gpu_tasks: int = GPU_TASKS,
 ) -> SweepResult:
     """Compute every spec not yet in ``store`` and commit each as it finishes.
 
@@ -160,6 +161,8 @@ def run_sweep(
         claim_timeout: seconds after which another host's silent claim is stale.
         device: where deep learners compute (:mod:`cmarlcd.devices`; ``cpu``, ``cuda``,
             ``cuda:N``, ``auto``); a run's identity and seeds do not depend on it.
+        gpu_tasks: deep tasks that share one GPU at a time (local worker processes on
+            the card, or each one's share of a GPU on Ray).
 
     Runs of one config whose experiment can batch them are computed ``seed_batch`` at a
     time in one call (the results are the same as one by one).
@@ -169,6 +172,7 @@ def run_sweep(
         workers = default_workers()
     check_workers(workers)
     check_seed_batch(seed_batch)
+    check_gpu_tasks(gpu_tasks)
     if backend != "ray":  # a GPU asked for where there is none: refused before anything runs
         device = resolve(device)
     named = section or (lambda _: description)
@@ -178,7 +182,7 @@ def run_sweep(
 
     def start_backend(progress: Callable[[int, float, float], None], batches: int) -> Any:
         used = workers if workers is None else min(workers, batches)
-        return make_backend(backend, used, progress, address, device)
+        return make_backend(backend, used, progress, address, device, gpu_tasks)
 
     return sweep.run(seed_batch, claim_timeout, start_backend)
 

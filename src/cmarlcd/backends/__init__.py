@@ -24,7 +24,7 @@ from typing import Protocol
 
 from cmarlcd.backends.local import InlineBackend, ProcessBackend, default_workers
 from cmarlcd.backends.tasks import Finished, ProgressCallback, Task
-from cmarlcd.devices import DEFAULT_DEVICE, resolve
+from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, resolve
 from cmarlcd.errors import require
 
 __all__ = ["BACKENDS", "Backend", "check_backend", "default_workers", "make_backend"]
@@ -78,15 +78,16 @@ def make_backend(
     on_progress: ProgressCallback,
     address: str | None = None,
     device: str = DEFAULT_DEVICE,
+    gpu_tasks: int = GPU_TASKS,
 ) -> Backend:
     """The backend called ``name`` (``process``: in-process when ``workers`` is 1), its
     deep learners on ``device`` (``cpu``, ``cuda``, ``cuda:N``, ``auto``: resolved here
-    for local workers, on each node for Ray)."""
+    for local workers, on each node for Ray), ``gpu_tasks`` of them sharing a GPU."""
     if name == "ray":
         from cmarlcd.backends.ray_cluster import RayBackend
 
-        return RayBackend(workers, on_progress, address, device)
+        return RayBackend(workers, on_progress, address, device, gpu_tasks)
     local = resolve(device)
     if workers == 1:
         return InlineBackend(on_progress, local)
-    return ProcessBackend(workers, on_progress, local)
+    return ProcessBackend(workers, on_progress, local, gpu_tasks)

@@ -31,11 +31,6 @@ from cmarlcd.progress import progress_sink
 #: How often a worker checks that its parent is still alive, in seconds (where the
 #: operating system cannot tell it, as Linux's parent-death signal does).
 PARENT_CHECK_SECONDS = 0.5
-#: [choice] With a GPU, the worker processes that run the deep learners' tasks (one of
-#: the ``workers``): one process holds the card's context and the models, and a task
-#: is already a seed batch stacked in one model; the other workers run the tabular tasks
-#: on the CPU.
-GPU_WORKERS = 1
 
 
 class InlineBackend:
@@ -110,15 +105,19 @@ class ProcessBackend:
 
     On the CPU every worker takes any task. With a GPU (``device``, resolved; the parent
     has not started CUDA, :mod:`cmarlcd.devices`, so a worker can) the tasks that train
-    deep learners go to :data:`GPU_WORKERS` of the workers, which compute on the card,
-    and the others to the rest, on the CPU (:meth:`has_room` tells the sweep which lane
-    has room).
+    deep learners go to ``gpu_tasks`` of the workers (:data:`cmarlcd.devices.GPU_TASKS`;
+    at most all but one), which compute on the card, and the others to the rest, on the
+    CPU (:meth:`has_room` tells the sweep which lane has room).
     """
 
     task_seconds = 0.05  # a task costs a fraction of a millisecond to send
 
     def __init__(
-        self, workers: int, on_progress: ProgressCallback, device: str = devices.DEFAULT_DEVICE
+        self,
+        workers: int,
+        on_progress: ProgressCallback,
+        device: str = devices.DEFAULT_DEVICE,
+        gpu_tasks: int = devices.GPU_TASKS,
     ) -> None:
         self.on_progress = on_progress
         self.capacity = 2 * workers  # one running and one queued per worker
@@ -126,7 +125,7 @@ class ProcessBackend:
         context = multiprocessing.get_context(method)
         threads = max(1, default_workers() // workers)
         on_gpu = device != devices.DEFAULT_DEVICE
-        gpu_workers = min(GPU_WORKERS, workers - 1) if on_gpu else 0
+        gpu_workers = min(gpu_tasks, workers - 1) if on_gpu else 0
         self.lanes = [_Lane(workers - gpu_workers, devices.DEFAULT_DEVICE, context, threads)]
         if gpu_workers:
             # CUDA cannot start in a process forked after its parent started it (an

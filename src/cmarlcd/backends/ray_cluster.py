@@ -74,10 +74,6 @@ HEAD_CHECK_SECONDS = 2.0
 LOST_SECONDS = 20.0
 #: How a task on a node with another cmarl-cd version starts its error.
 VERSION_MISMATCH = "this Ray node runs cmarl-cd"
-#: [choice] The GPUs a task that trains a deep learner asks Ray for, when the sweep's
-#: device is a GPU: a whole one (a task is a seed batch stacked in one model, which keeps
-#: a card busy by itself); tabular tasks ask for none.
-GPUS_PER_DEEP_TASK = 1.0
 #: [choice] Memory for Ray's object store when this sweep starts a local Ray: results are
 #: small (a few kB a run), so the smallest store Ray accepts is plenty.
 LOCAL_OBJECT_STORE_BYTES = 80 * 1024**2
@@ -239,6 +235,7 @@ class RayBackend:
         on_progress: ProgressCallback,
         address: str | None = None,
         device: str = devices.DEFAULT_DEVICE,
+        gpu_tasks: int = devices.GPU_TASKS,
     ) -> None:
         head = reach(address) if address not in (None, "auto") else None
         joined = join_address(address, head)
@@ -261,13 +258,14 @@ class RayBackend:
         self.watch = HeadWatch(self.head, self.address)
         cpus = int(resources.get("CPU", 1))
         self.capacity = 2 * (workers or cpus)
-        self.gpu_capacity = 2 * int(resources.get("GPU", 0) / GPUS_PER_DEEP_TASK)
+        # each deep task asks for 1/gpu_tasks of a GPU, tabular tasks for none
+        self.gpu_capacity = 2 * gpu_tasks * int(resources.get("GPU", 0))
         self.task: Callable[..., Any] = ray.remote(num_cpus=1, max_retries=TASK_RETRIES)(_compute)
         # a function of its own (not .options): Ray then ends a GPU task's worker after it,
         # so no process keeps a card's context for a task Ray gives another card
-        self.gpu_task = ray.remote(
-            num_cpus=1, num_gpus=GPUS_PER_DEEP_TASK, max_retries=TASK_RETRIES
-        )(_compute)
+        self.gpu_task = ray.remote(num_cpus=1, num_gpus=1 / gpu_tasks, max_retries=TASK_RETRIES)(
+            _compute
+        )
         self.relay = ray.remote(num_cpus=0)(_Relay).remote()
         self.pending: dict[Any, int] = {}
         self.on_gpu: set[Any] = set()
@@ -322,8 +320,9 @@ class RayBackend:
         return self.device != devices.DEFAULT_DEVICE and uses_device(task)
 
     def has_room(self, task: Task) -> bool:
-        """Whether ``task`` may be sent now: a task for a GPU while fewer than two per GPU
-        of the cluster wait or run, so that tabular tasks are not held behind them."""
+        """Whether ``task`` may be sent now: a task for a GPU while fewer than two per
+        share of a GPU (``gpu_tasks`` a GPU) wait or run, so that tabular tasks are not
+        held behind them."""
         return not self._on_gpu(task) or len(self.on_gpu) < self.gpu_capacity
 
     def submit(self, tag: int, task: Task) -> None:

@@ -61,6 +61,14 @@ AddressOption = Annotated[
 ]
 
 
+GpuTasksOption = Annotated[
+    int,
+    typer.Option(
+        "--gpu-tasks",
+        help="With a GPU: deep tasks that share it at a time (local worker processes on "
+        "the card, at most all workers but one; on Ray each one's share of a GPU).",
+    ),
+]
 DeviceOption = Annotated[
     str,
     typer.Option(

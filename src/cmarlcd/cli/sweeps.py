@@ -23,6 +23,7 @@ from cmarlcd.cli.options import (
     BackendOption,
     DeviceOption,
     FiguresOption,
+    GpuTasksOption,
     JsonOption,
     ProgressOption,
     StoreOption,
@@ -31,9 +32,9 @@ from cmarlcd.cli.options import (
     leave_now,
 )
 from cmarlcd.cli.progress import RichSweepView
-from cmarlcd.devices import DEFAULT_DEVICE, check_device, resolve
+from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, check_device, resolve
 from cmarlcd.errors import require
-from cmarlcd.limits import check_workers
+from cmarlcd.limits import check_gpu_tasks, check_workers
 from cmarlcd.render import say, show_section
 from cmarlcd.runner import SweepResult, run_sweep
 from cmarlcd.runs import RunSpec
@@ -58,12 +59,14 @@ class Execution:
     address: str | None = None
     as_json: bool = False
     device: str = DEFAULT_DEVICE
+    gpu_tasks: int = GPU_TASKS
 
     def check(self) -> None:
         """Every choice is valid and every output path usable, before anything runs."""
         check_workers(self.workers)
         check_backend(self.backend, self.address)
         check_device_here(self.device, self.backend)
+        check_gpu_tasks(self.gpu_tasks)
         check_outputs(self.store, self.figures)
 
 
@@ -77,8 +80,11 @@ EXECUTION_OPTIONS: dict[str, tuple[Any, Any]] = {
     "figures": (FiguresOption, DEFAULT_FIGURES),
     "progress": (ProgressOption, True),
 }
-#: The option a command that trains deep learners adds (last).
-DEVICE_OPTION = {"device": (DeviceOption, DEFAULT_DEVICE)}
+#: The options a command that trains deep learners adds (last).
+DEVICE_OPTIONS = {
+    "device": (DeviceOption, DEFAULT_DEVICE),
+    "gpu_tasks": (GpuTasksOption, GPU_TASKS),
+}
 
 
 def check_device_here(device: str, backend: str) -> None:
@@ -93,8 +99,8 @@ def check_device_here(device: str, backend: str) -> None:
 
 def with_deep_execution(command: F) -> F:
     """:func:`with_execution` for a command that trains deep learners: it also takes
-    ``--device``."""
-    return with_execution(command, {**EXECUTION_OPTIONS, **DEVICE_OPTION})
+    ``--device`` and ``--gpu-tasks``."""
+    return with_execution(command, {**EXECUTION_OPTIONS, **DEVICE_OPTIONS})
 
 
 def with_execution(command: F, options: dict[str, tuple[Any, Any]] | None = None) -> F:
@@ -149,6 +155,7 @@ def compute_runs(
                 address=run.address,
                 section=section,
                 device=run.device,
+                gpu_tasks=run.gpu_tasks,
             )
             return store.get(s.key for s in specs), done
     except BaseException:
