@@ -1,5 +1,5 @@
 #!/bin/bash
-# One call on a lent GPU machine: install cmarl-cd over the machine's own PyTorch, run the
+# One call on a lent GPU machine: run cmarl-cd from source over the machine's own PyTorch, run the
 # tests that need a GPU, then the GPU benchmark; logs go to $OUT (default ./gpu-out).
 #
 # The machine reaches no package index, and its image holds torch, numba, numpy, scipy,
@@ -34,9 +34,10 @@ if [ -d "$WHEELS" ]; then
     "$python" -m pip install --quiet --no-index --find-links "$WHEELS" --no-deps \
         gymnasium pettingzoo farama-notifications
 fi
-# --no-deps: the machine's torch and numba stand (the [deep] pin is for installs here)
-"$python" -m pip install --quiet --no-deps --no-build-isolation -e .
-"$python" -c "import cmarlcd, gymnasium, pettingzoo; print('cmarl-cd', cmarlcd.__version__)"
+# cmarl-cd itself from the source tree, not built: the machine's torch and numba stand
+# (the [deep] pin is for installs from an index), and no build tool is asked of it
+export PYTHONPATH="$PWD/src${PYTHONPATH:+:$PYTHONPATH}"
+"$python" -c "import cmarlcd, gymnasium, pettingzoo, torch; print('cmarl-cd from', cmarlcd.__file__)"
 
 echo "== the tests that need a GPU (and the device tests that run everywhere)"
 "$python" -m pytest -q -p no:cacheprovider tests/test_devices.py -rs 2>&1 | tee "$OUT/tests.log"
