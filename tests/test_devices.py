@@ -282,6 +282,10 @@ def test_with_a_gpu_the_deep_tasks_go_to_the_gpu_workers(
     the tabular runs run on the CPU in the other workers and record no device."""
     monkeypatch.setattr(devices, "gpu_count", lambda: 1)
     monkeypatch.setattr(devices, "describe", lambda device: f"{device} (a pretended card)")
+    # where an earlier test started CUDA here (on a real GPU), the lane would be spawned,
+    # and a spawned worker knows neither the toy experiment nor the pretended card; the
+    # toys never touch CUDA, so the forked lane is safe
+    monkeypatch.setattr(torch.cuda, "is_initialized", lambda: False)
     deep, tabular = _chores(True, 12), _chores(False, 12)
     with ResultStore(tmp_path / "store.sqlite") as store:
         run_sweep(deep + tabular, store, workers=4, device="cuda", gpu_tasks=gpu_tasks)

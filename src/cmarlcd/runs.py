@@ -107,7 +107,8 @@ class Experiment:
         work_unit: what ``work`` counts, for progress displays.
         uses_device: whether a run of a config trains a deep learner, which computes on
             the sweep's device (:mod:`cmarlcd.devices`); such a run records the device in
-            its metrics, and on Ray its task asks for a GPU when the device is one.
+            its metrics, and on Ray its task asks for a share of a GPU (``1 / gpu_tasks``)
+            when the device is one.
     """
 
     name: str

@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import logging
+import math
 import os
 import sys
 import threading
@@ -91,11 +92,12 @@ def ray_module() -> Any:
     return ray
 
 
-def cluster_device(device: str, gpus: int) -> str:
+def cluster_device(device: str, gpus: float) -> str:
     """The device the cluster's deep tasks use: ``cpu``, or ``cuda`` where the cluster
-    has a GPU (``auto`` takes one if it has any). Ray gives each deep task its GPU, which
-    the task sees as ``cuda:0``, so ``cuda:N`` other than ``cuda:0`` is refused, and so is a
-    GPU asked of a cluster without one (its tasks would wait forever)."""
+    has a GPU, or part of one (``auto`` takes one if it has any). Ray gives each deep
+    task its share of a GPU, which the task sees as ``cuda:0``, so ``cuda:N`` other than
+    ``cuda:0`` is refused, and so is a GPU asked of a cluster without one (its tasks
+    would wait forever)."""
     devices.check_device(device)
     if device == "auto":
         return "cuda" if gpus else devices.DEFAULT_DEVICE
@@ -249,7 +251,7 @@ class RayBackend:
             self._connect(joined, workers)
         resources = ray.cluster_resources()
         try:
-            self.device = cluster_device(device, int(resources.get("GPU", 0)))
+            self.device = cluster_device(device, float(resources.get("GPU", 0)))
         except ConfigError:
             if self.started_here:
                 ray.shutdown()
@@ -259,7 +261,7 @@ class RayBackend:
         cpus = int(resources.get("CPU", 1))
         self.capacity = 2 * (workers or cpus)
         # each deep task asks for 1/gpu_tasks of a GPU, tabular tasks for none
-        self.gpu_capacity = 2 * gpu_tasks * int(resources.get("GPU", 0))
+        self.gpu_capacity = math.floor(2 * gpu_tasks * float(resources.get("GPU", 0)))
         self.task: Callable[..., Any] = ray.remote(num_cpus=1, max_retries=TASK_RETRIES)(_compute)
         # a function of its own (not .options): Ray then ends a GPU task's worker after it,
         # so no process keeps a card's context for a task Ray gives another card
