@@ -310,9 +310,17 @@ def test_on_the_cpu_a_deep_run_records_the_cpu(tmp_path) -> None:
 
 @pytest.mark.parametrize(
     ("device", "gpus", "expected"),
-    [("cpu", 2, "cpu"), ("auto", 0, "cpu"), ("auto", 2, "cuda"), ("cuda:0", 2, "cuda")],
+    [
+        ("cpu", 2, "cpu"),
+        ("auto", 0, "cpu"),
+        ("auto", 2, "cuda"),
+        ("cuda:0", 2, "cuda"),
+        ("cuda", 0.5, "cuda"),  # a node offering part of a card: deep tasks take shares
+    ],
 )
-def test_a_ray_cluster_takes_a_gpu_where_it_has_one(device: str, gpus: int, expected: str) -> None:
+def test_a_ray_cluster_takes_a_gpu_where_it_has_one(
+    device: str, gpus: float, expected: str
+) -> None:
     from cmarlcd.backends.ray_cluster import cluster_device
 
     assert cluster_device(device, gpus) == expected
