@@ -301,6 +301,22 @@ def test_with_a_gpu_the_deep_tasks_go_to_the_gpu_workers(
     assert not on_the_card & {m["pid"] for m in tabular_runs}
 
 
+@pytest.mark.slow
+def test_with_a_gpu_deep_batches_alone_each_get_a_gpu_worker(tmp_path, monkeypatch) -> None:
+    """Two deep runs and nothing else, four workers allowed: both run at once on the card,
+    in two workers (the sweep does not size its pool by the batches alone, which would
+    leave one of two workers to the CPU's lane and run the deep ones one after another)."""
+    monkeypatch.setattr(devices, "gpu_count", lambda: 1)
+    monkeypatch.setattr(devices, "describe", lambda device: f"{device} (a pretended card)")
+    monkeypatch.setattr(torch.cuda, "is_initialized", lambda: False)
+    deep = _chores(True, 2)
+    with ResultStore(tmp_path / "store.sqlite") as store:
+        run_sweep(deep, store, workers=4, device="cuda")
+        runs = [r.metrics for r in store.get(s.key for s in deep)]
+    assert {m["built_on"] for m in runs} == {"cuda:0"}
+    assert len({m["pid"] for m in runs}) == 2
+
+
 def test_on_the_cpu_a_deep_run_records_the_cpu(tmp_path) -> None:
     with ResultStore(tmp_path / "store.sqlite") as store:
         run_sweep(_chores(True, 2) + _chores(False, 2), store, workers=1)

@@ -180,8 +180,12 @@ def run_sweep(
         specs, store, version, observer or SweepObserver(), one_unit_sections(specs, named)
     )
 
+    # local workers with a GPU: one more than the batches, as the GPU's lane leaves one
+    # worker to the CPU's, so that as many deep batches as there are run at once
+    spare = int(backend != "ray" and device != DEFAULT_DEVICE)
+
     def start_backend(progress: Callable[[int, float, float], None], batches: int) -> Any:
-        used = workers if workers is None else min(workers, batches)
+        used = workers if workers is None else min(workers, batches + spare)
         return make_backend(backend, used, progress, address, device, gpu_tasks)
 
     return sweep.run(seed_batch, claim_timeout, start_backend)
