@@ -247,6 +247,7 @@ class RayBackend:
         self.lost = False
         self.failure: BaseException | None = None
         self.started_here = not ray.is_initialized()
+        self.released = threading.Event()  # ends the thread that started Ray (close)
         if self.started_here:
             self._connect(joined, workers)
         resources = ray.cluster_resources()
@@ -254,7 +255,7 @@ class RayBackend:
             self.device = cluster_device(device, float(resources.get("GPU", 0)))
         except ConfigError:
             if self.started_here:
-                ray.shutdown()
+                self._shutdown()
             raise
         self.head = head or gcs_head(ray)
         self.watch = HeadWatch(self.head, self.address)
@@ -273,8 +274,11 @@ class RayBackend:
         self.on_gpu: set[Any] = set()
 
     def _connect(self, address: str | None, workers: int | None) -> None:
-        """``ray.init``, given :data:`CONNECT_SECONDS` to finish (in a thread of its own:
-        Ray offers no timeout for it)."""
+        """``ray.init``, given :data:`CONNECT_SECONDS` to finish (Ray offers no timeout
+        for it), in a thread that then holds on until :meth:`close`: on Linux a local
+        Ray's services are bound to the *thread* that starts them (a parent-death signal,
+        which fires when that thread ends), so a thread that ended after ``init`` would
+        take the local cluster down with it, and the sweep with it, in silence."""
         options: dict[str, Any] = {
             "include_dashboard": False,
             "log_to_driver": False,
@@ -283,20 +287,25 @@ class RayBackend:
         if address is None:
             options.update(num_cpus=workers, object_store_memory=LOCAL_OBJECT_STORE_BYTES)
         failure: list[BaseException] = []
+        started = threading.Event()
         os.environ.setdefault("RAY_BACKEND_LOG_LEVEL", "fatal")  # the core's C++ logs
 
-        def init() -> None:
+        def init_and_hold() -> None:
             try:
                 self.ray.init(address=address, **options)
             except BaseException as exc:  # handed to the caller
                 failure.append(exc)
+                return
+            finally:
+                started.set()
+            self.released.wait()  # the local Ray's services live as long as this thread
 
         with _silenced_stderr():  # Ray's C++ core logs each retry of a bad address
-            thread = threading.Thread(target=init, name="ray-init", daemon=True)
+            thread = threading.Thread(target=init_and_hold, name="ray-keeper", daemon=True)
             thread.start()
-            thread.join(CONNECT_SECONDS)
+            started.wait(CONNECT_SECONDS)
         where = f"the Ray cluster at {address}" if address else "a local Ray"
-        if thread.is_alive():
+        if not started.is_set():
             self.lost = True
             if address is None:
                 raise BackendLost(
@@ -317,6 +326,14 @@ class RayBackend:
             parameter = "address" if address else "backend"
             verb = "join" if address else "start"
             raise ConfigError(parameter, f"cannot {verb} {where}: {first}") from None
+
+    def _shutdown(self) -> None:
+        """Stop the Ray this backend started (its services first, then the thread that
+        holds them)."""
+        try:
+            self.ray.shutdown()
+        finally:
+            self.released.set()
 
     def _on_gpu(self, task: Task) -> bool:
         return self.device != devices.DEFAULT_DEVICE and uses_device(task)
@@ -417,4 +434,4 @@ class RayBackend:
                 self.ray.cancel(ref, force=True)
         self.pending.clear()
         if self.started_here:
-            self.ray.shutdown()
+            self._shutdown()
