@@ -317,6 +317,43 @@ def test_with_a_gpu_deep_batches_alone_each_get_a_gpu_worker(tmp_path, monkeypat
     assert len({m["pid"] for m in runs}) == 2
 
 
+@pytest.mark.slow
+def test_one_worker_with_a_gpu_is_the_gpus_lane_and_takes_every_task(monkeypatch) -> None:
+    """``ProcessBackend(1, ..., "cuda:0")`` built directly: its one worker computes the
+    deep runs on the card and the tabular ones too (before, it had no GPU lane and the
+    deep runs went to the CPU)."""
+    from cmarlcd.backends.local import ProcessBackend
+
+    monkeypatch.setattr(devices, "describe", lambda device: f"{device} (a pretended card)")
+    monkeypatch.setattr(torch.cuda, "is_initialized", lambda: False)
+    backend = ProcessBackend(1, lambda *_: None, "cuda:0")
+    deep, tabular = _chores(True, 1), _chores(False, 1)
+    try:
+        assert backend.has_room([deep]) and backend.has_room([tabular])
+        backend.submit(0, [deep])
+        backend.submit(1, [tabular])
+        finished: dict[int, list] = {}
+        while len(finished) < 2:
+            finished.update(backend.poll(5.0))
+    finally:
+        backend.close(cancel=True)
+    (_, deep_metrics, _), (_, tabular_metrics, _) = finished[0][0], finished[1][0]
+    assert deep_metrics["device"] == "cuda:0 (a pretended card)"
+    assert "device" not in tabular_metrics
+    assert deep_metrics["pid"] == tabular_metrics["pid"]
+
+
+@pytest.mark.parametrize(("workers", "gpu_tasks"), [(0, 8), (2, 0)])
+def test_a_process_backend_of_no_workers_or_no_gpu_tasks_is_refused(
+    workers: int, gpu_tasks: int
+) -> None:
+    from cmarlcd.backends.local import ProcessBackend
+    from cmarlcd.errors import ConfigError
+
+    with pytest.raises(ConfigError):
+        ProcessBackend(workers, lambda *_: None, "cuda:0", gpu_tasks)
+
+
 def test_on_the_cpu_a_deep_run_records_the_cpu(tmp_path) -> None:
     with ResultStore(tmp_path / "store.sqlite") as store:
         run_sweep(_chores(True, 2) + _chores(False, 2), store, workers=1)

@@ -26,6 +26,7 @@ from cmarlcd.backends.tasks import (
     execute_task,
     uses_device,
 )
+from cmarlcd.limits import check_gpu_tasks, check_workers
 from cmarlcd.progress import progress_sink
 
 #: How often a worker checks that its parent is still alive, in seconds (where the
@@ -107,7 +108,8 @@ class ProcessBackend:
     has not started CUDA, :mod:`cmarlcd.devices`, so a worker can) the tasks that train
     deep learners go to ``gpu_tasks`` of the workers (:data:`cmarlcd.devices.GPU_TASKS`;
     at most all but one), which compute on the card, and the others to the rest, on the
-    CPU (:meth:`has_room` tells the sweep which lane has room).
+    CPU (:meth:`has_room` tells the sweep which lane has room). One worker with a GPU
+    is the GPU's lane alone and takes every task, the tabular ones on the CPU.
     """
 
     task_seconds = 0.05  # a task costs a fraction of a millisecond to send
@@ -119,14 +121,20 @@ class ProcessBackend:
         device: str = devices.DEFAULT_DEVICE,
         gpu_tasks: int = devices.GPU_TASKS,
     ) -> None:
+        check_workers(workers)
+        check_gpu_tasks(gpu_tasks)
         self.on_progress = on_progress
         self.capacity = 2 * workers  # one running and one queued per worker
         method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
         context = multiprocessing.get_context(method)
         threads = max(1, default_workers() // workers)
         on_gpu = device != devices.DEFAULT_DEVICE
-        gpu_workers = min(gpu_tasks, workers - 1) if on_gpu else 0
-        self.lanes = [_Lane(workers - gpu_workers, devices.DEFAULT_DEVICE, context, threads)]
+        # one worker with a GPU is the GPU's lane and takes the tabular tasks too
+        gpu_workers = min(gpu_tasks, max(workers - 1, 1)) if on_gpu else 0
+        self.lanes: list[_Lane] = []
+        if workers > gpu_workers:
+            cpu_workers = workers - gpu_workers
+            self.lanes.append(_Lane(cpu_workers, devices.DEFAULT_DEVICE, context, threads))
         if gpu_workers:
             # CUDA cannot start in a process forked after its parent started it (an
             # earlier sweep in this process on the GPU alone): such a lane is spawned
@@ -135,7 +143,9 @@ class ProcessBackend:
             self.lanes.append(_Lane(gpu_workers, device, gpu_context, threads))
 
     def _lane(self, task: Task) -> _Lane:
-        return self.lanes[-1] if len(self.lanes) > 1 and uses_device(task) else self.lanes[0]
+        """The GPU's lane (the last) for a task that trains deep learners, the CPU's (the
+        first) for the others; the one lane there is where there is one."""
+        return self.lanes[-1] if uses_device(task) else self.lanes[0]
 
     def has_room(self, task: Task) -> bool:
         """Whether the lane ``task`` goes to has a free place (one running and one queued
