@@ -548,7 +548,7 @@ def test_dsn_tables_state_their_runs_and_mark_other_settings(paths) -> None:
     assert "2 runs per cell, 1,000 evaluation episodes" in paper.stdout
     other = invoke(*base, "--eval-episodes", "20", "--delta", "0.1", "--json", *where)
     (row,) = json.loads(other.stdout)["rows"]
-    assert row["label"] == "CMARL-CD *" and set(row["paper"].values()) == {None}
+    assert row["label"] == "CMARL-CD (delta=0.1)" and set(row["paper"].values()) == {None}
 
 
 @pytest.mark.parametrize(

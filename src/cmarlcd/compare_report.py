@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 
-from cmarlcd import registry
 from cmarlcd.experiments import compare, episodic
 from cmarlcd.experiments.compare import CompareCell
 from cmarlcd.report import figure_name, new_section, percent
@@ -15,11 +14,6 @@ from cmarlcd.section import Cell, FigureBlock, Section, TableBlock
 from cmarlcd.store import RunRecord
 
 TITLE = "Comparison: CMARL-CD and the classic independent learners"
-
-
-def _display(learner: str) -> str:
-    config = registry.REPEATED_LEARNERS.get(learner)
-    return config.display_name if config is not None else registry.display_name(learner)
 
 
 def _cell_text(cell: CompareCell | None) -> str:
@@ -42,9 +36,9 @@ def _games(games: float) -> str:
 
 
 def _grid(cells: Sequence[CompareCell]) -> tuple[list[str], list[str], dict]:
-    learners = list(dict.fromkeys(c.learner for c in cells))
+    learners = list(dict.fromkeys(c.label for c in cells))
     games = [g for g in (*compare.GAMES, compare.DSN) if any(c.game == g for c in cells)]
-    return learners, games, {(c.learner, c.game): c for c in cells}
+    return learners, games, {(c.label, c.game): c for c in cells}
 
 
 def comparison_tables(cells: Sequence[CompareCell], caption: str) -> list[TableBlock]:
@@ -57,7 +51,7 @@ def comparison_tables(cells: Sequence[CompareCell], caption: str) -> list[TableB
         ("median games until the greedy joint action settled", _median),
     ):
         rows = [
-            [Cell(_display(learner))]
+            [Cell(learner)]
             + [Cell("—" if (c := at.get((learner, g))) is None else value(c)) for g in games]
             for learner in learners
         ]
@@ -117,7 +111,7 @@ def compare_section(records: Sequence[RunRecord], figures: Path) -> Section:
     path = figs.comparison_heatmap(
         rates,
         labels,
-        [_display(lr) for lr in learners],
+        learners,
         [_short(g) for g in games],
         f"% of runs ending on an optimal joint action (top) and median games until the "
         f"greedy joint action settled (bottom); {runs_text(records)}",

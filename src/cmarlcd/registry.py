@@ -266,6 +266,57 @@ def is_paper_setting(config: LearnerConfig) -> bool:
     return default is not None and asdict(default) == asdict(config)
 
 
+def reference_settings(config: Any) -> Any | None:
+    """What a learner config's settings are told apart from: the learner's settings in
+    the tables (its DSN settings, or its paper's settings on repeated games), else its
+    class's defaults."""
+    for known in (LEARNERS, REPEATED_LEARNERS):
+        candidate = known.get(config.name)
+        if type(candidate) is type(config):
+            return candidate
+    try:
+        return type(config)()
+    except TypeError:
+        return None
+
+
+def changed_settings(
+    config: Any, reference: Any | None = None, ignore: tuple[str, ...] = ()
+) -> dict[str, Any]:
+    """The settings of ``config`` that differ from ``reference`` (default:
+    :func:`reference_settings`), as ``--set`` writes them (nested ones dotted), leaving
+    out ``ignore``; everything when there is nothing to compare with."""
+    reference = reference_settings(config) if reference is None else reference
+    ours = _flat(asdict(config))
+    theirs = _flat(asdict(reference)) if type(reference) is type(config) else {}
+    return {k: v for k, v in ours.items() if k not in ignore and theirs.get(k, v is None) != v}
+
+
+def variant_label(config: Any, reference: Any | None = None, ignore: tuple[str, ...] = ()) -> str:
+    """How tables and figures name a learner with its settings: ``"CMARL-CD"`` for the
+    reference settings, ``"CMARL-CD (delta=0.08)"`` where they differ, so that runs of
+    two settings never share a row (fields as :func:`changed_settings` finds them)."""
+    changed = changed_settings(config, reference, ignore)
+    words = ", ".join(f"{k}={_setting_text(v)}" for k, v in sorted(changed.items()))
+    return display_name(config.name) + (f" ({words})" if words else "")
+
+
+def _flat(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    flat: dict[str, Any] = {}
+    for key, value in values.items():
+        if isinstance(value, Mapping):
+            flat.update(_flat(value, f"{prefix}{key}."))
+        else:
+            flat[f"{prefix}{key}"] = tuple(value) if isinstance(value, list) else value
+    return flat
+
+
+def _setting_text(value: Any) -> str:
+    if isinstance(value, tuple):
+        return "x".join(map(_setting_text, value))
+    return repr(value) if isinstance(value, str) else str(value)
+
+
 def display_name(name: str) -> str:
     """A learner's name in tables and figures (``"cmarl-cd"`` -> ``"CMARL-CD"``)."""
     learner = REGISTRY.get(name)

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from cmarlcd import registry
 from cmarlcd.experiments import episodic, episodic_results
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import tournament_claims as claim_checks
@@ -228,6 +229,8 @@ def dsn_section(game: EpisodicGame, records: Sequence[RunRecord], figures: Path)
                 np.array(rec.metrics["policy"]), title, figures / figure_name(stem, rec.key.config)
             )
             key = f"fig4_{rec.key.algorithm}_L{largest}"
+            if label != registry.display_name(rec.key.algorithm):  # one figure per setting
+                key += "_" + figure_name("", rec.key.config)[1:9]
             paths[key], shown[key] = str(path), f"Fig. 4, {what}"
     title = "Tables 3-7 and Fig. 4: the distributed sensor network task"
     if options:  # beyond the paper: success is every target captured within the cap
@@ -287,15 +290,10 @@ def theory_section(doc: dict[str, Any], records: Sequence[RunRecord] = ()) -> Se
 # ------------------------------------------------------------- the tournament
 
 
-def _label(name: str, learner: Any) -> str:
-    """The algorithm's name, marked * when its settings are not the paper's battlefield
-    settings."""
-    from cmarlcd import registry
-    from cmarlcd.experiments.tournament import battlefield_learners
-
-    paper = battlefield_learners().get(name)
-    same = paper is not None and paper == learner
-    return registry.display_name(name) + ("" if same else " *")
+def _label(learner: Any) -> str:
+    """The algorithm's name, with the settings that differ from its battlefield settings
+    (readings aside: the section's title names them)."""
+    return match_results.side_label(learner)
 
 
 def _pm(mean: float, spread: float, fmt: str) -> str:
@@ -355,7 +353,7 @@ def tournament_section(records: Sequence[RunRecord], figures: Path) -> Section:
     }
     known = list(tour.battlefield_learners())
     order = sorted(present, key=lambda n: (known.index(n) if n in known else len(known), n))
-    names = {name: _label(name, present[name]) for name in order}
+    names = {name: _label(present[name]) for name in order}
     summary = match_results.summarize(records, list(names))
     claims = claim_checks.check_claims(records, summary)
     first, pairing = records[0], tour.pairing_of(records[0])
@@ -368,6 +366,9 @@ def tournament_section(records: Sequence[RunRecord], figures: Path) -> Section:
         f"{pairing.eval_episodes:,} evaluation episodes per match, seed "
         f"{first.key.root_seed}; readings: {reading_text}"
     )
+    own = [label for name, label in names.items() if label != registry.display_name(name)]
+    if own:  # sides with settings of their own (``--set``): the captions name them
+        settings += f"; settings: {'; '.join(own)}"
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
     seed = first.key.root_seed
     paths = {}
@@ -389,6 +390,7 @@ def tournament_section(records: Sequence[RunRecord], figures: Path) -> Section:
         rounds=len(rounds),
         learn_episodes=pairing.learn_episodes,
         eval_episodes=pairing.eval_episodes,
+        labels=names,
         cells=[c.to_dict() for c in summary],
         claims=[c.to_dict() for c in claims],
         figures={key: str(path) for key, path in paths.items()},

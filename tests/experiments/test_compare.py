@@ -129,6 +129,21 @@ def test_summary_counts_runs_and_optimal_rates_per_learner_and_game() -> None:
     assert list(GAMES).index("climbing") < list(GAMES).index("case1")
 
 
+def test_two_settings_of_one_learner_are_two_rows_named_by_their_settings() -> None:
+    """Runs 0-1 of CMARL-CD at its comparison settings and at delta=0.2 on one game:
+    two cells of two runs, the second named with its setting (they used to merge)."""
+
+    def record(learner, index: int, optimal: bool) -> RunRecord:
+        cell = compare.CompareRun("climbing", learner, 10)
+        spec = RunSpec.make(compare.EXPERIMENT, learner.name, cell, 0, index)
+        return RunRecord(spec.key, {"optimal": optimal, "settled": 5}, 0.0, "test")
+
+    usual, other = RepeatedConfig(), dataclasses.replace(RepeatedConfig(), delta=0.2)
+    records = [record(usual, i, True) for i in range(2)] + [record(other, i, False) for i in (0, 1)]
+    cells = {c.label: (c.runs, c.optimal_rate) for c in summarize(records)}
+    assert cells == {"CMARL-CD": (2, 1.0), "CMARL-CD (delta=0.2)": (2, 0.0)}
+
+
 def test_deep_cmarlcd_plays_the_comparison_with_its_one_step_settings() -> None:
     """Deep CMARL-CD is a learner of ``compare`` with its one-step preset; its runs store
     that preset and read back to it; it plays the small games only; on the climbing game

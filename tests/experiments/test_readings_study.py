@@ -141,6 +141,17 @@ def test_the_study_runs_resumes_and_is_a_section_of_the_report(tmp_path) -> None
     (section,) = report["readings"]
     assert [r["name"] for r in section["readings"]] == names
     assert len(report["tournament"]) == len(names)
+    # a tournament of another CMARL-CD setting on the same budgets is no reading of the
+    # study and shares no cell with its defaults: a tournament of its own, named by it
+    other = ["tournament", "--algorithms", "cmarl-cd,la-oca", "--rounds", "2", *args[5:9]]
+    other += ["--set", "cmarl-cd.delta=0.08", "--workers", "1", "--no-progress", *where]
+    assert runner.invoke(app, other).exit_code == 0
+    report = json.loads(runner.invoke(app, ["report", "--json", *where]).stdout)
+    (section,) = report["readings"]
+    assert all(r["matches"] == 6 for r in section["readings"])
+    assert len(report["tournament"]) == len(names) + 1
+    (own,) = [t for t in report["tournament"] if "CMARL-CD (delta=0.08)" in t["labels"].values()]
+    assert own["rounds"] == 2 and sum(own["versions"].values()) == 6
 
 
 def test_bad_hit_rates_on_the_command_line_are_one_line(tmp_path) -> None:

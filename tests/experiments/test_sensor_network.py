@@ -92,12 +92,35 @@ def test_tables_3_to_7_aggregate_as_the_paper_defines_them() -> None:
     assert row.paper["success_rate"] == pytest.approx(0.909) and row.label == "CMARL-CD"
 
 
-def test_non_default_settings_are_marked_and_have_no_paper_values() -> None:
-    changed = StochasticConfig(delta=0.1)
-    assert episodic_results.row_label(changed) == "CMARL-CD *"
+def test_non_default_settings_are_named_and_have_no_paper_values() -> None:
+    changed = StochasticConfig(delta=0.1, temperature=2.0)
+    assert episodic_results.row_label(changed) == "CMARL-CD (delta=0.1, temperature=2.0)"
     result = {"100000": {"success_rate": 1.0, "mean_return": 42.0, "mean_steps": 3.0}}
     (row,) = episodic_results.summarize(sn.DSN_GAME, [record("cmarl-cd", 0, result, changed)])
-    assert row.label == "CMARL-CD *" and set(row.paper.values()) == {None}
+    assert row.label == "CMARL-CD (delta=0.1, temperature=2.0)"
+    assert set(row.paper.values()) == {None}
+
+
+def test_two_settings_of_one_learner_are_two_rows_of_their_own_runs() -> None:
+    """Runs 0 and 1 of delta=0.02 and of delta=0.08 (the same run indices, as two sweeps
+    on one store make them): two rows of two runs each, never one row of two runs."""
+    results = {0.02: (1.0, 40.0), 0.08: (0.0, 20.0)}
+    records = [
+        record(
+            "cmarl-cd",
+            i,
+            {"100000": {"success_rate": rate, "mean_return": ret, "mean_steps": 3.0}},
+            StochasticConfig(delta=delta),
+        )
+        for delta, (rate, ret) in results.items()
+        for i in range(2)
+    ]
+    rows = episodic_results.summarize(sn.DSN_GAME, records)
+    found = {r.label: (r.runs, r.success_rate, r.mean_return) for r in rows}
+    assert found == {
+        "CMARL-CD (delta=0.02)": (2, 1.0, 40.0),
+        "CMARL-CD (delta=0.08)": (2, 0.0, 20.0),
+    }
 
 
 @pytest.mark.slow

@@ -351,6 +351,9 @@ class CompareCell:
     dsn: dict[str, float] | None = None
     """On the DSN: ``optimal_rate`` is the greedy policy's success rate (mean over runs),
     and this holds the DSN's other metrics (L, mean return and steps)."""
+    label: str = ""
+    """The learner's name in the tables, with the settings that differ from the
+    comparison's (``CMARL-CD (delta=0.08)``): runs of two settings are two rows."""
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -359,21 +362,28 @@ class CompareCell:
 def summarize(records: Iterable[RunRecord]) -> list[CompareCell]:
     """One cell per (learner, game), in the registry's and :data:`GAMES`' order (the DSN
     last); ``records`` may hold the comparison's DSN runs too."""
-    groups: dict[tuple[str, str], list[RunRecord]] = defaultdict(list)
+    groups: dict[tuple[str, str, str], list[RunRecord]] = defaultdict(list)
     dsn_records = []
     for rec in records:
         if rec.key.experiment == EXPERIMENT:
-            groups[(rec.key.algorithm, compare_run_of(rec).game)].append(rec)
+            run = compare_run_of(rec)
+            groups[(rec.key.algorithm, learner_label(run.learner), run.game)].append(rec)
         else:
             dsn_records.append(rec)
     learner_order = {name: i for i, name in enumerate(registry.REPEATED_LEARNERS)}
     game_order = {name: i for i, name in enumerate(GAMES)}
     cells = []
-    for (learner, game), recs in sorted(
-        groups.items(), key=lambda kv: (learner_order.get(kv[0][0], 99), game_order[kv[0][1]])
+    for (learner, label, game), recs in sorted(
+        groups.items(),
+        key=lambda kv: (learner_order.get(kv[0][0], 99), kv[0][1], game_order[kv[0][2]]),
     ):
-        cells.append(_cell(learner, game, recs))
+        cells.append(_cell(learner, label, game, recs))
     return cells + _dsn_cells(dsn_records)
+
+
+def learner_label(learner: Any) -> str:
+    """A learner's name with the settings that differ from the comparison's."""
+    return registry.variant_label(learner, registry.comparable_learners().get(learner.name))
 
 
 def _dsn_cells(records: Sequence[RunRecord]) -> list[CompareCell]:
@@ -392,12 +402,13 @@ def _dsn_cells(records: Sequence[RunRecord]) -> list[CompareCell]:
                 "mean_return": row.mean_return,
                 "mean_steps": row.mean_steps,
             },
+            label=row.label,
         )
         for row in rows
     ]
 
 
-def _cell(learner: str, game: str, records: Sequence[RunRecord]) -> CompareCell:
+def _cell(learner: str, label: str, game: str, records: Sequence[RunRecord]) -> CompareCell:
     by_size: dict[str, list[bool]] = defaultdict(list)
     for rec in records:
         size = compare_run_of(rec).size
@@ -414,4 +425,5 @@ def _cell(learner: str, game: str, records: Sequence[RunRecord]) -> CompareCell:
         optimal_rate=sum(bool(r.metrics["optimal"]) for r in records) / len(records),
         median_games=float(statistics.median(r.metrics["settled"] for r in records)),
         sizes=sizes,
+        label=label,
     )

@@ -30,7 +30,8 @@ class Row:
 
     algorithm: str
     label: str
-    """Display name; marked * when the learner's settings differ from the paper's."""
+    """Display name, with the settings that differ from the paper's (``CMARL-CD
+    (delta=0.08)``): runs of two settings are two rows."""
     episodes: int
     runs: int
     success_rate: float
@@ -48,9 +49,9 @@ class Row:
 
 
 def row_label(learner: LearnerConfig) -> str:
-    """The learner's name, marked with * when its settings are not the paper's."""
-    paper = registry.is_paper_setting(learner)
-    return registry.display_name(learner.name) + ("" if paper else " *")
+    """The learner's name with the settings that differ from the paper's (its DSN
+    settings), e.g. ``CMARL-CD (delta=0.08)``; :func:`cmarlcd.registry.variant_label`."""
+    return registry.variant_label(learner)
 
 
 def summarize(game: EpisodicGame, records: Iterable[RunRecord]) -> list[Row]:
@@ -60,7 +61,7 @@ def summarize(game: EpisodicGame, records: Iterable[RunRecord]) -> list[Row]:
     for rec in records:
         settings = run_of(rec)
         label = row_label(settings.learner) + options_label(settings.options)
-        as_paper[label] = not label.endswith("*") and not settings.options
+        as_paper[label] = registry.is_paper_setting(settings.learner) and not settings.options
         for budget, result in rec.metrics["checkpoints"].items():
             # keyed by run: sweeps with other checkpoint lists hold the very same run at L
             per_cell[(rec.key.algorithm, label, int(budget))][rec.key.run_index] = result

@@ -233,7 +233,7 @@ def stored_studies(groups: Sequence[Sequence[RunRecord]]) -> list[list[Outcome]]
     by_protocol: dict[tuple, list[tuple[Readings, Sequence[RunRecord]]]] = {}
     for records in groups:
         readings = readings_from(match_results.match_reading(records))
-        if readings is not None:
+        if readings is not None and _at_battlefield_settings(records):
             key = match_results.protocol_key(records[0])[:3]
             by_protocol.setdefault(key, []).append((readings, records))
     studies = [
@@ -242,6 +242,17 @@ def stored_studies(groups: Sequence[Sequence[RunRecord]]) -> list[list[Outcome]]
         if len(found) >= 2
     ]
     return [sorted(found, key=_place) for found in studies]
+
+
+def _at_battlefield_settings(records: Sequence[RunRecord]) -> bool:
+    """Whether every side of a stored tournament plays with its battlefield settings,
+    readings aside (a tournament of other settings, ``--set``, is not a reading of the
+    study: it is reported on its own, its sides named with their settings)."""
+    return not any(
+        match_results.changed_settings(learner)
+        for rec in records
+        for learner in tour.pairing_of(rec).learners
+    )
 
 
 def _place(found: Outcome) -> tuple:

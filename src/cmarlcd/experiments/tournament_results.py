@@ -10,10 +10,12 @@ over rounds. In self-play the rates are the mean of the algorithm's two sides.
 
 from __future__ import annotations
 
+import json
 import math
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass
+from itertools import product
 from typing import Any
 
 import numpy as np
@@ -24,6 +26,7 @@ from cmarlcd.experiments.tournament import (
     STD_DDOF,
     UNIT_KINDS,
     Pairing,
+    battlefield_learners,
     is_tabular,
     pairing_of,
     unit_fields,
@@ -177,9 +180,57 @@ def _tournaments_of(records: Sequence[RunRecord]) -> list[list[RunRecord]]:
         found.append(recs + [r for r in deep_only if set(pairing_of(r).algorithms) <= names])
     if deep_only:
         found.append(deep_only)
+    found = [variant for group in found for variant in _one_setting_each(group)]
     keys = [frozenset(rec.key for rec in group) for group in found]
     kept = [g for g, k in zip(found, keys, strict=True) if not any(k < other for other in keys)]
     return sorted(kept, key=lambda g: reading_label(match_reading(g)) != "defaults")
+
+
+#: Settings a tabular learner's side is told apart by as a *reading* of the tournament
+#: (:func:`tabular_key`, the section's title), not in its name.
+READING_SETTINGS = ("gamma", "tolerance")
+
+
+def changed_settings(learner: Any) -> dict[str, Any]:
+    """A side's settings that differ from its battlefield settings, readings aside."""
+    ignore = READING_SETTINGS if is_tabular(learner) else ()
+    return registry.changed_settings(learner, battlefield_learners().get(learner.name), ignore)
+
+
+def side_label(learner: Any) -> str:
+    """How the tables name a side: ``"CMARL-CD"``, or with the settings that differ from
+    its battlefield settings, readings aside (``"VDN (lr=0.001)"``)."""
+    ignore = READING_SETTINGS if is_tabular(learner) else ()
+    return registry.variant_label(learner, battlefield_learners().get(learner.name), ignore)
+
+
+def _side_settings(record: RunRecord) -> dict[str, str]:
+    return {
+        learner.name: json.dumps(changed_settings(learner), sort_keys=True, default=str)
+        for learner in pairing_of(record).learners
+    }
+
+
+def _one_setting_each(group: list[RunRecord]) -> list[list[RunRecord]]:
+    """A tournament in which an algorithm plays with two settings (``--set`` of two
+    sweeps on one store) split into tournaments in which each plays with one, every one
+    having each pairing the group has (a match is in each it fits): runs of different
+    settings never share a cell."""
+    played: dict[str, set[str]] = defaultdict(set)
+    for rec in group:
+        for name, settings in _side_settings(rec).items():
+            played[name].add(settings)
+    if all(len(settings) == 1 for settings in played.values()):
+        return [group]
+    names = sorted(played)
+    pairings = {frozenset(pairing_of(rec).algorithms) for rec in group}
+    split = []
+    for choice in product(*(sorted(played[name]) for name in names)):
+        chosen = dict(zip(names, choice, strict=True))
+        recs = [r for r in group if all(chosen[n] == s for n, s in _side_settings(r).items())]
+        if {frozenset(pairing_of(r).algorithms) for r in recs} == pairings:
+            split.append(recs)
+    return split
 
 
 @dataclass(frozen=True)
