@@ -29,8 +29,8 @@ from pathlib import Path
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments.sensor_network import DsnSweep
 from cmarlcd.registry import LEARNERS
-from cmarlcd.runner import run_sweep
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.runner import run_sweep
+from cmarlcd.sweeps.store import ResultStore
 
 LONG = DsnSweep(
     learners=(LEARNERS["cmarl-cd"], LEARNERS["la-oca"]),

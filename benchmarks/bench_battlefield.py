@@ -32,7 +32,7 @@ from cmarlcd.experiments import tournament as tour
 from cmarlcd.games import battlefield
 from cmarlcd.learners.automata import LAOCA
 from cmarlcd.learners.coordination import CMARLCDStochastic
-from cmarlcd.runner import default_workers
+from cmarlcd.sweeps.runner import default_workers
 from cmarlcd.training.match import Match, MatchBatch
 
 LEARNERS = tour.battlefield_learners()

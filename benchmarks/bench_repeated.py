@@ -23,8 +23,8 @@ from pathlib import Path
 
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import settings_of
-from cmarlcd.runner import default_workers, run_sweep
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.runner import default_workers, run_sweep
+from cmarlcd.sweeps.store import ResultStore
 from cmarlcd.training import fit
 
 #: The subset timed in both paths: mid-size case-1 cells (about 1e3-1e4 games a run),

@@ -72,7 +72,7 @@ sweep() {  # deep tasks over two forked workers on the card, tabular ones on the
         --no-progress >"$OUT/sweep.log" 2>&1 || { tail -5 "$OUT/sweep.log"; return 1; }
     "$python" - "$store" <<'EOF'
 import collections, json, sys
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.store import ResultStore
 with ResultStore(sys.argv[1]) as store:
     seen = collections.Counter(
         (tuple(json.loads(r.key.config)["algorithms"]), r.metrics.get("device", "none"))

@@ -34,8 +34,8 @@ from cmarlcd import __version__
 from cmarlcd.cli import reproduce as commands
 from cmarlcd.cli.compare import comparison
 from cmarlcd.experiments import sensor_network as dsn_exp
-from cmarlcd.runner import SweepObserver, run_sweep
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.runner import SweepObserver, run_sweep
+from cmarlcd.sweeps.store import ResultStore
 
 
 class Recorder(SweepObserver):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sqlite3
 from pathlib import Path
 
-from cmarlcd.store import ResultStore, RunKey
+from cmarlcd.sweeps.store import ResultStore, RunKey
 
 
 def not_a_store(tmp_path, kind: str):

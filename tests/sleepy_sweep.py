@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from cmarlcd.experiments import register
-from cmarlcd.runner import run_sweep
 from cmarlcd.runs import Experiment, RunSpec, Settings
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.runner import run_sweep
+from cmarlcd.sweeps.store import ResultStore
 
 
 @dataclass(frozen=True)

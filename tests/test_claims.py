@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from cmarlcd.claims import Owner, is_stale
-from cmarlcd.runner import run_sweep
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.claims import Owner, is_stale
+from cmarlcd.sweeps.runner import run_sweep
+from cmarlcd.sweeps.store import ResultStore
 from tests.sleepy_sweep import specs as sleepy_specs
 
 SCRIPT = Path(__file__).with_name("sleepy_sweep.py")

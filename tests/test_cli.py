@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 from cmarlcd import __version__
 from cmarlcd.cli import app, parse_range
 from cmarlcd.errors import ConfigError
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.store import ResultStore
 from tests.helpers import STORE_PROBLEMS, not_a_store
 
 runner = CliRunner()
@@ -325,7 +325,7 @@ def test_a_larger_sensor_network_end_to_end(paths) -> None:
     assert all(set(r["paper"].values()) == {None} for r in doc["rows"])
     assert all(0.0 <= r["success_rate"] <= 1.0 for r in doc["rows"])
     from cmarlcd.experiments import settings_of
-    from cmarlcd.store import ResultStore
+    from cmarlcd.sweeps.store import ResultStore
 
     with ResultStore(store) as db:
         layouts = {settings_of(r).options for r in db.records("dsn")}
@@ -338,7 +338,7 @@ def test_set_reaches_the_learner_s_stored_settings(paths) -> None:
     args = ("--algorithms", "cmarl-cd", "--episodes", "20", "--runs", "1", "--eval-episodes", "5")
     assert invoke("dsn", *args, *where, "--set", "cmarl-cd.delta=0.1").exit_code == 0
     from cmarlcd.experiments import settings_of
-    from cmarlcd.store import ResultStore
+    from cmarlcd.sweeps.store import ResultStore
 
     with ResultStore(store) as db:
         (record,) = db.records("dsn")
@@ -770,7 +770,7 @@ def test_a_full_disk_during_a_sweep_is_one_line_and_keeps_the_stored_runs(
 def test_a_full_disk_while_drawing_a_figure_is_one_line(paths, monkeypatch) -> None:
     import errno
 
-    from cmarlcd import figures as figs
+    from cmarlcd.reports import figures as figs
 
     def no_space(fig, path):
         raise OSError(errno.ENOSPC, "No space left on device", str(path))

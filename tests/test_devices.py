@@ -14,9 +14,9 @@ import pytest
 from cmarlcd import devices
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import register
-from cmarlcd.runner import run_sweep
 from cmarlcd.runs import Experiment, RunSpec, Settings
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.runner import run_sweep
+from cmarlcd.sweeps.store import ResultStore
 
 torch = pytest.importorskip("torch")
 
@@ -199,7 +199,7 @@ def test_a_deep_run_records_its_device_and_a_tabular_one_none(tmp_path) -> None:
     where = ["--store", str(store), "--figures", str(tmp_path / "f"), "--workers", "1"]
     result = invoke(*args, "--eval-episodes", "5", *where, "--device", "auto", "--no-progress")
     assert result.exit_code == 0, result.output
-    from cmarlcd.store import ResultStore
+    from cmarlcd.sweeps.store import ResultStore
 
     with ResultStore(store) as opened:
         recorded = {r.key.algorithm: r.metrics.get("device") for r in opened.records()}
@@ -241,7 +241,7 @@ def test_a_tiny_tournament_runs_on_the_gpu(tmp_path) -> None:
     where = ["--store", str(store), "--figures", str(tmp_path / "f"), "--workers", "1"]
     result = invoke(*args, *budget, *where, "--device", "cuda", "--no-progress")
     assert result.exit_code == 0, result.output
-    from cmarlcd.store import ResultStore
+    from cmarlcd.sweeps.store import ResultStore
 
     with ResultStore(store) as opened:
         recorded = {r.metrics["device"] for r in opened.records()}
@@ -322,7 +322,7 @@ def test_one_worker_with_a_gpu_is_the_gpus_lane_and_takes_every_task(monkeypatch
     """``ProcessBackend(1, ..., "cuda:0")`` built directly: its one worker computes the
     deep runs on the card and the tabular ones too (before, it had no GPU lane and the
     deep runs went to the CPU)."""
-    from cmarlcd.backends.local import ProcessBackend
+    from cmarlcd.sweeps.backends.local import ProcessBackend
 
     monkeypatch.setattr(devices, "describe", lambda device: f"{device} (a pretended card)")
     monkeypatch.setattr(torch.cuda, "is_initialized", lambda: False)
@@ -347,8 +347,8 @@ def test_one_worker_with_a_gpu_is_the_gpus_lane_and_takes_every_task(monkeypatch
 def test_a_process_backend_of_no_workers_or_no_gpu_tasks_is_refused(
     workers: int, gpu_tasks: int
 ) -> None:
-    from cmarlcd.backends.local import ProcessBackend
     from cmarlcd.errors import ConfigError
+    from cmarlcd.sweeps.backends.local import ProcessBackend
 
     with pytest.raises(ConfigError):
         ProcessBackend(workers, lambda *_: None, "cuda:0", gpu_tasks)
@@ -374,13 +374,13 @@ def test_on_the_cpu_a_deep_run_records_the_cpu(tmp_path) -> None:
 def test_a_ray_cluster_takes_a_gpu_where_it_has_one(
     device: str, gpus: float, expected: str
 ) -> None:
-    from cmarlcd.backends.ray_cluster import cluster_device
+    from cmarlcd.sweeps.backends.ray_cluster import cluster_device
 
     assert cluster_device(device, gpus) == expected
 
 
 def test_a_gpu_asked_of_a_ray_cluster_without_one_is_refused() -> None:
-    from cmarlcd.backends.ray_cluster import cluster_device
+    from cmarlcd.sweeps.backends.ray_cluster import cluster_device
 
     with pytest.raises(ConfigError, match="the Ray cluster has no GPU"):
         cluster_device("cuda", 0)

@@ -18,9 +18,9 @@ from cmarlcd.cli.progress import OVERALL, Pace, RichSweepView, clock, percent
 from cmarlcd.cli.reproduce import bar_name
 from cmarlcd.experiments import compare, register
 from cmarlcd.progress import report_progress
-from cmarlcd.runner import Section, SweepObserver, run_sweep
 from cmarlcd.runs import Experiment, RunSpec, Settings
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.runner import Section, SweepObserver, run_sweep
+from cmarlcd.sweeps.store import ResultStore
 
 DATA = Path(__file__).parent / "data"
 RECORDINGS = sorted(DATA.glob("progress-*.jsonl"))

@@ -12,8 +12,8 @@ from cmarlcd.experiments.sensor_network import DsnSweep
 from cmarlcd.experiments.tournament import Tournament, battlefield_learners
 from cmarlcd.learners.coordination import RepeatedConfig
 from cmarlcd.registry import LEARNERS
-from cmarlcd.runner import run_sweep
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.runner import run_sweep
+from cmarlcd.sweeps.store import ResultStore
 
 ray = pytest.importorskip("ray")
 pytestmark = pytest.mark.slow  # Ray starts in seconds, sweeps run in tens
@@ -81,8 +81,8 @@ def test_a_ray_sweep_resumes_from_the_store(local_ray, tmp_path) -> None:
 def test_a_node_with_another_version_is_one_line(local_ray, tmp_path, monkeypatch) -> None:
     """The driver says it runs another version: every task refuses, and the sweep ends
     with a ConfigError naming the backend (one line on the command line)."""
-    from cmarlcd.backends import ray_cluster as ray_backend
     from cmarlcd.errors import ConfigError
+    from cmarlcd.sweeps.backends import ray_cluster as ray_backend
 
     monkeypatch.setattr(ray_backend, "__version__", "0.0.0-elsewhere")
     specs, _ = tiny_sweeps()["repeated"]

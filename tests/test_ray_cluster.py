@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from cmarlcd.backends.ray_cluster import GRACE_SECONDS, HEAD_CHECK_SECONDS, LOST_SECONDS
+from cmarlcd.sweeps.backends.ray_cluster import GRACE_SECONDS, HEAD_CHECK_SECONDS, LOST_SECONDS
 
 ray = pytest.importorskip("ray")
 pytestmark = pytest.mark.slow  # a cluster takes seconds to start, the sweeps tens

@@ -16,9 +16,9 @@ import pytest
 
 from cmarlcd.experiments import register
 from cmarlcd.progress import Throttled
-from cmarlcd.runner import SweepInterrupted, SweepObserver, run_sweep
 from cmarlcd.runs import Experiment, RunSpec, Settings
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.runner import SweepInterrupted, SweepObserver, run_sweep
+from cmarlcd.sweeps.store import ResultStore
 
 FAIL_AT: dict[str, int] = {}
 
@@ -237,7 +237,7 @@ def test_a_task_packs_runs_of_one_kind_only(tmp_path) -> None:
     task's progress is counted in one kind's estimated seconds."""
     from cmarlcd import registry
     from cmarlcd.experiments import compare
-    from cmarlcd.runner import _batches, _Sweep, kind_of
+    from cmarlcd.sweeps.runner import _batches, _Sweep, kind_of
 
     learners = tuple(registry.REPEATED_LEARNERS[n] for n in ("cmarl-cd", "iql", "lenient"))
     specs = compare.Comparison(learners, ("climbing", "penalty-10"), runs=5).specs()

@@ -7,7 +7,7 @@ import sqlite3
 import pytest
 
 from cmarlcd.errors import ConfigError
-from cmarlcd.store import ResultStore, RunKey, StoreWriteError, canonical_json
+from cmarlcd.sweeps.store import ResultStore, RunKey, StoreWriteError, canonical_json
 from tests.helpers import STORE_PROBLEMS, fill_the_disk, not_a_store
 
 
@@ -120,7 +120,7 @@ def test_a_failed_write_is_one_error_and_keeps_what_was_stored(
 def test_an_empty_store_is_discarded_only_when_no_one_holds_it(tmp_path) -> None:
     """What a failed command created and left empty goes; a store another sweep has
     open, or one that holds a run, stays."""
-    from cmarlcd.store import discard_if_empty
+    from cmarlcd.sweeps.store import discard_if_empty
 
     unused = tmp_path / "unused.sqlite"
     ResultStore(unused).close()

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from cmarlcd.figures import phase_portrait
+from cmarlcd.reports.figures import phase_portrait
 from cmarlcd.theory import (
     StabilityReport,
     check_theorem1,

@@ -2,7 +2,7 @@
 
 A mkdocs hook (``hooks:`` in mkdocs.yml), standard library only. It parses every module
 of ``src/cmarlcd`` with :mod:`ast`, groups the modules by top-level module or subpackage
-(``runner.py`` is one group, ``training/`` with all its modules another), and draws one
+(``registry.py`` is one group, ``training/`` with all its modules another), and draws one
 box per group in the rows of :data:`LAYERS`, with an arrow from each group to every group
 it imports. An import that points up the layers is drawn in red and listed under the
 diagram. The picture is written into the built site as an SVG (no script, nothing fetched
@@ -42,28 +42,17 @@ ROOT = "__init__"
 LAYERS: list[tuple[str, list[str]]] = [
     ("entry points", [ROOT, "__main__"]),
     ("command line", ["cli"]),
-    (
-        "reports",
-        [
-            "reports",
-            "report",
-            "compare_report",
-            "readings_report",
-            "scaling_report",
-            "environment_report",
-        ],
-    ),
-    ("rendering", ["figures", "render", "document"]),
-    ("sweeps", ["sweeps", "runner", "backends"]),
+    ("reports", ["reports"]),
+    ("sweeps", ["sweeps"]),
     ("experiments", ["experiments", "testing"]),
-    ("runs, registry", ["registry", "runs", "store", "claims"]),
+    ("registry", ["registry"]),
     ("training", ["training"]),
     ("learners, games", ["learners", "games"]),
     (
         "foundations",
-        ["compiled", "theory", "section", "paper", "progress", "limits", "devices", "version"],
+        ["runs", "theory", "progress", "limits", "devices", "compiled", "paper", "version"],
     ),
-    ("errors", ["errors"]),
+    ("leaves", ["errors", "_moved"]),
 ]
 UNLAYERED = "in no layer"
 

@@ -1,10 +1,12 @@
 """cmarl-cd: reference implementation of CMARL-CD (cooperative MARL by coordination degree)."""
 
-from cmarlcd import games
+from cmarlcd import _moved, games
 from cmarlcd.errors import ConfigError
 from cmarlcd.learners import CMARLCD, RepeatedConfig
 from cmarlcd.training import FitResult, fit
 from cmarlcd.version import __version__
+
+_moved.install()  # the 0.5 names of the modules that moved (one release)
 
 __all__ = [
     "CMARLCD",

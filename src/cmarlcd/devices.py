@@ -14,7 +14,7 @@ Only :func:`resolve` and :func:`describe` import torch; checking the spelling do
 Whether a GPU is present is asked through NVML (``PYTORCH_NVML_BASED_CUDA_CHECK``, unless
 the environment sets it otherwise), which does not start CUDA in this process, so worker
 processes forked afterwards can (a worker pool for the GPU is spawned instead where this
-process has started CUDA, :class:`cmarlcd.backends.local.ProcessBackend`).
+process has started CUDA, :class:`cmarlcd.sweeps.backends.local.ProcessBackend`).
 """
 
 from __future__ import annotations

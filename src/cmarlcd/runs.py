@@ -1,5 +1,7 @@
-"""What a run is: its identity and seeds (:class:`RunSpec`), and how an experiment
-computes runs (:class:`Experiment`).
+"""What a run is: its identity and seeds (:class:`RunSpec`, :class:`RunKey`), what a
+stored one holds (:class:`RunRecord`), and how an experiment computes runs
+(:class:`Experiment`). A leaf under the experiments, the sweeps and the reports: it imports
+nothing of the package.
 
 A *run* is (experiment, algorithm, config, root seed, run index). Its random streams come
 from :meth:`RunSpec.seed_sequence`, a :class:`numpy.random.SeedSequence` built from the
@@ -21,7 +23,39 @@ from typing import Any, Self
 
 import numpy as np
 
-from cmarlcd.store import RunKey, canonical_json
+
+def canonical_json(config: Mapping[str, Any]) -> str:
+    """The canonical text of a config: sorted keys, no whitespace."""
+    return json.dumps(dict(config), sort_keys=True, separators=(",", ":"))
+
+
+@dataclass(frozen=True)
+class RunKey:
+    """The identity of one run in the store."""
+
+    experiment: str
+    algorithm: str
+    config: str
+    root_seed: int
+    run_index: int
+
+    def values(self) -> tuple[str, str, str, int, int]:
+        return (self.experiment, self.algorithm, self.config, self.root_seed, self.run_index)
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """A stored run: its key, its metrics, how long it took and the package version that
+    computed it."""
+
+    key: RunKey
+    metrics: dict[str, Any]
+    wall_seconds: float
+    version: str = ""
+
+    @property
+    def config(self) -> dict[str, Any]:
+        return json.loads(self.key.config)
 
 
 class Settings:

@@ -380,7 +380,7 @@ def check_theorem1(
 @dataclass(frozen=True)
 class PhasePortrait:
     """What the phase portrait of the reduced system (12) shows, for 2 agents and 2
-    optima (drawn by :func:`cmarlcd.figures.phase_portrait`)."""
+    optima (drawn by :func:`cmarlcd.reports.figures.phase_portrait`)."""
 
     temperature: float
     grid: np.ndarray

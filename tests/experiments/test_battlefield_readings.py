@@ -20,7 +20,7 @@ from cmarlcd.games import battlefield
 from cmarlcd.games.battlefield import GUNNER, MARINE, Unit
 from cmarlcd.learners.automata import LAOCA, AutomatonConfig
 from cmarlcd.learners.coordination import CMARLCDStochastic, StochasticConfig
-from cmarlcd.store import RunKey, RunRecord
+from cmarlcd.sweeps.store import RunKey, RunRecord
 from cmarlcd.training.tabular_side import TabularSide
 
 DATA = Path(__file__).parent.parent / "data"

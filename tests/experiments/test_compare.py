@@ -23,7 +23,7 @@ from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
 from cmarlcd.learners.q_learning import IQLConfig
 from cmarlcd.registry import REPEATED_LEARNERS
 from cmarlcd.runs import RunSpec
-from cmarlcd.store import RunRecord
+from cmarlcd.sweeps.store import RunRecord
 from cmarlcd.training.repeated import fit
 
 

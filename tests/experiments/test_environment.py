@@ -9,7 +9,7 @@ import pytest
 
 from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments import settings_of
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.store import ResultStore
 from tests.test_cli import assert_rejected_cleanly, invoke, paths  # noqa: F401
 from tests.tiny_env import TinyEnv
 

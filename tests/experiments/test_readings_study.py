@@ -15,7 +15,7 @@ from cmarlcd.experiments import readings as study
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments.tournament import Readings, Unit
-from cmarlcd.readings_report import margin_text
+from cmarlcd.reports.readings import margin_text
 
 LEARNERS = tour.battlefield_learners()
 

@@ -7,8 +7,8 @@ import pytest
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import settings_of
-from cmarlcd.runner import run_sweep
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.runner import run_sweep
+from cmarlcd.sweeps.store import ResultStore
 
 
 def test_paper_protocol_has_36_cells_of_50_runs() -> None:

@@ -11,7 +11,7 @@ from cmarlcd import registry
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import scaling, settings_of
 from cmarlcd.games.sensor_network import layout
-from cmarlcd.store import ResultStore
+from cmarlcd.sweeps.store import ResultStore
 from tests.test_cli import assert_rejected_cleanly, invoke, paths, without_torch  # noqa: F401
 
 TABULAR = tuple(registry.require_learner(n) for n in ("cmarl-cd", "iql"))

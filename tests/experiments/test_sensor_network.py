@@ -9,8 +9,8 @@ from cmarlcd.experiments import episodic, episodic_results, settings_of
 from cmarlcd.experiments import sensor_network as sn
 from cmarlcd.learners import AutomatonConfig, DeepConfig, StochasticConfig
 from cmarlcd.progress import progress_sink
-from cmarlcd.runner import run_sweep
-from cmarlcd.store import ResultStore, RunKey, RunRecord, canonical_json
+from cmarlcd.sweeps.runner import run_sweep
+from cmarlcd.sweeps.store import ResultStore, RunKey, RunRecord, canonical_json
 
 
 def run(sweep: sn.DsnSweep, algorithm: str = "cmarl-cd", index: int = 0) -> dict:

@@ -9,7 +9,7 @@ from cmarlcd.experiments import sensor_network as sn
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games.battlefield import Unit
 from cmarlcd.runs import RunSpec
-from cmarlcd.store import canonical_json
+from cmarlcd.sweeps.store import canonical_json
 
 
 def planned_specs() -> list[RunSpec]:

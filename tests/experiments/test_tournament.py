@@ -12,7 +12,7 @@ from cmarlcd.experiments import settings_of
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments import tournament_results as match_results
-from cmarlcd.store import RunKey, RunRecord
+from cmarlcd.sweeps.store import RunKey, RunRecord
 
 
 def test_a_round_of_four_algorithms_has_ten_matches_with_self_play_once() -> None:

@@ -85,9 +85,9 @@ def test_bad_settings_are_rejected(field, value) -> None:
 def test_an_episode_is_stored_visit_by_visit_with_its_discounted_returns() -> None:
     """Rewards 1, 2, 4 and γ = 0.5: returns 1 + 0.5·4 = 3, 2 + 0.5·4 = 4, 4 (eq. 1),
     stored from the last visit back."""
+    from cmarlcd.learners.replay import new_ring, seed_view
     from cmarlcd.training.deep_kernels import EPISODES, IndexData
     from cmarlcd.training.degree_kernels import index_store
-    from cmarlcd.training.replay import new_ring, seed_view
 
     ring = new_ring(1, 8, 2, 3, 10)
     schedule = np.array(DeepCMARLCDConfig(gamma=0.5).schedule(100), np.float64)

@@ -25,8 +25,8 @@ from cmarlcd.cli.sweeps import (
     run_counts,
     with_deep_execution,
 )
-from cmarlcd.compare_report import compare_section
 from cmarlcd.experiments import compare as cmp
+from cmarlcd.reports.compare import compare_section
 
 #: Every game of the comparison, the DSN last.
 GAMES = (*cmp.GAMES, cmp.DSN)

@@ -10,7 +10,7 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from cmarlcd import registry, report
+from cmarlcd import registry, reports
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
     SeedOption,
@@ -159,5 +159,5 @@ def run_dsn(
 ) -> dict[str, Any]:
     """Run (or resume) a DSN sweep and report it; return its JSON document."""
     records, done = compute_runs(sweep.specs(), run, "DSN", seed_batch)
-    doc = present(report.dsn_section(dsn_exp.DSN_GAME, records, run.figures), console)
+    doc = present(reports.dsn_section(dsn_exp.DSN_GAME, records, run.figures), console)
     return {**doc, **run_counts(done, run.store, console)}

@@ -20,8 +20,8 @@ import typer
 
 from cmarlcd.errors import BackendLost, ConfigError, require
 from cmarlcd.games.battlefield import Unit
-from cmarlcd.runner import SweepInterrupted
-from cmarlcd.store import check_output_directory, check_store
+from cmarlcd.sweeps.runner import SweepInterrupted
+from cmarlcd.sweeps.store import check_output_directory, check_store
 
 F = TypeVar("F", bound=Callable[..., Any])
 

@@ -29,7 +29,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, ProgressColumn, TextColumn
 from rich.text import Text
 
-from cmarlcd.runner import Section, SweepObserver
+from cmarlcd.sweeps.runner import Section, SweepObserver
 
 #: The overall bar's name when a sweep has several sections.
 OVERALL = "all"

@@ -35,8 +35,8 @@ from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import readings as study_module
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.limits import check_seed_batch
-from cmarlcd.readings_report import readings_section
-from cmarlcd.runner import SweepResult
+from cmarlcd.reports.readings import readings_section
+from cmarlcd.sweeps.runner import SweepResult
 
 
 def parse_rates(text: str) -> tuple[float, ...]:

@@ -8,7 +8,7 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from cmarlcd import registry, report
+from cmarlcd import registry, reports
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
     fails_cleanly,
@@ -26,7 +26,7 @@ from cmarlcd.errors import require
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.games.matrix import MAX_JOINT_ACTIONS
 from cmarlcd.learners.coordination import RepeatedConfig
-from cmarlcd.store import RunRecord
+from cmarlcd.sweeps.store import RunRecord
 
 #: Agents and actions a repeated-game sweep may ask for (2 actions each: 2^26 < 10^8).
 MAX_AGENTS = MAX_JOINT_ACTIONS.bit_length() - 1
@@ -50,7 +50,7 @@ def run_repeated(
 def repeated_document(
     sweep: rep.RepeatedSweep, records: list[RunRecord], run: Execution, console: Console | None
 ) -> dict[str, Any]:
-    doc = present(report.repeated_section(records, run.figures), console)
+    doc = present(reports.repeated_section(records, run.figures), console)
     return {**doc, "learner": asdict(sweep.learner)}
 
 

@@ -12,7 +12,7 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from cmarlcd import report
+from cmarlcd import reports
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
     DEFAULT_FIGURES,
@@ -22,9 +22,6 @@ from cmarlcd.cli.options import (
     fails_cleanly,
 )
 from cmarlcd.cli.theory import theorem_sections
-from cmarlcd.compare_report import compare_section
-from cmarlcd.environment_report import environment_section
-from cmarlcd.environment_report import protocol_key as env_key
 from cmarlcd.errors import require
 from cmarlcd.experiments import compare as cmp
 from cmarlcd.experiments import environment as envs
@@ -33,10 +30,13 @@ from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_results as match_results
-from cmarlcd.render import say, show_section
-from cmarlcd.scaling_report import scaling_section
-from cmarlcd.section import Section, version_warning
-from cmarlcd.store import DEFAULT_STORE, ResultStore, RunRecord
+from cmarlcd.reports.compare import compare_section
+from cmarlcd.reports.environment import environment_section
+from cmarlcd.reports.environment import protocol_key as env_key
+from cmarlcd.reports.render import say, show_section
+from cmarlcd.reports.scaling import scaling_section
+from cmarlcd.reports.section import Section, version_warning
+from cmarlcd.sweeps.store import DEFAULT_STORE, ResultStore, RunRecord
 from cmarlcd.version import __version__
 
 FORMATS = ("text", "markdown", "html", "json")
@@ -107,12 +107,12 @@ def _report_groups(
     records)."""
 
     def dsn(records: Sequence[RunRecord], figures: Path) -> Section:
-        return report.dsn_section(dsn_exp.DSN_GAME, records, figures)
+        return reports.dsn_section(dsn_exp.DSN_GAME, records, figures)
 
     found: list[tuple[str, Renderer, list[RunRecord]]] = []
     for records in rep.stored_tables(db.records(rep.EXPERIMENT)).values():
         if case in (None, rep.cell_of(records[0]).case):
-            found.append(("repeated", report.repeated_section, records))
+            found.append(("repeated", reports.repeated_section, records))
     if case is None:
         kinds = (
             ("dsn", dsn, dsn_exp.EXPERIMENT, episodic_results.protocol_key),
@@ -140,11 +140,11 @@ def _battlefield_groups(records: list[RunRecord]) -> list[tuple[str, Renderer, l
     """Each stored tournament, then each readings study (two or more readings with the
     same seed and budgets) as one more section."""
     from cmarlcd.experiments.readings import stored_studies
-    from cmarlcd.readings_report import stored_readings_section
+    from cmarlcd.reports.readings import stored_readings_section
 
     groups = match_results.tournaments(records)
     found: list[tuple[str, Renderer, list[RunRecord]]] = [
-        ("tournament", report.tournament_section, g) for g in groups
+        ("tournament", reports.tournament_section, g) for g in groups
     ]
     for study in stored_studies(groups):
         every = list({rec.key: rec for o in study for rec in o.records}.values())
@@ -193,7 +193,7 @@ def _document(
     """The whole report in one format other than text."""
     from collections import Counter
 
-    from cmarlcd import document
+    from cmarlcd.reports import document
 
     sections = _sections(groups, figures)
     docs: dict[str, list] = {

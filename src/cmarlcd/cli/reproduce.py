@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from cmarlcd import registry, report
+from cmarlcd import registry, reports
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
     SeedOption,
@@ -28,7 +28,6 @@ from cmarlcd.cli.sweeps import (
 )
 from cmarlcd.cli.theory import theorem_documents
 from cmarlcd.cli.tournament import tournament_learners
-from cmarlcd.compare_report import compare_section
 from cmarlcd.errors import require
 from cmarlcd.experiments import compare as cmp
 from cmarlcd.experiments import repeated as rep
@@ -37,6 +36,7 @@ from cmarlcd.experiments import theorem
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.limits import check_seed
 from cmarlcd.registry import LearnerConfig
+from cmarlcd.reports.compare import compare_section
 from cmarlcd.runs import RunSpec
 
 
@@ -165,9 +165,9 @@ def reproduce(
         repeated_document(table, part[f"Table {table.case}"], run, console)
         for table in _paper_sweeps(chosen, seed)
     ]
-    dsn = report.dsn_section(dsn_exp.DSN_GAME, part["Tables 3-7"], run.figures)
+    dsn = reports.dsn_section(dsn_exp.DSN_GAME, part["Tables 3-7"], run.figures)
     doc["dsn"] = present(dsn, console)
-    doc["tournament"] = present(report.tournament_section(part["Figs. 6-7"], run.figures), console)
+    doc["tournament"] = present(reports.tournament_section(part["Figs. 6-7"], run.figures), console)
     doc["theorem1"] = theorem_documents(part["Theorem 1"], run.figures, console)
     if COMPARISON in part:
         doc["compare"] = present(compare_section(part[COMPARISON], run.figures), console)

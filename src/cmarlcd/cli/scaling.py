@@ -34,7 +34,7 @@ from cmarlcd.errors import require
 from cmarlcd.experiments import scaling
 from cmarlcd.experiments.sensor_network import SEED_BATCH
 from cmarlcd.limits import check_seed_batch
-from cmarlcd.scaling_report import scaling_section
+from cmarlcd.reports.scaling import scaling_section
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,6 @@ from typing import Any, TypeVar
 
 from rich.console import Console
 
-from cmarlcd.backends import check_backend, ray_cluster
 from cmarlcd.cli.options import (
     DEFAULT_FIGURES,
     AddressOption,
@@ -35,11 +34,12 @@ from cmarlcd.cli.progress import RichSweepView
 from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, check_device, resolve
 from cmarlcd.errors import require
 from cmarlcd.limits import check_gpu_tasks, check_workers
-from cmarlcd.render import say, show_section
-from cmarlcd.runner import SweepResult, run_sweep
+from cmarlcd.reports.render import say, show_section
+from cmarlcd.reports.section import Section
 from cmarlcd.runs import RunSpec
-from cmarlcd.section import Section
-from cmarlcd.store import DEFAULT_STORE, ResultStore, RunRecord, discard_if_empty
+from cmarlcd.sweeps.backends import check_backend, ray_cluster
+from cmarlcd.sweeps.runner import SweepResult, run_sweep
+from cmarlcd.sweeps.store import DEFAULT_STORE, ResultStore, RunRecord, discard_if_empty
 from cmarlcd.version import __version__
 
 F = TypeVar("F", bound=Callable[..., Any])

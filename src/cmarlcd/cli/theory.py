@@ -10,7 +10,7 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from cmarlcd import report
+from cmarlcd import reports
 from cmarlcd import theory as theory_module
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
@@ -20,9 +20,9 @@ from cmarlcd.cli.options import (
     check_outputs,
     fails_cleanly,
 )
-from cmarlcd.render import say, show_section
-from cmarlcd.section import Section
-from cmarlcd.store import RunRecord
+from cmarlcd.reports.render import say, show_section
+from cmarlcd.reports.section import Section
+from cmarlcd.sweeps.store import RunRecord
 
 
 @app.command()
@@ -39,7 +39,7 @@ def theory(
     figures: FiguresOption = DEFAULT_FIGURES,
 ) -> None:
     """Theorem 1: integrate the mean-field ODE (8) and check the Jacobian (13) is -(2/T)·I."""
-    from cmarlcd.figures import phase_portrait
+    from cmarlcd.reports.figures import phase_portrait
     from cmarlcd.theory import check_theorem1
 
     check_outputs(figures=figures)
@@ -52,14 +52,14 @@ def theory(
         print(json.dumps(doc, indent=2))
         return
     console = Console()
-    section = report.theory_section(doc)
+    section = reports.theory_section(doc)
     say(console, f"{section.title}, T = {temperature:g}", "bold")
     show_section(console, section, title=False)
 
 
 def theorem_sections(records: Sequence[RunRecord], figures: Path) -> list[Section]:
     """The stored Theorem 1 checks, with the phase portrait beside the 2-agent one."""
-    from cmarlcd.figures import phase_portrait
+    from cmarlcd.reports.figures import phase_portrait
 
     sections = []
     for rec in records:
@@ -67,7 +67,7 @@ def theorem_sections(records: Sequence[RunRecord], figures: Path) -> list[Sectio
         if (doc["n_agents"], doc["n_optima"]) == (2, 2):
             path = figures / f"theorem1-phase-T{doc['temperature']:g}.png"
             doc["figure"] = str(phase_portrait(path, doc["temperature"], rec.key.root_seed))
-        sections.append(report.theory_section(doc, [rec]))
+        sections.append(reports.theory_section(doc, [rec]))
     return sections
 
 

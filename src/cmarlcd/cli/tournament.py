@@ -9,7 +9,7 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from cmarlcd import registry, report
+from cmarlcd import registry, reports
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
     SeedOption,
@@ -142,5 +142,5 @@ def run_tournament(
 ) -> dict[str, Any]:
     """Run (or resume) a tournament and report it; return its JSON document."""
     records, done = compute_runs(contest.specs(), run, "battlefield", seed_batch)
-    doc = present(report.tournament_section(records, run.figures), console)
+    doc = present(reports.tournament_section(records, run.figures), console)
     return {**doc, **run_counts(done, run.store, console)}

@@ -28,9 +28,9 @@ from cmarlcd.cli.sweeps import (
     run_counts,
     with_deep_execution,
 )
-from cmarlcd.environment_report import environment_section
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.experiments import environment as envs
+from cmarlcd.reports.environment import environment_section
 
 DEFAULT_ALGORITHMS = "vdn,qmix,deep-cmarl-cd"
 

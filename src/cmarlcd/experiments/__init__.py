@@ -23,8 +23,7 @@ from cmarlcd.experiments import (
     theorem,
     tournament,
 )
-from cmarlcd.runs import Experiment, RunSpec
-from cmarlcd.store import RunRecord
+from cmarlcd.runs import Experiment, RunRecord, RunSpec
 
 _REGISTRY: dict[str, Experiment] = {}
 

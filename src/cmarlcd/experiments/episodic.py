@@ -35,8 +35,7 @@ from cmarlcd.limits import (
 )
 from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
-from cmarlcd.store import RunRecord
+from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, parse_settings
 from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
 from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.tabular import EpisodeStats, TabularRun, evaluate

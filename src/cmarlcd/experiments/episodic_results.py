@@ -21,7 +21,7 @@ from cmarlcd.experiments.episodic import (
     run_of,
 )
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.store import RunRecord
+from cmarlcd.runs import RunRecord
 
 
 @dataclass(frozen=True)

@@ -27,8 +27,7 @@ from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.experiments.tournament import Readings, Tournament
 from cmarlcd.limits import check_run_count
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import RunSpec
-from cmarlcd.store import RunRecord
+from cmarlcd.runs import RunRecord, RunSpec
 
 #: The study's protocol: 10 rounds of 100,000 learning + 100,000 evaluation episodes.
 STUDY_ROUNDS = 10

@@ -21,8 +21,7 @@ from cmarlcd.games.matrix import MatrixGame, check_size, climbing_game, random_g
 from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
 from cmarlcd.limits import check_run_count, check_seed
 from cmarlcd.paper import repeated_success
-from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
-from cmarlcd.store import RunRecord
+from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, parse_settings
 from cmarlcd.training.repeated import fit
 
 EXPERIMENT = "repeated"

@@ -41,8 +41,7 @@ from cmarlcd.experiments.sensor_network import layout_spec, optimal_episodes
 from cmarlcd.games.sensor_network import sized
 from cmarlcd.limits import check_run_count
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import RunSpec
-from cmarlcd.store import RunRecord
+from cmarlcd.runs import RunRecord, RunSpec
 
 EXPERIMENT = "scaling"
 

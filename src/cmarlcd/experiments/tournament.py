@@ -41,8 +41,7 @@ from cmarlcd.games.battlefield import GUNNER, MARINE, Battlefield, Unit
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import Experiment, RunSpec, Settings, parse_settings
-from cmarlcd.store import RunRecord
+from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, parse_settings
 from cmarlcd.training.match import Match, MatchBatch
 from cmarlcd.training.tabular_side import UNSEEN_MODES, check_unseen
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from cmarlcd import registry
 from cmarlcd.experiments.tournament_results import Cell, finite_mean, round_rates
-from cmarlcd.store import RunRecord
+from cmarlcd.runs import RunRecord
 
 #: The verdicts of a claim: it holds beyond the noise, the opposite holds beyond the
 #: noise, the rounds cannot tell, or the tournament lacks an algorithm it needs.

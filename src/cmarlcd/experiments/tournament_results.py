@@ -31,7 +31,7 @@ from cmarlcd.experiments.tournament import (
     pairing_of,
     unit_fields,
 )
-from cmarlcd.store import RunRecord
+from cmarlcd.runs import RunRecord
 
 
 def reading_of(pairing: Pairing) -> dict[str, Any]:

@@ -15,8 +15,8 @@ import torch
 from cmarlcd import devices
 from cmarlcd.errors import require
 from cmarlcd.learners.deep_config import DeepConfig, epsilon, scheduled_work
+from cmarlcd.learners.replay import new_ring, push, push_row, sample, seed_view
 from cmarlcd.learners.value_decomposition import ValueDecomposition
-from cmarlcd.training.replay import new_ring, push, push_row, sample, seed_view
 
 
 class StepAgent:

@@ -22,7 +22,7 @@ from cmarlcd.learners.deep_agent import StepAgent
 from cmarlcd.learners.deep_config import scheduled_work
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 from cmarlcd.learners.degree_model import DegreeModel
-from cmarlcd.training.replay import new_ring, push_visit, push_visit_row, seed_view
+from cmarlcd.learners.replay import new_ring, push_visit, push_visit_row, seed_view
 
 
 class DegreeAgent(StepAgent):

@@ -26,8 +26,8 @@ from cmarlcd.learners.policy import (
     greedy_action,
     uniform_legal_action,
 )
+from cmarlcd.learners.replay import Replay, push, push_row
 from cmarlcd.training.protocol import SideKernels
-from cmarlcd.training.replay import Replay, push, push_row
 
 game = Unbound("game")
 

@@ -42,6 +42,7 @@ from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep_config import DeepConfig, DeepLearnerConfig, scheduled_work
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 from cmarlcd.learners.degree_model import DegreeModel
+from cmarlcd.learners.replay import new_ring, sample, seed_view
 from cmarlcd.learners.tabular import full_legal
 from cmarlcd.learners.value_decomposition import ValueDecomposition
 from cmarlcd.training.deep_kernels import (
@@ -58,7 +59,6 @@ from cmarlcd.training.deep_kernels import (
 from cmarlcd.training.degree_kernels import degree_kernels
 from cmarlcd.training.loop import Group
 from cmarlcd.training.protocol import Side, SideKernels
-from cmarlcd.training.replay import new_ring, sample, seed_view
 
 # ------------------------------------------------------------------ learners
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 from cmarlcd.compiled import kernel, specialise_kernel
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.policy import greedy_action, sample_action, softmax_strategy
+from cmarlcd.learners.replay import push_visit, push_visit_row
 from cmarlcd.training.deep_kernels import (
     EPISODES,
     TURNS,
@@ -27,7 +28,6 @@ from cmarlcd.training.deep_kernels import (
     index_enter,
 )
 from cmarlcd.training.protocol import SideKernels
-from cmarlcd.training.replay import push_visit, push_visit_row
 
 #: Entries of deep CMARL-CD's ``schedule`` (``DeepCMARLCDConfig.schedule``).
 TEMPERATURE, C_MIN, C_MAX, GAMMA = range(4)

@@ -12,9 +12,17 @@ import numpy as np
 from cmarlcd.experiments import scaling
 from cmarlcd.experiments.episodic import run_of
 from cmarlcd.experiments.scaling import ScalingRow
-from cmarlcd.report import figure_name, new_section, percent
-from cmarlcd.section import Cell, FigureBlock, Section, TableBlock, TextBlock
-from cmarlcd.store import RunRecord
+from cmarlcd.reports.section import (
+    Cell,
+    FigureBlock,
+    Section,
+    TableBlock,
+    TextBlock,
+    figure_name,
+    new_section,
+    percent,
+)
+from cmarlcd.runs import RunRecord
 
 TITLE = "Where tables stop: the sensor network at growing sizes (beyond the paper)"
 SUCCESS_NOTE = (
@@ -90,7 +98,7 @@ def scaling_section(records: Sequence[RunRecord], figures: Path) -> Section:
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
     path = figures / figure_name(f"scaling-seed{seed}", group)
     title = f"The sensor network at growing sizes: {protocol}"
-    from cmarlcd import figures as figs
+    from cmarlcd.reports import figures as figs
 
     drawn = figs.scaling_curves(series(rows), title, path)
     section = new_section(

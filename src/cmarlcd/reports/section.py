@@ -1,21 +1,26 @@
 """A report as data: what every experiment's report is before it is rendered.
 
-A report function (:mod:`cmarlcd.report`, :mod:`cmarlcd.compare_report`,
-:mod:`cmarlcd.readings_report`) turns one group of stored runs into a :class:`Section`:
+A report function (:mod:`cmarlcd.reports`, :mod:`cmarlcd.reports.compare`,
+:mod:`cmarlcd.reports.readings`) turns one group of stored runs into a :class:`Section`:
 its title and settings, the code versions and number of runs it rests on, its content as
 *blocks* (tables whose cells carry our value and, where the paper reports one for the
 same settings, the paper's; notes; claim checks; figures already drawn by
-:mod:`cmarlcd.figures`) and its JSON document. Four renderers read sections and nothing
-else: rich text on a terminal (:mod:`cmarlcd.render`), Markdown and HTML
-(:mod:`cmarlcd.document`), and JSON (:meth:`Section.document`).
+:mod:`cmarlcd.reports.figures`) and its JSON document. Four renderers read sections and nothing
+else: rich text on a terminal (:mod:`cmarlcd.reports.render`), Markdown and HTML
+(:mod:`cmarlcd.reports.document`), and JSON (:meth:`Section.document`).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from cmarlcd.runs import RunRecord
 
 #: How a cell's own value reads against the experiment's bar ("" when it has none).
 GOOD, BAD = "good", "bad"
@@ -66,7 +71,7 @@ class TextBlock:
 
 @dataclass(frozen=True)
 class FigureBlock:
-    """A figure drawn by :mod:`cmarlcd.figures`, and what it shows."""
+    """A figure drawn by :mod:`cmarlcd.reports.figures`, and what it shows."""
 
     path: Path
     caption: str
@@ -125,3 +130,37 @@ class Section:
 
     def add(self, *blocks: Block) -> None:
         self.blocks.extend(blocks)
+
+
+# ------------------------------------------------------- building sections
+
+
+def percent(rate: float | None) -> str:
+    """``0.98`` -> ``"98"``; keeps one decimal when it matters (``"97.5"``)."""
+    if rate is None:
+        return "—"
+    value = 100.0 * rate
+    return f"{value:.0f}" if abs(value - round(value)) < 1e-9 else f"{value:.1f}"
+
+
+def versions(records: Sequence[RunRecord]) -> Counter:
+    """Runs per package version."""
+    return Counter(rec.version for rec in records)
+
+
+def new_section(title: str, settings: str, records: Sequence[RunRecord], **data: Any) -> Section:
+    """An empty section of ``records`` (their versions and count) with JSON fields."""
+    unique = {rec.key: rec for rec in records}
+    return Section(title, settings, versions(list(unique.values())), len(unique), data=data)
+
+
+def figure_name(stem: str, settings: Any) -> str:
+    """``stem`` plus a short digest of ``settings`` (anything JSON can write)."""
+    text = json.dumps(settings, sort_keys=True, default=str)
+    return f"{stem}-{hashlib.sha256(text.encode()).hexdigest()[:8]}.png"
+
+
+def runs_text(counts: Sequence[int], unit: str) -> str:
+    """``"20 runs per cell"``, or a range when cells differ."""
+    low, high = min(counts), max(counts)
+    return f"{low} runs per {unit}" if low == high else f"{low}-{high} runs per {unit}"

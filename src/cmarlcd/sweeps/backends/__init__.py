@@ -22,10 +22,10 @@ from __future__ import annotations
 import importlib.util
 from typing import Protocol
 
-from cmarlcd.backends.local import InlineBackend, ProcessBackend, default_workers
-from cmarlcd.backends.tasks import Finished, ProgressCallback, Task
 from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, resolve
 from cmarlcd.errors import require
+from cmarlcd.sweeps.backends.local import InlineBackend, ProcessBackend, default_workers
+from cmarlcd.sweeps.backends.tasks import Finished, ProgressCallback, Task
 
 __all__ = ["BACKENDS", "Backend", "check_backend", "default_workers", "make_backend"]
 
@@ -42,7 +42,7 @@ def check_backend(backend: str, address: str | None) -> None:
     require(address is None or backend == "ray", "address", "needs --backend ray")
     require(address is None or address.strip() != "", "address", "must not be empty")
     if address not in (None, "auto"):
-        from cmarlcd.backends.ray_cluster import head_of  # (imports no Ray)
+        from cmarlcd.sweeps.backends.ray_cluster import head_of  # (imports no Ray)
 
         head_of(address)  # HOST:PORT or ray://HOST:PORT
     if backend == "ray":
@@ -84,7 +84,7 @@ def make_backend(
     deep learners on ``device`` (``cpu``, ``cuda``, ``cuda:N``, ``auto``: resolved here
     for local workers, on each node for Ray), ``gpu_tasks`` of them sharing a GPU."""
     if name == "ray":
-        from cmarlcd.backends.ray_cluster import RayBackend
+        from cmarlcd.sweeps.backends.ray_cluster import RayBackend
 
         return RayBackend(workers, on_progress, address, device, gpu_tasks)
     local = resolve(device)

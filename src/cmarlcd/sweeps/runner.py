@@ -1,12 +1,12 @@
 """A sweep: compute every run a store lacks, on a backend, committing each as it finishes.
 
 The sweep's process is the store's one writer: results come back from the backend
-(:mod:`cmarlcd.backends`: in-process, local processes or Ray) and are committed one
+(:mod:`cmarlcd.sweeps.backends`: in-process, local processes or Ray) and are committed one
 transaction per run. Runs of one config that the experiment can batch (seeds stacked in
 one model) travel together, ``seed_batch`` at a time.
 
 **Sharing a store.** Before a batch is handed to the backend its runs are claimed in the
-store (:mod:`cmarlcd.claims`); only as many batches are handed out as the backend can
+store (:mod:`cmarlcd.sweeps.claims`); only as many batches are handed out as the backend can
 work on, so two sweeps started on one store take turns claiming and split the work. Runs
 another live sweep has claimed are waited for, not recomputed; a claim whose owner died
 is taken over. A heartbeat thread keeps this sweep's claims fresh.
@@ -33,13 +33,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cmarlcd.backends import check_backend, default_workers, make_backend
-from cmarlcd.claims import CLAIM_TIMEOUT, HEARTBEAT_SECONDS, Owner
 from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, resolve
 from cmarlcd.experiments import get_experiment, settings_of
 from cmarlcd.limits import check_gpu_tasks, check_seed_batch, check_workers
 from cmarlcd.runs import RunSpec
-from cmarlcd.store import ResultStore, RunKey, StoreWriteError
+from cmarlcd.sweeps.backends import check_backend, default_workers, make_backend
+from cmarlcd.sweeps.claims import CLAIM_TIMEOUT, HEARTBEAT_SECONDS, Owner
+from cmarlcd.sweeps.store import ResultStore, RunKey, StoreWriteError
 
 __all__ = ["SweepInterrupted", "SweepObserver", "SweepResult", "default_workers", "run_sweep"]
 

@@ -1,4 +1,4 @@
-"""Sections (:mod:`cmarlcd.section`) as rich text on a terminal.
+"""Sections (:mod:`cmarlcd.reports.section`) as rich text on a terminal.
 
 Tables keep their title and caption on lines of their own (a narrow table would wrap
 them to its width); our values are coloured by their tone, the paper's are dimmed; paths
@@ -13,7 +13,7 @@ from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 
-from cmarlcd.section import BAD, GOOD, Block, Cell, FigureBlock, Section, TableBlock
+from cmarlcd.reports.section import BAD, GOOD, Block, Cell, FigureBlock, Section, TableBlock
 
 TONES = {GOOD: "green", BAD: "red"}
 

@@ -41,7 +41,8 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from cmarlcd import devices
-from cmarlcd.backends.ray_address import (  # noqa: F401  (re-exported)
+from cmarlcd.errors import BackendLost, ConfigError, require
+from cmarlcd.sweeps.backends.ray_address import (  # noqa: F401  (re-exported)
     KEEP_LOOPBACK_ENV,
     REACH_SECONDS,
     answers,
@@ -53,14 +54,13 @@ from cmarlcd.backends.ray_address import (  # noqa: F401  (re-exported)
     outside_address,
     reach,
 )
-from cmarlcd.backends.tasks import (
+from cmarlcd.sweeps.backends.tasks import (
     Finished,
     ProgressCallback,
     Task,
     execute_reporting,
     uses_device,
 )
-from cmarlcd.errors import BackendLost, ConfigError, require
 from cmarlcd.version import __version__
 
 #: How many times Ray reruns a task whose worker process or node died.

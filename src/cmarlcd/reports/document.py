@@ -1,4 +1,4 @@
-"""Sections (:mod:`cmarlcd.section`) as one self-contained report: Markdown or HTML.
+"""Sections (:mod:`cmarlcd.reports.section`) as one self-contained report: Markdown or HTML.
 
 Each section shows what the reader needs to trust it: the settings, the code version(s)
 that computed the runs and how many runs there are. The Markdown links its figures; the
@@ -13,7 +13,7 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-from cmarlcd.section import Block, FigureBlock, Section, TableBlock
+from cmarlcd.reports.section import Block, FigureBlock, Section, TableBlock
 
 # ------------------------------------------------------------------ Markdown
 

@@ -9,9 +9,16 @@ import numpy as np
 
 from cmarlcd.experiments import compare, episodic
 from cmarlcd.experiments.compare import CompareCell
-from cmarlcd.report import figure_name, new_section, percent
-from cmarlcd.section import Cell, FigureBlock, Section, TableBlock
-from cmarlcd.store import RunRecord
+from cmarlcd.reports.section import (
+    Cell,
+    FigureBlock,
+    Section,
+    TableBlock,
+    figure_name,
+    new_section,
+    percent,
+)
+from cmarlcd.runs import RunRecord
 
 TITLE = "Comparison: CMARL-CD and the classic independent learners"
 
@@ -96,7 +103,7 @@ def settings_text(records: Sequence[RunRecord]) -> str:
 
 def compare_section(records: Sequence[RunRecord], figures: Path) -> Section:
     """The comparison tables and heatmap from the stored runs of one comparison."""
-    from cmarlcd import figures as figs
+    from cmarlcd.reports import figures as figs
 
     cells = compare.summarize(records)
     learners, games, at = _grid(cells)

@@ -18,7 +18,9 @@ from queue import Empty
 from typing import Any
 
 from cmarlcd import devices
-from cmarlcd.backends.tasks import (
+from cmarlcd.limits import check_gpu_tasks, check_workers
+from cmarlcd.progress import progress_sink
+from cmarlcd.sweeps.backends.tasks import (
     Finished,
     ProgressCallback,
     Task,
@@ -26,8 +28,6 @@ from cmarlcd.backends.tasks import (
     execute_task,
     uses_device,
 )
-from cmarlcd.limits import check_gpu_tasks, check_workers
-from cmarlcd.progress import progress_sink
 
 #: How often a worker checks that its parent is still alive, in seconds (where the
 #: operating system cannot tell it, as Linux's parent-death signal does).

@@ -1,5 +1,5 @@
 """Where a Ray cluster is: its address as ``--address`` writes it, whether its head
-answers, and the address this sweep joins it at (:mod:`cmarlcd.backends.ray_cluster`
+answers, and the address this sweep joins it at (:mod:`cmarlcd.sweeps.backends.ray_cluster`
 uses them; nothing here imports Ray).
 
 A cluster whose nodes listen on loopback only (``127.0.0.1``, as ``ray start

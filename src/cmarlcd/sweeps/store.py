@@ -8,7 +8,7 @@ runs that were in flight, and re-running the same command recomputes nothing sto
 A stored run is never changed: the first result written for a key is kept. Each row
 records the package version that computed it.
 
-Sweeps that share a store share its work through *claims* (:mod:`cmarlcd.claims`): a
+Sweeps that share a store share its work through *claims* (:mod:`cmarlcd.sweeps.claims`): a
 sweep claims a run before computing it, and another sweep leaves a claimed run to its
 owner unless the claim is stale. Storing a run removes its claim in the same transaction.
 
@@ -32,17 +32,17 @@ import sqlite3
 import threading
 import time
 from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cmarlcd.claims import CLAIM_TIMEOUT, Owner, is_stale
+from cmarlcd.sweeps.claims import CLAIM_TIMEOUT, Owner, is_stale
 
 try:
     import fcntl
 except ImportError:  # no flock (Windows): stores are never discarded
     fcntl = None  # type: ignore[assignment]
 from cmarlcd.errors import ConfigError, require
+from cmarlcd.runs import RunKey, RunRecord, canonical_json  # noqa: F401  (re-exported)
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -228,40 +228,6 @@ def discard_if_empty(path: Path) -> None:
                 path.with_name(path.name + extra).unlink(missing_ok=True)
     finally:
         os.close(fd)
-
-
-def canonical_json(config: Mapping[str, Any]) -> str:
-    """The canonical text of a config: sorted keys, no whitespace."""
-    return json.dumps(dict(config), sort_keys=True, separators=(",", ":"))
-
-
-@dataclass(frozen=True)
-class RunKey:
-    """The identity of one run in the store."""
-
-    experiment: str
-    algorithm: str
-    config: str
-    root_seed: int
-    run_index: int
-
-    def values(self) -> tuple[str, str, str, int, int]:
-        return (self.experiment, self.algorithm, self.config, self.root_seed, self.run_index)
-
-
-@dataclass(frozen=True)
-class RunRecord:
-    """A stored run: its key, its metrics, how long it took and the package version that
-    computed it."""
-
-    key: RunKey
-    metrics: dict[str, Any]
-    wall_seconds: float
-    version: str = ""
-
-    @property
-    def config(self) -> dict[str, Any]:
-        return json.loads(self.key.config)
 
 
 class StoreWriteError(ConfigError):

@@ -14,9 +14,16 @@ from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments import settings_of
 from cmarlcd.experiments.episodic import STD_DDOF
 from cmarlcd.experiments.episodic_results import row_label
-from cmarlcd.report import figure_name, new_section
-from cmarlcd.section import FigureBlock, Section, TableBlock, TextBlock, cells
-from cmarlcd.store import RunRecord, canonical_json
+from cmarlcd.reports.section import (
+    FigureBlock,
+    Section,
+    TableBlock,
+    TextBlock,
+    cells,
+    figure_name,
+    new_section,
+)
+from cmarlcd.runs import RunRecord, canonical_json
 
 
 @dataclass(frozen=True)
@@ -101,7 +108,7 @@ def protocol_key(record: RunRecord) -> tuple:
 
 def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
     """The learning curves and final returns of one study."""
-    from cmarlcd import figures as figs
+    from cmarlcd.reports import figures as figs
 
     first = settings_of(records[0])
     seed = records[0].key.root_seed

@@ -12,9 +12,16 @@ from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.experiments.readings import Outcome, dialled, stored_studies
-from cmarlcd.report import figure_name, new_section
-from cmarlcd.section import Cell, FigureBlock, Section, TableBlock, TextBlock
-from cmarlcd.store import RunRecord
+from cmarlcd.reports.section import (
+    Cell,
+    FigureBlock,
+    Section,
+    TableBlock,
+    TextBlock,
+    figure_name,
+    new_section,
+)
+from cmarlcd.runs import RunRecord
 
 TITLE = "Figs. 6-7 under each reading of Section V-B: which choices decide the claims"
 #: Column headings of the claims, in :data:`claim_checks.CLAIMS` order.
@@ -78,7 +85,7 @@ def study_table(outcomes: Sequence[Outcome], caption: str) -> TableBlock:
 def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
     """The study's table, its hit-rate figure (when two or more hit rates were played)
     and its JSON, from its tournaments' stored matches."""
-    from cmarlcd import figures as figs
+    from cmarlcd.reports import figures as figs
 
     first = outcomes[0].records[0]
     pairing = tour.pairing_of(first)
