@@ -642,6 +642,7 @@ def test_tournament_json_figures_resume_and_report(paths) -> None:
     ("args", "option"),
     [
         (["--algorithms", "foo"], "--algorithms"),
+        (["--algorithms", "cmarl-cd,iql"], "--algorithms"),  # no battlefield settings
         (["--rounds", "0"], "--rounds"),
         (["--learn-episodes", "0"], "--learn-episodes"),
         (["--eval-episodes", "-3"], "--eval-episodes"),

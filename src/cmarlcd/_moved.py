@@ -42,12 +42,18 @@ def new_name(name: str) -> str | None:
 
 
 class MovedFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """Finds an old name and hands back the module under its new one."""
+    """Finds an old name and hands back the module under its new one (whose own
+    ``__spec__`` is put back once the import system has set the old name's)."""
+
+    def __init__(self) -> None:
+        self.specs: dict[str, importlib.machinery.ModuleSpec | None] = {}
 
     def find_spec(self, fullname: str, path: object = None, target: object = None):
-        if new_name(fullname) is None:
-            return None
-        return importlib.machinery.ModuleSpec(fullname, self, is_package=fullname in MOVED)
+        new = new_name(fullname)
+        if new is None or importlib.util.find_spec(new) is None:
+            return None  # not moved, or nothing there under the new name either
+        package = importlib.util.find_spec(new).submodule_search_locations is not None
+        return importlib.machinery.ModuleSpec(fullname, self, is_package=package)
 
     def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType:
         new = new_name(spec.name)
@@ -56,10 +62,13 @@ class MovedFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
             DeprecationWarning,
             stacklevel=2,
         )
-        return importlib.import_module(new)  # type: ignore[arg-type]
+        module = importlib.import_module(new)  # type: ignore[arg-type]
+        self.specs[spec.name] = module.__spec__
+        return module
 
     def exec_module(self, module: ModuleType) -> None:
-        """Nothing to run: the module under its new name is already loaded."""
+        """Nothing to run (the module is loaded under its new name); its own spec back."""
+        module.__spec__ = self.specs.pop(module.__spec__.name, module.__spec__)
 
 
 def install() -> None:

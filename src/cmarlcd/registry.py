@@ -289,7 +289,7 @@ def changed_settings(
     reference = reference_settings(config) if reference is None else reference
     ours = _flat(asdict(config))
     theirs = _flat(asdict(reference)) if type(reference) is type(config) else {}
-    return {k: v for k, v in ours.items() if k not in ignore and theirs.get(k, v is None) != v}
+    return {k: v for k, v in ours.items() if k not in ignore and theirs.get(k, _NONE) != v}
 
 
 def variant_label(config: Any, reference: Any | None = None, ignore: tuple[str, ...] = ()) -> str:
@@ -299,6 +299,9 @@ def variant_label(config: Any, reference: Any | None = None, ignore: tuple[str, 
     changed = changed_settings(config, reference, ignore)
     words = ", ".join(f"{k}={_setting_text(v)}" for k, v in sorted(changed.items()))
     return display_name(config.name) + (f" ({words})" if words else "")
+
+
+_NONE = object()  # a setting the reference does not have
 
 
 def _flat(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:

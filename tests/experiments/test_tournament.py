@@ -192,3 +192,66 @@ def test_under_40_percent_is_a_margin_with_its_standard_error(qmix_wins, verdict
         math.sqrt(sum((x - sum(rates) / 4) ** 2 for x in rates) / 3) / 2
     )
     assert claims["VDN wins under 40 % against CMARL-CD"].verdict == "not checked"
+
+
+# ------------------------------------------------ two settings of one algorithm
+
+
+def _played(names: str, **changes: dict) -> list[RunRecord]:
+    """The (metric-less) matches of a 1-round tournament of ``names``, each learner with
+    the settings ``changes`` gives it (``--set``)."""
+    from dataclasses import replace
+
+    known = tour.battlefield_learners()
+    learners = tuple(replace(known[n], **changes.get(n, {})) for n in names.split(","))
+    specs = tour.Tournament(learners, 1, 100, 100, 0).specs()
+    return [RunRecord(spec.key, {}, 0.0) for spec in specs]
+
+
+def _found(*sweeps: list[RunRecord]) -> list[list[str]]:
+    """Each stored tournament as its sides' labels, sorted."""
+    records = list({rec.key: rec for sweep in sweeps for rec in sweep}.values())
+    found = []
+    for group in match_results.tournaments(records):
+        sides = {
+            match_results.side_label(learner)
+            for rec in group
+            for learner in tour.pairing_of(rec).learners
+        }
+        found.append(sorted(sides))
+    return sorted(found)
+
+
+DELTA = {"cmarl-cd": {"delta": 0.08}}
+
+
+def test_a_second_setting_of_an_algorithm_is_a_tournament_of_its_own() -> None:
+    """The same algorithms twice, CMARL-CD's delta changed the second time: two
+    tournaments, each with one CMARL-CD, sharing LA-OCA's self-play."""
+    first, second = _played("cmarl-cd,la-oca"), _played("cmarl-cd,la-oca", **DELTA)
+    assert _found(first, second) == [
+        ["CMARL-CD", "LA-OCA"],
+        ["CMARL-CD (delta=0.08)", "LA-OCA"],
+    ]
+
+
+def test_a_second_setting_played_by_fewer_algorithms_is_not_left_out() -> None:
+    """Three algorithms at their settings, then two with CMARL-CD's delta changed: the
+    second sweep is its own tournament of two (it was left out of every one)."""
+    first = _played("cmarl-cd,la-oca,vdn")
+    second = _played("cmarl-cd,la-oca", **DELTA)
+    assert _found(first, second) == [
+        ["CMARL-CD", "LA-OCA", "VDN"],
+        ["CMARL-CD (delta=0.08)", "LA-OCA"],
+    ]
+
+
+def test_a_second_setting_of_a_deep_algorithm_keeps_its_opponents() -> None:
+    """VDN with another learning rate against CMARL-CD only: a tournament of CMARL-CD and
+    that VDN (not VDN's self-play alone)."""
+    first = _played("cmarl-cd,la-oca,vdn")
+    second = _played("cmarl-cd,vdn", vdn={"lr": 0.0123})
+    assert _found(first, second) == [
+        ["CMARL-CD", "LA-OCA", "VDN"],
+        ["CMARL-CD", "VDN (lr=0.0123)"],
+    ]

@@ -29,6 +29,7 @@ from cmarlcd.cli.sweeps import (
     run_counts,
     with_deep_execution,
 )
+from cmarlcd.errors import require
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games import battlefield
 from cmarlcd.limits import check_seed_batch
@@ -41,6 +42,11 @@ def tournament_learners(names: Sequence[str]) -> tuple[LearnerConfig, ...]:
     known = tour.battlefield_learners()
     for name in names:
         registry.require_learner(name)
+        require(
+            name in known,
+            "algorithms",
+            f"{name} has no settings for the battlefield; it plays {', '.join(known)}",
+        )
     require_torch_for(names)
     return tuple(known[name] for name in names)
 

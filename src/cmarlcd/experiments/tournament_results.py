@@ -15,7 +15,7 @@ import math
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass
-from itertools import product
+from itertools import combinations, product
 from typing import Any
 
 import numpy as np
@@ -181,7 +181,8 @@ def _tournaments_of(records: Sequence[RunRecord]) -> list[list[RunRecord]]:
     if deep_only:
         found.append(deep_only)
     found = [variant for group in found for variant in _one_setting_each(group)]
-    keys = [frozenset(rec.key for rec in group) for group in found]
+    unique = {frozenset(rec.key for rec in group): group for group in found}  # one of each
+    keys, found = list(unique), list(unique.values())
     kept = [g for g, k in zip(found, keys, strict=True) if not any(k < other for other in keys)]
     return sorted(kept, key=lambda g: reading_label(match_reading(g)) != "defaults")
 
@@ -191,17 +192,21 @@ def _tournaments_of(records: Sequence[RunRecord]) -> list[list[RunRecord]]:
 READING_SETTINGS = ("gamma", "tolerance")
 
 
+def _reference(learner: Any) -> tuple[Any, tuple[str, ...]]:
+    """What a side is told apart from: its battlefield settings, readings aside."""
+    ignore = READING_SETTINGS if is_tabular(learner) else ()
+    return battlefield_learners().get(learner.name), ignore
+
+
 def changed_settings(learner: Any) -> dict[str, Any]:
     """A side's settings that differ from its battlefield settings, readings aside."""
-    ignore = READING_SETTINGS if is_tabular(learner) else ()
-    return registry.changed_settings(learner, battlefield_learners().get(learner.name), ignore)
+    return registry.changed_settings(learner, *_reference(learner))
 
 
 def side_label(learner: Any) -> str:
     """How the tables name a side: ``"CMARL-CD"``, or with the settings that differ from
     its battlefield settings, readings aside (``"VDN (lr=0.001)"``)."""
-    ignore = READING_SETTINGS if is_tabular(learner) else ()
-    return registry.variant_label(learner, battlefield_learners().get(learner.name), ignore)
+    return registry.variant_label(learner, *_reference(learner))
 
 
 def _side_settings(record: RunRecord) -> dict[str, str]:
@@ -213,9 +218,10 @@ def _side_settings(record: RunRecord) -> dict[str, str]:
 
 def _one_setting_each(group: list[RunRecord]) -> list[list[RunRecord]]:
     """A tournament in which an algorithm plays with two settings (``--set`` of two
-    sweeps on one store) split into tournaments in which each plays with one, every one
-    having each pairing the group has (a match is in each it fits): runs of different
-    settings never share a cell."""
+    sweeps on one store) split into tournaments in which each plays with one: for each
+    choice of settings, the matches it allows among each largest set of algorithms that
+    met each other there (a match is in every one it fits; groups that another one
+    contains are dropped by the caller). Runs of different settings never share a cell."""
     played: dict[str, set[str]] = defaultdict(set)
     for rec in group:
         for name, settings in _side_settings(rec).items():
@@ -223,14 +229,27 @@ def _one_setting_each(group: list[RunRecord]) -> list[list[RunRecord]]:
     if all(len(settings) == 1 for settings in played.values()):
         return [group]
     names = sorted(played)
-    pairings = {frozenset(pairing_of(rec).algorithms) for rec in group}
     split = []
     for choice in product(*(sorted(played[name]) for name in names)):
         chosen = dict(zip(names, choice, strict=True))
         recs = [r for r in group if all(chosen[n] == s for n, s in _side_settings(r).items())]
-        if {frozenset(pairing_of(r).algorithms) for r in recs} == pairings:
-            split.append(recs)
+        for algorithms in _complete_sets(recs):
+            split.append([r for r in recs if set(pairing_of(r).algorithms) <= algorithms])
     return split
+
+
+def _complete_sets(records: Sequence[RunRecord]) -> list[set[str]]:
+    """The largest sets of algorithms in which every two played each other in
+    ``records`` (a tournament's pairings are all there)."""
+    names = sorted({name for rec in records for name in pairing_of(rec).algorithms})
+    met = {frozenset(pairing_of(rec).algorithms) for rec in records}
+    found: list[set[str]] = []
+    for size in range(len(names), 0, -1):
+        for subset in combinations(names, size):
+            complete = all(frozenset(pair) in met for pair in combinations(subset, 2))
+            if complete and not any(set(subset) <= larger for larger in found):
+                found.append(set(subset))
+    return found
 
 
 @dataclass(frozen=True)

@@ -250,13 +250,26 @@ class RayBackend:
         self.released = threading.Event()  # ends the thread that started Ray (close)
         if self.started_here:
             self._connect(joined, workers)
-        resources = ray.cluster_resources()
         try:
-            self.device = cluster_device(device, float(resources.get("GPU", 0)))
-        except ConfigError:
+            self._start(address, head, workers, device, gpu_tasks)
+        except BaseException:
             if self.started_here:
                 self._shutdown()
             raise
+
+    def _start(
+        self,
+        address: str | None,
+        head: tuple[str, int] | None,
+        workers: int | None,
+        device: str,
+        gpu_tasks: int,
+    ) -> None:
+        """What the sweep needs of the cluster it joined: its device, the head to watch,
+        its capacity, the remote functions and the progress relay."""
+        ray = self.ray
+        resources = ray.cluster_resources()
+        self.device = cluster_device(device, float(resources.get("GPU", 0)))
         self.head = head or gcs_head(ray)
         self.watch = HeadWatch(self.head, self.address)
         cpus = int(resources.get("CPU", 1))
@@ -284,7 +297,7 @@ class RayBackend:
             "log_to_driver": False,
             "logging_level": logging.ERROR,
         }
-        if address is None:
+        if address is None:  # a Ray of its own, even where another one runs on this machine
             options.update(num_cpus=workers, object_store_memory=LOCAL_OBJECT_STORE_BYTES)
         failure: list[BaseException] = []
         started = threading.Event()
@@ -292,7 +305,7 @@ class RayBackend:
 
         def init_and_hold() -> None:
             try:
-                self.ray.init(address=address, **options)
+                self.ray.init(address=address or "local", **options)
             except BaseException as exc:  # handed to the caller
                 failure.append(exc)
                 return
@@ -307,6 +320,7 @@ class RayBackend:
         where = f"the Ray cluster at {address}" if address else "a local Ray"
         if not started.is_set():
             self.lost = True
+            self.released.set()  # a Ray that starts late ends with its thread
             if address is None:
                 raise BackendLost(
                     f"--backend: a local Ray did not start within {CONNECT_SECONDS:.0f} s; "
@@ -428,6 +442,7 @@ class RayBackend:
     def close(self, cancel: bool) -> None:
         self.watch.stop.set()
         if self.lost or self.watch.lost is not None:  # Ray would wait on the dead cluster
+            self.released.set()  # a Ray this sweep started ends with its thread
             return
         if cancel:
             for ref in self.pending:
