@@ -80,6 +80,19 @@ VERSION_MISMATCH = "this Ray node runs cmarl-cd"
 LOCAL_OBJECT_STORE_BYTES = 80 * 1024**2
 
 
+def why(exc: BaseException) -> str:
+    """The first line of ``exc``, and of the error it wraps where that says more (Ray's
+    "failed to connect" hides the cause: a token refused, a version apart)."""
+
+    def first(error: BaseException) -> str:
+        return (str(error).strip().splitlines() or [type(error).__name__])[0]
+
+    text, cause = first(exc), exc.__cause__ or exc.__context__
+    if cause is not None and first(cause) not in text:
+        text += f" ({type(cause).__name__}: {first(cause)})"
+    return text
+
+
 def ray_module() -> Any:
     """``ray``, or a one-line error saying how to install it."""
     require(
@@ -282,7 +295,10 @@ class RayBackend:
         self.gpu_task = ray.remote(num_cpus=1, num_gpus=1 / gpu_tasks, max_retries=TASK_RETRIES)(
             _compute
         )
-        self.relay = ray.remote(num_cpus=0)(_Relay).remote()
+        # the actor class is sent to the cluster once: sending it again to make a lost
+        # relay anew is a call to the head that never returns once the head is gone
+        self.relay_class = ray.remote(num_cpus=0)(_Relay)
+        self.relay = self.relay_class.remote()
         self.pending: dict[Any, int] = {}
         self.on_gpu: set[Any] = set()
 
@@ -336,10 +352,9 @@ class RayBackend:
             exc = failure[0]
             if not isinstance(exc, (ConnectionError, RuntimeError, ValueError)):
                 raise exc
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             parameter = "address" if address else "backend"
             verb = "join" if address else "start"
-            raise ConfigError(parameter, f"cannot {verb} {where}: {first}") from None
+            raise ConfigError(parameter, f"cannot {verb} {where}: {why(exc)}") from None
 
     def _shutdown(self) -> None:
         """Stop the Ray this backend started (its services first, then the thread that
@@ -369,13 +384,7 @@ class RayBackend:
             else:
                 ref = self.task.remote(tag, task, self.relay, __version__, devices.DEFAULT_DEVICE)
         except Exception as exc:  # the cluster went away as the task was sent
-            self.lost = True
-            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-            raise BackendLost(
-                f"--backend: the Ray cluster at {self.address} went away as a task was sent "
-                f"({first}); the runs stored before are kept: run the same command again "
-                "to resume"
-            ) from None
+            raise self._went_away(exc, "as a task was sent") from None
         if on_gpu:
             self.on_gpu.add(ref)
         self.pending[ref] = tag
@@ -394,7 +403,6 @@ class RayBackend:
                 done, _ = self.ray.wait(pending, num_returns=len(pending), timeout=0)
         else:
             time.sleep(timeout)
-        self._relay_progress()
         finished = []
         for ref in done:
             del self.pending[ref]
@@ -404,6 +412,8 @@ class RayBackend:
             except self.ray.exceptions.RayError as exc:
                 self.failure = self._failure(exc)
                 break  # the runs finished so far are stored first
+        if self.failure is None:  # a failure in hand ends the sweep before the relay is asked
+            self._relay_progress()
         return finished
 
     def _failure(self, exc: BaseException) -> BaseException:
@@ -422,6 +432,15 @@ class RayBackend:
             "stored before are kept: run the same command again to resume"
         )
 
+    def _went_away(self, exc: BaseException, when: str) -> BackendLost:
+        """The one line that ends a sweep whose cluster went away ``when``."""
+        self.lost = True
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        return BackendLost(
+            f"--backend: the Ray cluster at {self.address} went away {when} ({first}); the "
+            "runs stored before are kept: run the same command again to resume"
+        )
+
     def _relay_progress(self) -> None:
         """Hand on the progress the relay collected; a relay lost with its node is made
         anew (the tasks' later reports go to the old one: the runner tops up each task's
@@ -434,7 +453,10 @@ class RayBackend:
         except exceptions.RayActorError:
             head_answers = self.head is None or answers(*self.head, HEAD_CHECK_SECONDS) is None
             if self.watch.lost is None and head_answers:
-                self.relay = self.ray.remote(num_cpus=0)(_Relay).remote()  # needs the head
+                try:
+                    self.relay = self.relay_class.remote()  # needs the head
+                except Exception as exc:  # the cluster went away meanwhile
+                    raise self._went_away(exc, "as the progress relay was made anew") from None
             return
         for tag, amount, seconds in items:
             self.on_progress(tag, amount, seconds)
