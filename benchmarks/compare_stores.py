@@ -1,54 +1,60 @@
-"""Two results stores run by run: the same keys, and the same metrics for each (timings
-aside). For a change that must not move a number (a restructuring, a faster path with
-the same float order): record a fixed-seed store before and after, then
+"""Check that two results stores hold the same runs with the same metrics, bit for bit.
 
-    python benchmarks/compare_stores.py before.sqlite after.sqlite
+Timings (a run's ``seconds`` and ``*_seconds``, wall times) and the ``device`` a deep run
+records (where it ran, not what it computed) are left out. Used to show that a
+restructuring changed no number: run the same command with the old and the new code
+into two fresh stores, then compare them.
 
-prints the count of identical runs per experiment and exits 1 on any difference.
+Usage: python benchmarks/compare_stores.py OLD.sqlite NEW.sqlite [--ignore METRIC ...]
+
+``--ignore`` leaves named metrics out as well (e.g. ``memory_megabytes`` when a change
+shrinks what a run holds), and the output says which were left out.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sqlite3
 import sys
-from collections import Counter
+from collections.abc import Sequence
+from typing import Any
 
-QUERY = "SELECT experiment, algorithm, config, root_seed, run_index, metrics FROM runs"
 
-
-def stored(path: str) -> dict[tuple, str]:
-    """Every run of a store: key -> its metrics without timings, as canonical JSON."""
+def load(path: str, ignore: Sequence[str] = ()) -> dict[tuple, dict[str, Any]]:
+    """Every run of a store: its key and its metrics without timings and device (nor
+    ``ignore``)."""
+    query = "SELECT experiment, algorithm, config, root_seed, run_index, metrics FROM runs"
     with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as conn:
-        rows = conn.execute(QUERY).fetchall()
+        rows = conn.execute(query).fetchall()
     runs = {}
     for *key, metrics in rows:
-        kept = {
-            name: value
-            for name, value in json.loads(metrics).items()
-            if name != "seconds" and not name.endswith("_seconds")
-        }
-        runs[tuple(key)] = json.dumps(kept, sort_keys=True)
+        values = json.loads(metrics)
+        timings = [k for k in values if k in ("seconds", "device") or k.endswith("_seconds")]
+        for name in timings + [k for k in ignore if k in values]:
+            del values[name]
+        runs[tuple(key)] = values
     return runs
 
 
-def main(before_path: str, after_path: str) -> int:
-    before, after = stored(before_path), stored(after_path)
-    same = {key for key in before if after.get(key) == before[key]}
-    print(
-        f"{len(before)} runs before, {len(after)} after; only before: "
-        f"{len(before.keys() - after.keys())}, only after: {len(after.keys() - before.keys())}; "
-        f"identical metrics: {len(same)} of {len(before)}"
-    )
-    totals, identical = Counter(k[0] for k in before), Counter(k[0] for k in same)
-    for experiment in sorted(totals):
-        print(f"  {experiment}: {identical[experiment]}/{totals[experiment]} identical")
-    for key in sorted(before.keys() - same)[:10]:
-        print("  differs:", key[0], key[1], "seed", key[3], "run", key[4])
-    return 0 if len(same) == len(before) == len(after) else 1
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("old")
+    parser.add_argument("new")
+    parser.add_argument("--ignore", nargs="*", default=[], metavar="METRIC")
+    args = parser.parse_args()
+    old, new = load(args.old, args.ignore), load(args.new, args.ignore)
+    if args.ignore:
+        print(f"left out besides timings: {', '.join(args.ignore)}")
+    only_old, only_new = set(old) - set(new), set(new) - set(old)
+    differ = sorted(k for k in set(old) & set(new) if old[k] != new[k])
+    print(f"{len(old)} runs in {args.old}, {len(new)} in {args.new}")
+    print(f"only in the first: {len(only_old)}, only in the second: {len(only_new)}")
+    print(f"runs with different metrics: {len(differ)}")
+    for key in differ[:5]:
+        print("  ", key[0], key[1], "seed", key[3], "run", key[4])
+    return 1 if only_old or only_new or differ else 0
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
-        sys.exit("usage: python benchmarks/compare_stores.py BEFORE.sqlite AFTER.sqlite")
-    sys.exit(main(sys.argv[1], sys.argv[2]))
+    sys.exit(main())
