@@ -349,18 +349,7 @@ def tiny_reproduction(paths, monkeypatch):
     """``reproduce`` of a tiny preset into ``paths``; returns its JSON document."""
     from cmarlcd.cli import reproduce as cli
 
-    tiny = cli.Preset(
-        repeated_runs=1,
-        dsn_runs=1,
-        dsn_eval_episodes=50,
-        dsn_episodes=(100,),
-        tournament_rounds=1,
-        tournament_episodes=20,
-        compare_runs=1,
-        compare_games=("climbing", "dsn"),
-        compare_dsn_episodes=100,
-    )
-    monkeypatch.setitem(cli.PRESETS, "quick", tiny)
+    monkeypatch.setitem(cli.PRESETS, "quick", cli.PRESETS["smoke"])  # the default preset
     result = invoke("reproduce", "--workers", "1", "--json", *paths[2])
     assert result.exit_code == 0, result.output
     return json.loads(result.stdout)

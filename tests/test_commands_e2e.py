@@ -53,7 +53,7 @@ HAS_RAY = importlib.util.find_spec("ray") is not None
 HAS_TORCH = importlib.util.find_spec("torch") is not None
 #: The variable every command (and the loopback cluster) carries a unique value of.
 MARKER = "CMARLCD_E2E_TAG"
-#: Seconds a command may take (the largest, ``reproduce``, takes about four minutes).
+#: Seconds a command may take (each takes seconds; a cold numba cache adds minutes).
 COMMAND_SECONDS = 600.0
 #: Seconds after a command returned by which every process it started must be gone.
 SETTLE_SECONDS = 10.0
@@ -206,8 +206,7 @@ class Case:
     """Its options, separated by spaces."""
     runs: int | None
     on_ray: bool = True
-    """False for ``theory`` (no --backend) and ``reproduce`` (minutes even at its
-    smallest preset)."""
+    """False for ``theory`` (no --backend)."""
 
     def command_line(self, where: Path) -> list[str]:
         """The command line, its outputs under ``where``."""
@@ -222,11 +221,11 @@ class Case:
 WORKERS = ("--workers", "2")
 #: Deep learners train on a path of their own (torch, stacked seeds): one command has one.
 SCALING_ALGORITHMS = ["cmarl-cd", *(["vdn"] if HAS_TORCH else [])]
-#: reproduce --preset quick --no-compare: Tables 1-2 (20 runs per cell of the paper's
-#: grids: agents 2-7 x actions 2-5, agents 4-7 x actions 3-5), 10 DSN runs of CMARL-CD and
-#: LA-OCA, 4 rounds of every pairing of the tournament (VDN and QMIX play with torch:
+#: reproduce --preset smoke --no-compare: Tables 1-2 (1 run per cell of the paper's
+#: grids: agents 2-7 x actions 2-5, agents 4-7 x actions 3-5), 1 DSN run of CMARL-CD and
+#: of LA-OCA, 1 round of every pairing of the tournament (VDN and QMIX play with torch:
 #: 4 algorithms, 10 pairings; else 2, 3) and the Theorem 1 check (2 runs).
-REPRODUCE_RUNS = 20 * (6 * 4 + 4 * 3) + 10 * 2 + 4 * (10 if HAS_TORCH else 3) + 2
+REPRODUCE_RUNS = 1 * (6 * 4 + 4 * 3) + 1 * 2 + 1 * (10 if HAS_TORCH else 3) + 2
 
 CASES = [
     # agents 2-3 x actions 2 x 2 runs
@@ -264,8 +263,8 @@ CASES = [
         "--episodes 200 --runs 2 --eval-episodes 10 --curve-points 2",
         (1 + 1) * 2,
     ),
-    # only presets: the smallest is minutes of compute, so it runs on local processes only
-    Case("reproduce", "--preset quick --no-compare", REPRODUCE_RUNS, on_ray=False),
+    # the smallest preset: every part once, in seconds
+    Case("reproduce", "--preset smoke --no-compare", REPRODUCE_RUNS),
 ]
 
 BACKENDS = ("process", "ray-local", "ray-address")

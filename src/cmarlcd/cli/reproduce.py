@@ -78,6 +78,18 @@ PRESETS = {
         compare_runs=10,
     ),
     "paper": Preset(rep.PAPER_RUNS, dsn_exp.PAPER_RUNS, dsn_exp.PAPER_EVAL_EPISODES, deep=True),
+    # every part once, in seconds: does everything run here? (its numbers mean nothing)
+    "smoke": Preset(
+        repeated_runs=1,
+        dsn_runs=1,
+        dsn_eval_episodes=50,
+        dsn_episodes=(100,),
+        tournament_rounds=1,
+        tournament_episodes=20,
+        compare_runs=1,
+        compare_games=("climbing", cmp.DSN),
+        compare_dsn_episodes=100,
+    ),
 }
 
 
@@ -124,8 +136,10 @@ def reproduce(
             help="quick: 20 runs per cell of Tables 1-2, 10 DSN runs of CMARL-CD and "
             "LA-OCA with 10k-episode evaluations, a 4-round battlefield tournament of "
             "20k-episode matches; paper: the full protocol (50 runs, 50k evaluations, 30 "
-            "rounds of 500k + 500k episodes), VDN and QMIX in the DSN tables. VDN and "
-            "QMIX play the tournament (both presets) when the [deep] extra is installed."
+            "rounds of 500k + 500k episodes), VDN and QMIX in the DSN tables; smoke: one "
+            "run of every part on tiny budgets, in seconds (does everything run here? its "
+            "numbers mean nothing). VDN and QMIX play the tournament (every preset) when "
+            "the [deep] extra is installed."
         ),
     ] = "quick",
     seed: SeedOption = 0,
