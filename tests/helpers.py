@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import json
 import sqlite3
 from pathlib import Path
 
@@ -61,3 +63,19 @@ def fill_the_disk(monkeypatch, pages_left: int = 0) -> None:
         self._conn.execute(f"PRAGMA max_page_count = {pages + pages_left}")
 
     monkeypatch.setattr(ResultStore, "__init__", full)
+
+
+def stored(store: Path) -> dict[tuple, str]:
+    """Every run of a store without its timings: key -> metrics (JSON text), read-only."""
+    query = "SELECT experiment, algorithm, config, root_seed, run_index, metrics FROM runs"
+    with contextlib.closing(sqlite3.connect(f"file:{store}?mode=ro", uri=True)) as conn:
+        rows = conn.execute(query).fetchall()
+    out = {}
+    for *key, metrics in rows:
+        values = {
+            k: v
+            for k, v in json.loads(metrics).items()
+            if k != "seconds" and not k.endswith("_seconds")
+        }
+        out[tuple(key)] = json.dumps(values, sort_keys=True)
+    return out

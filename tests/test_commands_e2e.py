@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import contextlib
 import importlib.util
-import json
 import os
 import secrets
 import shutil
@@ -43,6 +42,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+
+from tests.helpers import stored
 
 pytestmark = [
     pytest.mark.slow,  # every case is a whole command, a Ray case starts a Ray (seconds)
@@ -175,22 +176,6 @@ def count_runs(store: Path) -> int:
     """Rows of the store's ``runs`` table (read-only)."""
     with contextlib.closing(sqlite3.connect(f"file:{store}?mode=ro", uri=True)) as conn:
         return conn.execute("SELECT COUNT(*) FROM runs").fetchone()[0]
-
-
-def stored(store: Path) -> dict[tuple, str]:
-    """Every run of a store without its timings: key -> metrics (JSON text)."""
-    query = "SELECT experiment, algorithm, config, root_seed, run_index, metrics FROM runs"
-    with contextlib.closing(sqlite3.connect(f"file:{store}?mode=ro", uri=True)) as conn:
-        rows = conn.execute(query).fetchall()
-    out = {}
-    for *key, metrics in rows:
-        values = {
-            k: v
-            for k, v in json.loads(metrics).items()
-            if k != "seconds" and not k.endswith("_seconds")
-        }
-        out[tuple(key)] = json.dumps(values, sort_keys=True)
-    return out
 
 
 # ---------------------------------------------------------------------------- cases

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from cmarlcd.sweeps.backends.ray_cluster import GRACE_SECONDS, HEAD_CHECK_SECONDS, LOST_SECONDS
+from tests.helpers import stored
 
 ray = pytest.importorskip("ray")
 pytestmark = pytest.mark.slow  # a cluster takes seconds to start, the sweeps tens
@@ -76,24 +77,6 @@ def cli(*args: str, store: Path, wait: bool = True):
     if not wait:
         return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     return subprocess.run(command, capture_output=True, text=True, env=env, timeout=600)
-
-
-def stored(store: Path) -> dict[tuple, str]:
-    """Every run of a store without its timings: key -> metrics (JSON text)."""
-    import json
-
-    query = "SELECT experiment, algorithm, config, root_seed, run_index, metrics FROM runs"
-    with sqlite3.connect(f"file:{store}?mode=ro", uri=True) as conn:
-        rows = conn.execute(query).fetchall()
-    out = {}
-    for *key, metrics in rows:
-        values = {
-            k: v
-            for k, v in json.loads(metrics).items()
-            if k != "seconds" and not k.endswith("_seconds")
-        }
-        out[tuple(key)] = json.dumps(values, sort_keys=True)
-    return out
 
 
 def count(store: Path) -> int:

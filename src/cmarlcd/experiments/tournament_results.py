@@ -222,17 +222,18 @@ def _one_setting_each(group: list[RunRecord]) -> list[list[RunRecord]]:
     choice of settings, the matches it allows among each largest set of algorithms that
     met each other there (a match is in every one it fits; groups that another one
     contains are dropped by the caller). Runs of different settings never share a cell."""
+    sides = [(rec, _side_settings(rec)) for rec in group]
     played: dict[str, set[str]] = defaultdict(set)
-    for rec in group:
-        for name, settings in _side_settings(rec).items():
-            played[name].add(settings)
+    for _, settings in sides:
+        for name, setting in settings.items():
+            played[name].add(setting)
     if all(len(settings) == 1 for settings in played.values()):
         return [group]
     names = sorted(played)
     split = []
     for choice in product(*(sorted(played[name]) for name in names)):
         chosen = dict(zip(names, choice, strict=True))
-        recs = [r for r in group if all(chosen[n] == s for n, s in _side_settings(r).items())]
+        recs = [r for r, own in sides if all(chosen[n] == s for n, s in own.items())]
         for algorithms in _complete_sets(recs):
             split.append([r for r in recs if set(pairing_of(r).algorithms) <= algorithms])
     return split

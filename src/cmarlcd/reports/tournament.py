@@ -24,12 +24,6 @@ from cmarlcd.reports.section import (
 from cmarlcd.runs import RunRecord
 
 
-def _label(learner: Any) -> str:
-    """The algorithm's name, with the settings that differ from its battlefield settings
-    (readings aside: the section's title names them)."""
-    return match_results.side_label(learner)
-
-
 def _pm(mean: float, spread: float, fmt: str) -> str:
     return "—" if np.isnan(mean) else f"{mean:{fmt}} ± {spread:{fmt}}"
 
@@ -87,7 +81,7 @@ def tournament_section(records: Sequence[RunRecord], figures: Path) -> Section:
     }
     known = list(tour.battlefield_learners())
     order = sorted(present, key=lambda n: (known.index(n) if n in known else len(known), n))
-    names = {name: _label(present[name]) for name in order}
+    names = {name: match_results.side_label(present[name]) for name in order}
     summary = match_results.summarize(records, list(names))
     claims = claim_checks.check_claims(records, summary)
     first, pairing = records[0], tour.pairing_of(records[0])
