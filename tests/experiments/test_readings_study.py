@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -12,9 +13,12 @@ from typer.testing import CliRunner
 from cmarlcd.cli import app
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import readings as study
+from cmarlcd.experiments import settings_of
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments.tournament import Readings, Unit
+from cmarlcd.learners.automata import LAOCA
+from cmarlcd.learners.coordination import CMARLCDStochastic
 from cmarlcd.reports.readings import margin_text
 
 LEARNERS = tour.battlefield_learners()
@@ -31,7 +35,7 @@ def test_each_single_reading_changes_one_choice_and_the_dial_only_hit_rates() ->
             if getattr(reading.readings, name) != getattr(default, name)
         ]
         assert len(changed) == 1 and reading.kind == "single"
-    assert [r.name for r in singles[1:]] == ["γ = 0", "tolerance = 1", "unseen states: random"]
+    assert [r.name for r in singles[1:]] == ["tolerance = 1", "unseen states: random"]
     for rate, reading in zip(study.HIT_RATES, study.dial(), strict=True):
         units = (reading.readings.marine, reading.readings.gunner)
         assert units == (Unit(3, 1, rate), Unit(6, 2, rate)) and reading.kind == "hit rate"
@@ -39,33 +43,124 @@ def test_each_single_reading_changes_one_choice_and_the_dial_only_hit_rates() ->
     assert study.Reading(Readings(marine=Unit(3, 1, 0.7))).kind == "single"  # one kind only
 
 
+def test_the_gamma_dial_changes_the_discount_alone_at_each_hit_rate() -> None:
+    at_defaults = study.gamma_dial((0.0, 0.03, 0.9))
+    assert [r.name for r in at_defaults] == ["γ = 0", "γ = 0.03", "defaults"]
+    assert [r.kind for r in at_defaults] == ["gamma", "gamma", "default"]
+    assert at_defaults[2] == study.single_readings()[0]  # γ 0.9 is the learners' own
+    at_high = study.gamma_dial((0.1, 0.9), hit_rate=0.9)
+    assert [r.name for r in at_high] == ["γ = 0.1; hit rate 0.9", "hit rate 0.9"]
+    assert at_high[0].kind == "gamma" and at_high[1] == study.dial((0.9,))[0]
+    assert study.dial_point(at_high[0].readings) == (0.1, 0.9)
+    assert study.dial_point(at_defaults[2].readings) == (0.9, None)
+    assert study.dial_point(Readings(gamma=0.1, unseen="random")) is None  # a combination
+    assert study.Reading(Readings(gamma=0.1, unseen="random")).kind == "combined"
+    # a γ with one unit kind's hit rate changed is no point of the dials
+    assert study.Reading(Readings(gamma=0.1, marine=Unit(3, 1, 0.7))).kind == "combined"
+
+
 def named(*readings: Readings) -> list[study.Reading]:
     return [study.Reading(r) for r in readings]
 
 
-def test_the_combination_takes_every_change_that_raises_cmarl_cd_s_margin() -> None:
-    default, gamma, loose, unseen = study.single_readings()
+def test_the_study_points_to_the_dials_best_point_and_every_switch_that_helped() -> None:
+    default, loose, unseen = study.single_readings()
     low, high = study.dial((0.6, 1.0))
-    scores = {default: -0.20, gamma: -0.10, unseen: -0.25, loose: -0.19, low: -0.15, high: 0.1}
+    myopic, near = study.gamma_dial((0.0, 0.3))
+    (high_myopic,) = study.gamma_dial((0.0,), hit_rate=1.0)
+    scores = {default: -0.20, loose: -0.19, unseen: -0.25, low: -0.15, high: 0.1}
+    scores |= {myopic: -0.1, near: math.nan, high_myopic: 0.15}
+    # the dial's best point (γ 0 at hit rate 1) and the loose tolerance, which helped;
+    # random targets did not, and an unchecked claim (NaN) ranks below every number
+    assert study.favoured_hit_rate(scores) == 1.0
+    assert study.best_dial_point(scores) == high_myopic
     combined = study.combination(scores)
-    # γ = 0 and the loose tolerance raise it; the best hit rate of the dial too (1.0)
     assert combined.readings == study.with_hit_rate(Readings(gamma=0.0, tolerance=1.0), 1.0)
     assert combined.kind == "combined" and combined.name == "γ = 0; tolerance = 1; hit rate 1"
-    only_one = {default: 0.0, gamma: -0.1, unseen: 0.05, loose: -0.2, low: -0.1, high: -0.3}
-    assert study.combination(only_one) is None  # that tournament is already played
+    # no switch helped: the study points to the dial's best point, already played
+    no_switch = {**scores, loose: -0.3}
+    assert study.pointed_to(no_switch) == high_myopic and study.combination(no_switch) is None
+    # the defaults may be the best point of all
+    worse = {default: 0.0, loose: 0.05, unseen: -0.1, low: -0.1, high: -0.3, myopic: -0.2}
+    assert study.pointed_to(worse) == loose and study.combination(worse) is None
+
+
+def test_the_gamma_dial_is_played_again_at_the_hit_rate_the_first_dial_favours() -> None:
+    learners = (LEARNERS["cmarl-cd"], LEARNERS["vdn"])
+    plan = study.ReadingsStudy(learners, rounds=1, hit_rates=(0.6, 0.9), gammas=(0.0, 0.1, 0.9))
+    first = plan.first_stage()
+    assert [r.name for r in first] == [
+        "defaults",
+        "tolerance = 1",
+        "unseen states: random",
+        "hit rate 0.6",
+        "hit rate 0.9",
+        "γ = 0",
+        "γ = 0.1",
+    ]
+    scores = dict.fromkeys(first, 0.0) | {first[3]: 0.1}  # hit rate 0.6 favoured
+    assert [r.name for r in plan.second_stage(scores)] == [
+        "γ = 0; hit rate 0.6",
+        "γ = 0.1; hit rate 0.6",
+    ]
+    none = study.ReadingsStudy(learners, rounds=1, hit_rates=(), gammas=(0.0,))
+    assert none.second_stage(dict.fromkeys(none.first_stage(), 0.0)) == []
 
 
 def test_a_study_plays_each_shared_match_once() -> None:
     learners = (LEARNERS["cmarl-cd"], LEARNERS["vdn"])
     plan = study.ReadingsStudy(learners, rounds=2, hit_rates=(0.6, 1.0))
     first = plan.first_stage()
-    assert len(first) == 4 + 2
+    assert len(first) == 3 + 2 + 5  # switches, hit rates, γ (0.9: the defaults)
     every = [s for r in first for s in plan.tournament(r).specs()]
     unique = plan.specs(first)
-    assert len(every) == 6 * 3 * 2
-    # VDN against itself is the same match under the four readings of the tabular side
-    assert len(unique) == len(every) - 3 * 2
+    assert len(every) == 10 * 3 * 2
+    # VDN against itself is the same match under the 8 readings of the default units
+    assert len(unique) == len(every) - 7 * 2
     assert len({s.key for s in unique}) == len(unique)
+
+
+def test_matches_are_shared_across_the_dials_where_their_keys_agree() -> None:
+    learners = (LEARNERS["cmarl-cd"], LEARNERS["vdn"])
+    plan = study.ReadingsStudy(learners, rounds=2, hit_rates=(0.9,), gammas=(0.0, 0.9))
+
+    def keys(reading: study.Reading) -> dict:
+        return {(s.algorithm, s.run_index): s.key for s in plan.tournament(reading).specs()}
+
+    (hit,) = study.dial((0.9,))
+    myopic_hit, plain_hit = study.gamma_dial((0.0, 0.9), hit_rate=0.9)
+    assert keys(plain_hit) == keys(hit)  # γ 0.9 at hit rate 0.9 is the hit-rate dial's
+    myopic, hit_myopic = keys(study.gamma_dial((0.0,))[0]), keys(myopic_hit)
+    for pair in ("cmarl-cd vs cmarl-cd", "cmarl-cd vs vdn"):  # the units differ
+        assert all(myopic[(pair, r)] != hit_myopic[(pair, r)] for r in range(2))
+    for r in range(2):  # two deep learners: one match under every γ of the same units
+        assert hit_myopic[("vdn vs vdn", r)] == keys(hit)[("vdn vs vdn", r)]
+        assert myopic[("vdn vs vdn", r)] == keys(study.single_readings()[0])[("vdn vs vdn", r)]
+
+
+@pytest.mark.parametrize(
+    ("gammas", "message"),
+    [((-0.1,), r"\[0, 1\)"), ((1.0,), r"\[0, 1\)"), ((), "at least one"), ((0.1, 0.1), "once")],
+)
+def test_bad_gammas_are_rejected(gammas, message) -> None:
+    with pytest.raises(ConfigError, match=message):
+        study.ReadingsStudy((LEARNERS["cmarl-cd"],), gammas=gammas)
+
+
+@pytest.mark.parametrize(
+    ("name", "learner_class"), [("cmarl-cd", CMARLCDStochastic), ("la-oca", LAOCA)]
+)
+def test_each_gamma_of_the_dial_reaches_the_learners_records(name, learner_class) -> None:
+    plan = study.ReadingsStudy((LEARNERS[name],), rounds=1, hit_rates=(), gammas=(0.5,))
+    (reading,) = [r for r in plan.first_stage() if r.kind == "gamma"]
+    (spec,) = plan.tournament(reading).specs()
+    config = settings_of(spec).learners[0]  # as the match reads it back from the store
+    agent = learner_class([2], config, seed=0)
+    for state, reward in ((0, 2.0), (1, 10.0)):  # 2 on the first turn, 10 on the second
+        agent.act(state)
+        agent.observe(state, (0,), reward)
+    agent.end_episode()
+    assert agent.max_return(0) == 2.0 + 0.5 * 10.0 and agent.max_return(1) == 10.0
 
 
 @pytest.mark.parametrize(("rates", "message"), [((0.0,), "hit_rates"), ((1.5,), "hit_rates")])
@@ -75,10 +170,11 @@ def test_bad_hit_rates_are_rejected(rates, message) -> None:
 
 
 def test_a_study_too_large_as_a_whole_is_refused_at_once() -> None:
-    four = tuple(LEARNERS.values())  # 10 matches a round, 4 + 5 + 1 tournaments
-    study.ReadingsStudy(four, rounds=1_000)  # 100,000 runs: within the cap
+    four = tuple(LEARNERS.values())[:4]  # 10 matches a round
+    # 3 switches + 5 hit rates + 5 γ, then 6 γ again and a combination: 20 tournaments
+    study.ReadingsStudy(four, rounds=1_000)  # 200,000 runs: within the cap
     with pytest.raises(ConfigError, match="rounds"):
-        study.ReadingsStudy(four, rounds=5_000)  # each tournament fits, the study does not
+        study.ReadingsStudy(four, rounds=1_001)  # each tournament fits, the study does not
 
 
 def test_a_claim_s_cell_is_its_verdict_and_margins() -> None:
@@ -109,25 +205,49 @@ def test_the_study_runs_resumes_and_is_a_section_of_the_report(tmp_path) -> None
     where = ["--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "figures")]
     args = ["readings", "--algorithms", "cmarl-cd,la-oca", "--rounds", "2"]
     args += ["--learn-episodes", "200", "--eval-episodes", "200", "--hit-rates", "0.7,1"]
-    args += ["--workers", "1", "--no-progress", "--json", *where]
+    args += ["--gammas", "0,0.5,0.9", "--workers", "1", "--no-progress", "--json", *where]
     runner = CliRunner()
     done = runner.invoke(app, args)
     assert done.exit_code == 0, done.output
     doc = json.loads(done.stdout)
     names = [r["name"] for r in doc["readings"]]
-    assert names[:6] == [
+    favoured = max(
+        (r for r in doc["readings"] if r["kind"] == "hit rate"),
+        key=lambda r: -math.inf if r["main_margin"] is None else r["main_margin"],
+    )
+    rate = favoured["name"].removeprefix("hit rate ")
+    assert names[:7] == [
         "defaults",
-        "γ = 0",
         "tolerance = 1",
         "unseen states: random",
         "hit rate 0.7",
         "hit rate 1",
+        "γ = 0",
+        "γ = 0.5",
     ]
+    assert names[7:9] == [f"γ = 0; hit rate {rate}", f"γ = 0.5; hit rate {rate}"]
+    assert len(names) in (9, 10)  # and the combination, when the study points to a new one
+    assert doc["points_to"]["name"] in names
     assert all(r["rounds"] == 2 and r["matches"] == 6 for r in doc["readings"])
     assert doc["runs_computed"] == 6 * len(names) and doc["runs_reused"] == 0
-    assert (tmp_path / "figures").is_dir() and "hit_rates" in doc["figures"]
+    assert {"hit_rates", "gamma"} <= set(doc["figures"])
+    # the γ dial: each tabular learner against the other, at 3 γ, at 2 unit stats
+    dial = doc["gamma_dial"]
+    assert len(dial) == 2 * 3 * 2
+    assert {(m["gamma"], m["hit_rate"]) for m in dial} == {
+        (g, h) for g in (0.0, 0.5, 0.9) for h in (None, float(rate))
+    }
     again = json.loads(runner.invoke(app, args).stdout)
     assert again["runs_computed"] == 0 and again["readings"] == doc["readings"]
+    # the report draws the dials from the stored matches alone
+    for figure in (tmp_path / "figures").iterdir():
+        figure.unlink()
+    report = json.loads(runner.invoke(app, ["report", "--json", *where]).stdout)
+    (section,) = report["readings"]
+    assert section["gamma_dial"] == dial and section["points_to"] == doc["points_to"]
+    assert all(Path(path).is_file() for path in section["figures"].values())
+    assert [r["name"] for r in section["readings"]] == names
+    assert len(report["tournament"]) == len(names)
     markdown = runner.invoke(app, ["report", "--format", "markdown", *where]).stdout
     rows = [line for line in markdown.splitlines() if line.startswith("| γ = 0 |")]
     (row,) = rows
@@ -137,10 +257,6 @@ def test_the_study_runs_resumes_and_is_a_section_of_the_report(tmp_path) -> None
         assert printed == "—"
     else:
         assert math.isclose(float(printed), 100 * gamma["main_margin"], abs_tol=0.05)
-    report = json.loads(runner.invoke(app, ["report", "--json", *where]).stdout)
-    (section,) = report["readings"]
-    assert [r["name"] for r in section["readings"]] == names
-    assert len(report["tournament"]) == len(names)
     # a tournament of another CMARL-CD setting on the same budgets is no reading of the
     # study and shares no cell with its defaults: a tournament of its own, named by it
     other = ["tournament", "--algorithms", "cmarl-cd,la-oca", "--rounds", "2", *args[5:9]]
@@ -154,7 +270,12 @@ def test_the_study_runs_resumes_and_is_a_section_of_the_report(tmp_path) -> None
     assert own["rounds"] == 2 and sum(own["versions"].values()) == 6
 
 
-def test_bad_hit_rates_on_the_command_line_are_one_line(tmp_path) -> None:
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("--hit-rates", "0.5,x"), ("--gammas", "1"), ("--gammas", "-0.1"), ("--gammas", "")],
+)
+def test_bad_dials_on_the_command_line_are_one_line(tmp_path, option, value) -> None:
     store = tmp_path / "s.sqlite"
-    done = CliRunner().invoke(app, ["readings", "--hit-rates", "0.5,x", "--store", str(store)])
-    assert done.exit_code == 2 and "--hit-rates" in done.output and not store.exists()
+    done = CliRunner().invoke(app, ["readings", option, value, "--store", str(store)])
+    assert done.exit_code == 2 and option in done.output and not store.exists()
+    assert "Traceback" not in done.output

@@ -39,38 +39,52 @@ from cmarlcd.reports.readings import readings_section
 from cmarlcd.sweeps.runner import SweepResult
 
 
-def parse_rates(text: str) -> tuple[float, ...]:
-    """``"0.6,0.8,1"`` -> (0.6, 0.8, 1.0), each in (0, 1]."""
+def parse_numbers(text: str, parameter: str) -> tuple[float, ...]:
+    """``"0.6,0.8,1"`` -> (0.6, 0.8, 1.0), sorted, each once (the study checks the range)."""
     try:
-        rates = tuple(float(part) for part in text.split(","))
+        numbers = tuple(float(part) for part in text.split(","))
     except ValueError:
-        form = f"expected a comma list such as 0.6,0.8,1 (got {text!r})"
-        raise ConfigError("hit_rates", form) from None
-    return tuple(sorted(set(rates)))
+        form = f"expected a comma list of numbers such as 0.6,0.8,1 (got {text!r})"
+        raise ConfigError(parameter, form) from None
+    return tuple(sorted(set(numbers)))
 
 
 def run_study(
     study: study_module.ReadingsStudy, run: Execution, console: Console | None, seed_batch: int
 ) -> dict[str, Any]:
-    """Play (or resume) the single changes and the dial, then the combination they point
-    to; report every tournament of the study."""
-    first = study.first_stage()
-    records, done = compute_runs(study.specs(first), run, "battlefield readings", seed_batch)
-    stored = {rec.key: rec for rec in records}
-    outcomes = [study_module.outcome(r, study_module.records_of(study, r, stored)) for r in first]
-    combined = study_module.combination({o.reading: o.score for o in outcomes})
-    tally = [done]
-    if combined is not None and combined not in first:
-        if console is not None:
-            console.print(f"the single changes point to: {combined.name}", soft_wrap=True)
-        more, extra = compute_runs(study.specs([combined]), run, "readings combined", seed_batch)
-        stored.update((rec.key, rec) for rec in more)
-        outcomes.append(
-            study_module.outcome(combined, study_module.records_of(study, combined, stored))
+    """Play (or resume) the switches and the dials, then the γ dial at the hit rate the
+    first dial favours, then the combination the study points to; report every
+    tournament of the study."""
+    stored: dict[Any, Any] = {}
+    outcomes: list[study_module.Outcome] = []
+    tally: list[SweepResult] = []
+
+    def play(readings: list[study_module.Reading], label: str) -> None:
+        records, done = compute_runs(study.specs(readings), run, label, seed_batch)
+        stored.update((rec.key, rec) for rec in records)
+        outcomes.extend(
+            study_module.outcome(r, study_module.records_of(study, r, stored)) for r in readings
         )
-        tally.append(extra)
-    elif console is not None:
-        console.print("fewer than two changes raise CMARL-CD's margin: no combination played")
+        tally.append(done)
+
+    def scores() -> dict[study_module.Reading, float]:
+        return {o.reading: o.score for o in outcomes}
+
+    def say(text: str) -> None:
+        if console is not None:
+            console.print(text, soft_wrap=True)
+
+    play(study.first_stage(), "battlefield readings")
+    if second := study.second_stage(scores()):
+        rate = study_module.favoured_hit_rate(scores())
+        say(f"the hit-rate dial favours {rate:g}: the γ dial there")
+        play(second, "readings: γ dial")
+    combined = study_module.combination(scores())
+    if combined is not None:
+        say(f"the dials and switches point to: {combined.name}")
+        play([combined], "readings combined")
+    else:
+        say(f"the study points to a tournament it played: {study_module.pointed_to(scores()).name}")
     doc = present(readings_section(outcomes, run.figures), console)
     return {**doc, **run_counts(_total(tally), run.store, console)}
 
@@ -92,26 +106,35 @@ def readings(
     learn_episodes: LearnEpisodesOption = str(study_module.STUDY_EPISODES),
     eval_episodes: EvalEpisodesOption = str(study_module.STUDY_EPISODES),
     hit_rates: Annotated[
-        str, typer.Option(help="The dial: hit rates of every unit, one tournament each.")
+        str, typer.Option(help="The hit-rate dial: hit rates of every unit, one tournament each.")
     ] = ",".join(f"{rate:g}" for rate in study_module.HIT_RATES),
+    gammas: Annotated[
+        str,
+        typer.Option(
+            help="The γ dial: discounts of CMARL-CD and LA-OCA in [0, 1), one tournament "
+            "each, at the default unit stats and at the hit rate the hit-rate dial favours."
+        ),
+    ] = ",".join(f"{gamma:g}" for gamma in study_module.GAMMAS),
     seed: SeedOption = 0,
     seed_batch: RoundsSeedBatchOption = tour.SEED_BATCH,
     *,
     run: Execution,
 ) -> None:
-    """One battlefield tournament with the defaults, one per reading that changes one
-    choice (γ = 0 for the tabular learners, random targets in unseen states, a loose
-    max-return tolerance), one per hit rate of every unit (the dial), then the
-    combination the single changes point to; a table of reading × claim and a figure of
-    win rates against the hit rate. Every match is stored, so the study resumes, and
-    each tournament is also a section of 'cmarl-cd report'."""
+    """One battlefield tournament with the defaults, one per switch (random targets in
+    unseen states, a loose max-return tolerance), one per hit rate of every unit (the
+    hit-rate dial), one per discount γ of the tabular learners (the γ dial) at the
+    default unit stats and again at the hit rate the first dial favours, then the
+    combination the dials and switches point to; a table of reading × claim and figures
+    of win rates against the hit rate and of margins against γ. Every match is stored,
+    so the study resumes, and each tournament is also a section of 'cmarl-cd report'."""
     study = study_module.ReadingsStudy(
         learners=tournament_learners(parse_names(algorithms, "algorithms")),
         rounds=rounds,
         learn_episodes=parse_count(learn_episodes, "learn_episodes"),
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),
         seed=seed,
-        hit_rates=parse_rates(hit_rates),
+        hit_rates=parse_numbers(hit_rates, "hit_rates"),
+        gammas=parse_numbers(gammas, "gammas"),
     )
     check_seed_batch(seed_batch)
     print_results(run, lambda console: run_study(study, run, console, seed_batch))

@@ -1,10 +1,14 @@
 """Which reading of Section V-B decides the battlefield verdict: a sensitivity study.
 
 The paper leaves four things open on the battlefield (:class:`~.tournament.Readings`).
-The study plays one tournament per reading, each changing one choice from the defaults
-(:func:`single_readings`), and one per hit rate of both unit kinds (:func:`dial`, a dial
-rather than a switch: at 1.0 the game is deterministic). Then it plays the combination
-the single changes point to (:func:`combination`). Every tournament is an ordinary one,
+The study plays one tournament per reading that changes one switch from the defaults
+(:func:`single_readings`), and turns two of the choices as dials rather than switches:
+the hit rate of both unit kinds (:func:`dial`; at 1.0 the game is deterministic) and the
+discount γ of the tabular learners (:func:`gamma_dial`: from each turn's own reward at 0
+to a record that looks about ten turns ahead at 0.9), the latter at the default unit
+stats and again at the hit rate the first dial favours (:meth:`ReadingsStudy.second_stage`).
+Then it plays the combination the dials and switches point to (:func:`combination`).
+Every tournament is an ordinary one,
 stored match by match, so the study resumes, shares the matches no reading changes (two
 deep learners meet in the same match under every reading of the tabular learners), and
 each of its tournaments is also a section of ``cmarl-cd report``.
@@ -34,6 +38,13 @@ STUDY_ROUNDS = 10
 STUDY_EPISODES = 100_000
 #: The hit rates of the dial (both unit kinds alike; the defaults are 0.8 and 0.6).
 HIT_RATES = (0.6, 0.7, 0.8, 0.9, 1.0)
+#: The discounts of the γ dial (CMARL-CD and LA-OCA alike; their default is 0.9), spaced
+#: about evenly on a log scale from 0.01, with 0 (each turn's own reward) below them.
+GAMMAS = (0.0, 0.01, 0.03, 0.1, 0.3, 0.9)
+#: The kinds of tournament of a study (:attr:`Reading.kind`), in the order it reports them.
+KINDS = ("default", "single", "hit rate", "gamma", "combined")
+#: The kinds that are points of a dial (γ and the hit rate: :func:`dial_point`).
+DIAL_KINDS = ("default", "hit rate", "gamma")
 #: [choice] The other tolerance tried: returns within 1.0 of the record count as reaching
 #: it (half the reward of one kill), against the default's 1e-9 (equal up to rounding).
 LOOSE_TOLERANCE = 1.0
@@ -49,8 +60,10 @@ class Reading:
 
     @property
     def kind(self) -> str:
-        """'default', 'single' (one choice changed), 'hit rate' (the dial: both kinds'
-        hit rates alike, nothing else changed) or 'combined'."""
+        """'default', 'single' (one switch changed), 'hit rate' (the hit-rate dial: both
+        kinds' hit rates alike, nothing else changed), 'gamma' (the γ dial: the tabular
+        learners' discount changed, and at most the hit rate of both kinds alike) or
+        'combined'."""
         return kind_of(self.readings)
 
     @property
@@ -60,13 +73,35 @@ class Reading:
 
 
 def single_readings() -> list[Reading]:
-    """The defaults, then each choice changed alone."""
+    """The defaults, then each switch changed alone (γ = 0, the reading of the paper's
+    words, is a point of the γ dial, :func:`gamma_dial`)."""
     return [
         Reading(Readings()),
-        Reading(Readings(gamma=0.0)),
         Reading(Readings(tolerance=LOOSE_TOLERANCE)),
         Reading(Readings(unseen="random")),
     ]
+
+
+def with_gamma(readings: Readings, gamma: float) -> Readings:
+    """``readings`` with the tabular learners' discount at ``gamma`` (their own default
+    kept as the default, so γ = 0.9 is the same reading as no γ at all)."""
+    return replace(readings, gamma=None if gamma == tour.DEFAULT_READING["gamma"] else gamma)
+
+
+def gamma_dial(gammas: Sequence[float] = GAMMAS, hit_rate: float | None = None) -> list[Reading]:
+    """One reading per discount of the tabular learners, at the default unit stats or
+    with every unit hitting at ``hit_rate``."""
+    base = Readings() if hit_rate is None else with_hit_rate(Readings(), hit_rate)
+    return [Reading(with_gamma(base, gamma)) for gamma in gammas]
+
+
+def check_gammas(gammas: Sequence[float]) -> None:
+    """The γ dial's discounts: at least one, each in [0, 1) and given once."""
+    require(len(gammas) > 0, "gammas", "give at least one discount")
+    for gamma in gammas:
+        ok = math.isfinite(gamma) and 0 <= gamma < 1
+        require(ok, "gammas", f"each must be in [0, 1) (got {gamma:g})")
+    require(len(set(gammas)) == len(gammas), "gammas", "each at most once")
 
 
 def with_hit_rate(readings: Readings, rate: float) -> Readings:
@@ -97,24 +132,48 @@ def main_margin(claims: Sequence[claim_checks.Claim]) -> float:
     return sum(values) / len(values) if values else math.nan
 
 
-def combination(scores: Mapping[Reading, float]) -> Reading | None:
-    """[choice] The combination the single changes point to: every single change, and the
-    best hit rate of the dial, whose main-claim margin (:func:`main_margin`) is above the
-    defaults'. None when fewer than two changes point that way (the combination would be
-    a tournament already played, or the defaults)."""
-    default = next(score for reading, score in scores.items() if reading.kind == "default")
-    better = {r: s for r, s in scores.items() if r.kind != "default" and s > default}
-    singles = [r for r in better if r.kind == "single"]
-    dialled = sorted((r for r in better if r.kind == "hit rate"), key=lambda r: -better[r])
-    chosen = singles + dialled[:1]
-    if len(chosen) < 2:
+def _ranked(score: float) -> float:
+    """A score to rank by: an unchecked claim (NaN) below every number."""
+    return -math.inf if math.isnan(score) else score
+
+
+def favoured_hit_rate(scores: Mapping[Reading, float]) -> float | None:
+    """The hit rate of the hit-rate dial's tournament with the highest main-claim margin
+    (:func:`main_margin`), or None when the dial was not played."""
+    dialled_ = [r for r in scores if r.kind == "hit rate"]
+    if not dialled_:
         return None
+    return dialled(max(dialled_, key=lambda r: _ranked(scores[r])).readings)
+
+
+def best_dial_point(scores: Mapping[Reading, float]) -> Reading:
+    """The tournament of the dials (the defaults, the hit-rate dial, the γ dial at each
+    hit rate it was played at) with the highest main-claim margin; the first played of
+    those that tie."""
+    points = [r for r in scores if r.kind in DIAL_KINDS]
+    return max(points, key=lambda r: _ranked(scores[r]))
+
+
+def pointed_to(scores: Mapping[Reading, float]) -> Reading:
+    """[choice] The reading the study points to: the best point of the dials
+    (:func:`best_dial_point`: its γ and hit rate), with every single switch whose
+    tournament's main-claim margin is above the defaults'."""
+    default = next(score for reading, score in scores.items() if reading.kind == "default")
+    point = best_dial_point(scores)
+    switches = [r for r, s in scores.items() if r.kind == "single" and s > default]
     settings = {
         name: getattr(reading.readings, name)
-        for reading in chosen
+        for reading in (point, *switches)
         for name in changed(reading.readings)
     }
     return Reading(Readings(**settings))
+
+
+def combination(scores: Mapping[Reading, float]) -> Reading | None:
+    """The reading the study points to (:func:`pointed_to`) when it is a tournament not
+    played yet (a combination of a dial's point and one or more switches), else None."""
+    reading = pointed_to(scores)
+    return None if reading in scores else reading
 
 
 @dataclass(frozen=True)
@@ -127,18 +186,32 @@ class ReadingsStudy:
     eval_episodes: int = STUDY_EPISODES
     seed: int = 0
     hit_rates: tuple[float, ...] = HIT_RATES
+    gammas: tuple[float, ...] = GAMMAS
 
     def __post_init__(self) -> None:
         for rate in self.hit_rates:
             require(0 < rate <= 1, "hit_rates", f"each must be in (0, 1] (got {rate})")
         require(len(set(self.hit_rates)) == len(self.hit_rates), "hit_rates", "each at most once")
+        check_gammas(self.gammas)
         planned = [self.tournament(r) for r in self.first_stage()]  # each one checked
-        runs = sum(t.run_count() for t in planned) + planned[0].run_count()  # + combination
+        later = len(self.gammas) + 1 if self.hit_rates else 1  # γ dial again + combination
+        runs = sum(t.run_count() for t in planned) + later * planned[0].run_count()
         check_run_count(runs, "rounds")
 
     def first_stage(self) -> list[Reading]:
-        """The single changes and the dial, played before the combination is known."""
-        return single_readings() + dial(self.hit_rates)
+        """The switches, the hit-rate dial and the γ dial at the default unit stats,
+        each tournament once (γ = 0.9 is the defaults)."""
+        every = single_readings() + dial(self.hit_rates) + gamma_dial(self.gammas)
+        return list(dict.fromkeys(every))
+
+    def second_stage(self, scores: Mapping[Reading, float]) -> list[Reading]:
+        """The γ dial again at the hit rate the first stage's dial favours
+        (:func:`favoured_hit_rate`), less the tournaments already played; none when the
+        study has no hit-rate dial."""
+        rate = favoured_hit_rate(scores)
+        if rate is None:
+            return []
+        return [r for r in gamma_dial(self.gammas, rate) if r not in scores]
 
     def tournament(self, reading: Reading) -> Tournament:
         return Tournament(
@@ -184,6 +257,75 @@ def records_of(study: ReadingsStudy, reading: Reading, stored: Mapping[Any, RunR
     return [stored[s.key] for s in study.tournament(reading).specs() if s.key in stored]
 
 
+@dataclass(frozen=True)
+class DialMargin:
+    """One point of the γ dial's figure: a tabular learner's paired margin against one
+    opponent (:func:`~.tournament_claims.paired_margin`: per round, its win rate minus the
+    opponent's) in the tournament at (γ, hit rate)."""
+
+    learner: str
+    opponent: str
+    gamma: float
+    hit_rate: float | None
+    """The hit rate every unit shares; None for the default unit stats."""
+    margin: claim_checks.Margin
+
+    def to_dict(self) -> dict[str, Any]:
+        finite = {
+            k: (v if math.isfinite(v) else None)
+            for k, v in (
+                ("margin", self.margin.value),
+                ("standard_error", self.margin.standard_error),
+            )
+        }
+        return {
+            "learner": self.learner,
+            "opponent": self.opponent,
+            "gamma": self.gamma,
+            "hit_rate": self.hit_rate,
+            **finite,
+            "rounds": self.margin.rounds,
+        }
+
+
+def gamma_margins(outcomes: Sequence[Outcome]) -> list[DialMargin]:
+    """The γ dial from a study's tournaments: at each hit rate the γ dial was played at
+    (None: the default unit stats), every tournament on the dials there (the defaults or
+    the hit-rate dial's give its γ = 0.9 point), each tabular learner's margin against
+    each other algorithm. Read from the tournaments' stored matches only."""
+    points = {dial_point(o.reading.readings): o for o in outcomes}
+    points.pop(None, None)
+    rates = {dialled(o.reading.readings) for o in outcomes if o.reading.kind == "gamma"}
+    found = []
+    for (gamma, rate), o in sorted(points.items(), key=lambda item: _point_order(item[0])):
+        if rate not in rates:
+            continue
+        names = [c.algorithm for c in o.cells if c.algorithm == c.opponent]
+        for learner in (n for n in names if n in tour.TABULAR):
+            for opponent in (n for n in names if n != learner):
+                margin = claim_checks.paired_margin(o.records, learner, opponent)
+                found.append(DialMargin(learner, opponent, gamma, rate, margin))
+    return found
+
+
+def _point_order(point: tuple[float, float | None]) -> tuple:
+    gamma, rate = point
+    return (rate is not None, rate or 0.0, gamma)
+
+
+def tournament_options(readings: Readings) -> list[str]:
+    """The options of ``cmarl-cd tournament`` that play ``readings`` (none for the
+    defaults)."""
+    options = []
+    for name in changed(readings):
+        value = getattr(readings, name)
+        if name in tour.UNIT_KINDS:
+            options += [f"--{name}", f"{value.hp},{value.damage},{value.hit_rate:g}"]
+        else:
+            options += [f"--{name}", value if isinstance(value, str) else f"{value:g}"]
+    return options
+
+
 # ------------------------------------------------------------ from the store
 
 
@@ -217,18 +359,29 @@ def changed(readings: Readings) -> list[str]:
 
 def kind_of(readings: Readings) -> str:
     """See :attr:`Reading.kind`."""
-    names = changed(readings)
+    names = set(changed(readings))
+    units = names & set(tour.UNIT_KINDS)
     if not names:
         return "default"
-    if dialled(readings) is not None and set(names) <= set(tour.UNIT_KINDS):
-        return "hit rate"
+    if names <= {"gamma", *tour.UNIT_KINDS} and (not units or dialled(readings) is not None):
+        return "gamma" if "gamma" in names else "hit rate"
     return "single" if len(names) == 1 else "combined"
+
+
+def dial_point(readings: Readings) -> tuple[float, float | None] | None:
+    """Where a reading sits on the dials: (the tabular learners' γ, the hit rate every
+    unit shares or None for the default unit stats), or None for a reading that changes
+    anything else."""
+    if kind_of(readings) not in DIAL_KINDS:
+        return None
+    gamma = tour.DEFAULT_READING["gamma"] if readings.gamma is None else readings.gamma
+    return (gamma, dialled(readings))
 
 
 def stored_studies(groups: Sequence[Sequence[RunRecord]]) -> list[list[Outcome]]:
     """Stored tournaments (:func:`match_results.tournaments`) that form a study: two or more
     readings with the same seed and budgets. Each study lists its tournaments in the
-    order defaults, single changes, the dial by hit rate, combinations."""
+    order of :func:`_place`."""
     by_protocol: dict[tuple, list[tuple[Readings, Sequence[RunRecord]]]] = {}
     for records in groups:
         readings = readings_from(match_results.match_reading(records))
@@ -255,10 +408,12 @@ def _at_battlefield_settings(records: Sequence[RunRecord]) -> bool:
 
 
 def _place(found: Outcome) -> tuple:
-    """Defaults, single changes (in field order: γ, tolerance, unseen, units), the dial by
-    hit rate, then combinations."""
-    kinds = ("default", "single", "hit rate", "combined")
+    """Defaults, single switches (in field order: γ, tolerance, unseen, units), the
+    hit-rate dial by hit rate, the γ dial by hit rate (the default unit stats first)
+    then γ, then combinations."""
     readings = found.reading.readings
     order = [f.name for f in fields(Readings)]
     which = [order.index(name) for name in changed(readings)]
-    return (kinds.index(found.reading.kind), dialled(readings) or 0.0, which, found.reading.name)
+    gamma = -1.0 if readings.gamma is None else readings.gamma
+    where = (dialled(readings) or 0.0, gamma)
+    return (KINDS.index(found.reading.kind), where, which, found.reading.name)

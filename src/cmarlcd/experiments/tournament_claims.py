@@ -96,7 +96,7 @@ def _margin(against: str, values: Sequence[float]) -> Margin:
     return Margin(against, float(finite.mean()), _standard_error(finite), int(finite.size))
 
 
-def _paired(records: Sequence[RunRecord], a: str, b: str) -> Margin:
+def paired_margin(records: Sequence[RunRecord], a: str, b: str) -> Margin:
     """Per round, (win rate of a against b) - (win rate of b against a)."""
     mine, theirs = round_rates(records, a, b), round_rates(records, b, a)
     rounds = sorted(set(mine) & set(theirs))
@@ -146,7 +146,7 @@ def check_claims(records: Sequence[RunRecord], cells: Sequence[Cell]) -> list[Cl
     def beats(text: str, a: str, others: Sequence[str]) -> Claim:
         if (why := unplayed(text, a, others)) is not None:
             return why
-        margins = [_paired(records, a, o) for o in others]
+        margins = [paired_margin(records, a, o) for o in others]
         evidence = "; ".join(
             f"{registry.display_name(a)} wins {table[(a, m.against)].win_rate:.1%} against "
             f"{registry.display_name(m.against)}, which wins "

@@ -314,6 +314,61 @@ def hit_rate_dial(
     return _save(fig, path)
 
 
+def gamma_dial(points: Sequence, names: dict[str, str], title: str, path: Path) -> Path:
+    """The battlefield's γ dial: one panel per tabular learner (columns) and unit stats
+    (rows: the defaults, then each hit rate of every unit), its margin against each
+    opponent (win rate minus the opponent's, per round; error bars ± 2 standard errors)
+    as the discount γ of the tabular learners runs over the dial, on a log axis that
+    keeps γ = 0 (linear within 0.01 of it). ``points`` are
+    :class:`cmarlcd.experiments.readings.DialMargin`."""
+    from cmarlcd.experiments.tournament_claims import STANDARD_ERRORS
+
+    plt = _pyplot()
+    rates = sorted({p.hit_rate for p in points}, key=lambda r: (r is not None, r or 0.0))
+    learners = [n for n in names if any(p.learner == n for p in points)]
+    opponents = [n for n in names if any(p.opponent == n for p in points)]
+    gammas = sorted({p.gamma for p in points})
+    fig, axes = plt.subplots(
+        len(rates), len(learners), figsize=(3.6 * len(learners) + 1.8, 2.9 * len(rates) + 0.6),
+        sharex=True, sharey=True, squeeze=False,
+    )  # fmt: skip
+    for row, rate in zip(axes, rates, strict=True):
+        for ax, learner in zip(row, learners, strict=True):
+            for opponent in opponents:
+                mine = sorted(
+                    (p.gamma, p.margin)
+                    for p in points
+                    if (p.learner, p.opponent, p.hit_rate) == (learner, opponent, rate)
+                )
+                if not mine:
+                    continue
+                x = [gamma for gamma, _ in mine]
+                y = [100 * m.value for _, m in mine]
+                err = [100 * STANDARD_ERRORS * m.standard_error for _, m in mine]
+                colour = f"C{opponents.index(opponent)}"  # one per opponent in every panel
+                ax.errorbar(x, y, yerr=err, marker="o", capsize=3, color=colour)
+            ax.axhline(0, color="grey", linewidth=0.6, linestyle=":")
+            ax.set_xscale("symlog", linthresh=0.01, linscale=0.4)
+            ax.set_xticks(gammas, [f"{g:g}" for g in gammas])
+            ax.minorticks_off()
+            units = "default unit stats" if rate is None else f"hit rate {rate:g}"
+            ax.set_title(f"{names[learner]}, {units}", fontsize=9)
+        row[0].set_ylabel("margin (points)")
+    for ax in axes[-1]:
+        ax.set_xlabel("γ of CMARL-CD and LA-OCA")
+    from matplotlib.lines import Line2D
+
+    keys = [
+        Line2D([], [], color=f"C{i}", marker="o", label=f"vs {names[o]}")
+        for i, o in enumerate(opponents)
+    ]
+    fig.suptitle(textwrap.fill(title, 110), fontsize=9)
+    fig.tight_layout(rect=(0, 0, 0.86, 1))
+    fig.legend(handles=keys, title="opponent", fontsize=8, title_fontsize=8,
+               loc="center left", bbox_to_anchor=(0.86, 0.5), frameon=False)  # fmt: skip
+    return _save(fig, path)
+
+
 def phase_portrait(
     path: str | os.PathLike[str],
     temperature: float = 1.0,

@@ -1,5 +1,6 @@
 """The report of the battlefield readings study (:mod:`cmarlcd.experiments.readings`):
-one table of reading × claim, the hit-rate dial as a figure, and its JSON."""
+one table of reading × claim, the hit-rate and γ dials as figures, the reading the study
+points to, and its JSON."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from cmarlcd import registry
+from cmarlcd.experiments import readings as study
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments import tournament_results as match_results
@@ -83,10 +85,8 @@ def study_table(outcomes: Sequence[Outcome], caption: str) -> TableBlock:
 
 
 def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
-    """The study's table, its hit-rate figure (when two or more hit rates were played)
-    and its JSON, from its tournaments' stored matches."""
-    from cmarlcd.reports import figures as figs
-
+    """The study's table, its dials' figures (a dial played at two or more points), the
+    reading it points to, and its JSON, from its tournaments' stored matches."""
     first = outcomes[0].records[0]
     pairing = tour.pairing_of(first)
     rounds = max(len({r.key.run_index for r in o.records}) for o in outcomes)
@@ -96,16 +96,9 @@ def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
         f"evaluation episodes per match, seed {first.key.root_seed}"
     )
     records = [rec for o in outcomes for rec in o.records]
-    names = {n: registry.display_name(n) for n in _order(outcomes)}
-    paths = {}
-    dial = {dialled(o.reading.readings): o.cells for o in outcomes if o.reading.kind == "hit rate"}
-    if len(dial) >= 2:
-        group = sorted({(r.key.algorithm, r.key.config) for r in records})
-        stem = f"battlefield-hit-rates-seed{first.key.root_seed}"
-        title = f"Win rate against each opponent as the hit rate of every unit varies ({settings})"
-        paths["hit_rates"] = figs.hit_rate_dial(
-            dial, names, title, figures / figure_name(stem, group)
-        )
+    margins = study.gamma_margins(outcomes)
+    paths = _dial_figures(outcomes, margins, settings, figures)
+    pointed = _pointed_to(outcomes)
     section = new_section(
         TITLE,
         settings,
@@ -124,8 +117,14 @@ def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
             }
             for o in outcomes
         ],
+        gamma_dial=[m.to_dict() for m in margins],
+        points_to=None if pointed is None else {
+            "name": pointed.name,
+            "readings": pointed.readings.as_reading(),
+            "tournament_options": study.tournament_options(pointed.readings),
+        },
         figures={key: str(path) for key, path in paths.items()},
-    )
+    )  # fmt: skip
     section.add(
         study_table(outcomes, settings),
         TextBlock(
@@ -133,8 +132,60 @@ def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
             f"other algorithms (points). The defaults: {defaults_text()}."
         ),
     )
-    section.add(*(FigureBlock(p, f"win rate against hit rate, {settings}") for p in paths.values()))
+    if pointed is not None:
+        section.add(TextBlock(_pointed_text(pointed)))
+    captions = {
+        "hit_rates": f"win rate against hit rate, {settings}",
+        "gamma": f"each tabular learner's margin against γ (± 2 standard errors), {settings}",
+    }
+    section.add(*(FigureBlock(path, captions[key]) for key, path in paths.items()))
     return section
+
+
+def _dial_figures(
+    outcomes: Sequence[Outcome], margins: Sequence, settings: str, figures: Path
+) -> dict[str, Path]:
+    """The hit-rate dial's figure and the γ dial's, each where it has two points or more."""
+    from cmarlcd.reports import figures as figs
+
+    records = [rec for o in outcomes for rec in o.records]
+    group = sorted({(r.key.algorithm, r.key.config) for r in records})
+    seed = records[0].key.root_seed
+    names = {n: registry.display_name(n) for n in _order(outcomes)}
+    paths = {}
+    dial = {dialled(o.reading.readings): o.cells for o in outcomes if o.reading.kind == "hit rate"}
+    if len(dial) >= 2:
+        title = f"Win rate against each opponent as the hit rate of every unit varies ({settings})"
+        stem = figure_name(f"battlefield-hit-rates-seed{seed}", group)
+        paths["hit_rates"] = figs.hit_rate_dial(dial, names, title, figures / stem)
+    if len({m.gamma for m in margins}) >= 2:
+        title = (
+            "Margin of each tabular learner against each opponent as the discount γ of "
+            f"CMARL-CD and LA-OCA varies ({settings})"
+        )
+        stem = figure_name(f"battlefield-gamma-seed{seed}", group)
+        paths["gamma"] = figs.gamma_dial(margins, names, title, figures / stem)
+    return paths
+
+
+def _pointed_to(outcomes: Sequence[Outcome]) -> study.Reading | None:
+    """The reading the study points to (:func:`study.pointed_to`), when it has the
+    defaults to compare with."""
+    scores = {o.reading: o.score for o in outcomes}
+    if not any(r.kind == "default" for r in scores):
+        return None
+    return study.pointed_to(scores)
+
+
+def _pointed_text(pointed: study.Reading) -> str:
+    options = " ".join(study.tournament_options(pointed.readings))
+    return (
+        f"The reading the study points to (the dials' best point, with every switch that "
+        f"raised CMARL-CD's mean margin above the defaults'): {pointed.name}. At the "
+        f"paper's full protocol: cmarl-cd tournament {options} --rounds "
+        f"{tour.PAPER_ROUNDS} --learn-episodes {tour.PAPER_LEARN_EPISODES // 1000}k "
+        f"--eval-episodes {tour.PAPER_EVAL_EPISODES // 1000}k."
+    )
 
 
 def defaults_text() -> str:
