@@ -221,3 +221,13 @@ def test_checker(line: str, expected: str | None) -> None:
     (args,) = commands_in(line, inline=True)
     why = problem(args)
     assert why is None if expected is None else why is not None and expected in why
+
+
+def test_ci_runs_the_readme_s_set_up_and_test_command_verbatim() -> None:
+    """The README promises one command that installs and passes the tests, the one CI
+    runs: a line of ``.ci/run`` is that command, character for character."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    commands = [line for line in readme if "pip install" in line and "pytest" in line]
+    assert len(commands) == 1, commands
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+    assert commands[0] in ci
