@@ -496,3 +496,12 @@ class CMARLCDStochastic(MaxReturnLearner):
     :class:`cmarlcd.learners.tabular.TabularLearner`)."""
 
     default_config = StochasticConfig()
+
+    def degrees(self, state, masks=None) -> np.ndarray:
+        """Each agent's coordination degrees ``c_i(state, ·)``, shape (n_agents, width):
+        a copy; ``c_init`` everywhere for a state never visited (``masks`` unused: the
+        degrees of illegal actions are kept as they were initialised)."""
+        row = self._lookup(state)
+        if row is None:
+            return np.full(self.tables.degrees.shape[1:], self.config.c_init)
+        return self.tables.degrees[row].copy()

@@ -57,6 +57,10 @@ class DegreeAgent(StepAgent):
             degrees = self.model.agents(self._encode(state))[0, 0].clamp(c.c_min, c.c_max)
         return degrees.cpu().numpy(), self._legal(masks).cpu().numpy()
 
+    def degrees(self, state, masks=None) -> np.ndarray:
+        """Each agent's clipped degrees ``c_i(state, ·)``, shape (n_agents, width)."""
+        return self._degrees(state, masks)[0]
+
     def greedy(self, state, masks=None) -> tuple[int, ...]:
         """Each agent's legal action of largest clipped degree (lowest index on ties)."""
         degrees, legal = self._degrees(state, masks)
