@@ -1,0 +1,207 @@
+"""Study: redesigns of deep CMARL-CD's update, measured by the stream-equivalence test.
+
+Each design is a prototype on the object API (:class:`DegreeAgent`'s networks and
+schedule); the one the test picks goes into the compiled path. All share an **exact
+record**: ``R_max(s)`` is a maximum kept per state (a keyed memory; with one-hot states
+it is a table), so a visit is classified once, as the table classifies it, with the
+table's tolerance. They differ in what the degree network is regressed to:
+
+* ``defaults``: the package's deep CMARL-CD as it is (targets recomputed from the
+  network's present degrees at every replay; an expectile record).
+* ``frozen``: *frozen per-visit targets*. When an episode ends, its visits are folded
+  backwards into one target per state, the table's rule applied once per visit to the
+  degrees of a *target copy* of the degree network (as in DQN; refreshed every
+  ``target_every`` steps); each (state, target) is stored in a ring and replayed until
+  met (fitted targets, as in neural fitted Q): replaying a visit converges to its
+  target instead of adding to it.
+* ``keyed``: the same targets, but folded onto the latest target of the state kept in a
+  keyed memory (the network's degrees only for a state not in it), and the network
+  regressed to the memory's targets, drawn per state (every state alike, so often
+  visited states do not dominate). With one-hot states the memory is the table and the
+  network its distillation.
+
+Usage: python benchmarks/deep_cmarlcd_designs.py [--designs defaults,frozen,keyed]
+           [--checkpoints 1000,10000] [--seed S]
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import os
+import platform
+import time
+from collections import deque
+
+import numpy as np
+import torch
+
+from cmarlcd.games.sensor_network import SensorNetworkEnv
+from cmarlcd.learners import CMARLCDStochastic, DeepCMARLCDConfig, StochasticConfig
+from cmarlcd.learners.coordination import coordination_rule
+from cmarlcd.learners.deep_config import scheduled_work
+from cmarlcd.learners.degree_agent import DegreeAgent
+from cmarlcd.learners.max_return import RECORD, TIE, compare_return
+from cmarlcd.testing.streams import Stream
+
+#: The table's rule and tolerance (the paper's DSN settings).
+TABLE = StochasticConfig()
+
+
+class ExactRecordAgent(DegreeAgent):
+    """Deep CMARL-CD with an exact record and per-state targets folded once per visit;
+    subclasses say where a state's base degrees come from and what is replayed."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.records: dict[int, float] = {}
+        self.params = TABLE.params()
+        self.fitted = 0  # targets stored (learning starts at a batch's worth)
+
+    def observe(self, state, joint_action, reward: float) -> None:
+        self._visits.append((int(state), tuple(int(a) for a in joint_action), float(reward)))
+        self.steps += 1
+        step, copy_now = scheduled_work(self.steps - 1, self.steps, self.fitted, self.config)
+        if step:
+            self.fit()
+        if copy_now:
+            self.sync()
+
+    def end_episode(self, final_state=None, terminated: bool = True) -> None:
+        """The table's backward pass (Algorithm 2, lines 13-19) on per-state targets."""
+        targets: dict[int, np.ndarray] = {}
+        g = 0.0
+        for state, joint, reward in reversed(self._visits):
+            g = reward + self.params.gamma * g
+            best = self.records.get(state, -np.inf)
+            outcome = compare_return(g, best, self.params.tolerance)
+            if outcome == RECORD:
+                self.records[state] = g
+            if outcome not in (RECORD, TIE):
+                continue
+            rows = targets.get(state)
+            if rows is None:
+                rows = self.base(state)
+            probs = np.zeros_like(rows)
+            legal = np.ones(rows.shape[1], dtype=np.bool_)
+            for i, action in enumerate(joint):
+                count = int(self.counts[i])
+                coordination_rule(
+                    rows[i], probs[i], legal, count, action, outcome == RECORD, self.params
+                )
+            targets[state] = rows
+        self.store(targets)
+        self._visits.clear()
+        self.episode += 1
+
+    def regress(self, states: list[int], rows: list[np.ndarray]) -> None:
+        """One Adam step of the degree network towards ``rows`` at ``states``."""
+        model = self.model
+        x = torch.tensor([states], device=self.device)
+        target = torch.as_tensor(np.stack(rows)[None], device=self.device, dtype=torch.float32)
+        valid = model.valid.to(target.dtype)
+        loss = (((model.agents(x) - target) ** 2) * valid).sum(dim=(2, 3)).mean()
+        model.optimizer.zero_grad()
+        loss.backward()
+        model.optimizer.step()
+
+    def network_rows(self, network, state: int) -> np.ndarray:
+        c = self.config
+        with torch.no_grad():
+            out = network(torch.tensor([[state]], device=self.device))[0, 0]
+        return out.clamp(c.c_min, c.c_max).cpu().numpy().astype(np.float64)
+
+    def base(self, state: int) -> np.ndarray:
+        raise NotImplementedError
+
+    def store(self, targets: dict[int, np.ndarray]) -> None:
+        raise NotImplementedError
+
+    def fit(self) -> None:
+        raise NotImplementedError
+
+    def sync(self) -> None:
+        """Nothing to copy (a design with a target copy refreshes it here)."""
+
+
+class Frozen(ExactRecordAgent):
+    """Targets from a target copy of the degree network, replayed from a ring."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.target_agents = copy.deepcopy(self.model.agents).requires_grad_(False)
+        self.ring: deque[tuple[int, np.ndarray]] = deque(maxlen=self.config.buffer_size)
+
+    def base(self, state: int) -> np.ndarray:
+        return self.network_rows(self.target_agents, state)
+
+    def store(self, targets: dict[int, np.ndarray]) -> None:
+        self.ring.extend(targets.items())
+        self.fitted = len(self.ring)
+
+    def fit(self) -> None:
+        picks = self.replay_rng.integers(len(self.ring), size=self.config.batch_size)
+        chosen = [self.ring[k] for k in picks]
+        self.regress([s for s, _ in chosen], [rows for _, rows in chosen])
+
+    def sync(self) -> None:
+        self.target_agents.load_state_dict(self.model.agents.state_dict())
+
+
+class Keyed(ExactRecordAgent):
+    """Targets folded onto the state's latest target in a keyed memory; the network is
+    regressed to the memory, every state alike."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.memory: dict[int, np.ndarray] = {}
+
+    def base(self, state: int) -> np.ndarray:
+        rows = self.memory.get(state)
+        return rows.copy() if rows is not None else self.network_rows(self.model.agents, state)
+
+    def store(self, targets: dict[int, np.ndarray]) -> None:
+        self.memory.update(targets)
+        self.fitted = self.config.batch_size if self.memory else 0
+
+    def fit(self) -> None:
+        keys = list(self.memory)
+        picks = self.replay_rng.integers(len(keys), size=self.config.batch_size)
+        states = [keys[k] for k in picks]
+        self.regress(states, [self.memory[s] for s in states])
+
+
+DESIGNS = {"defaults": DegreeAgent, "frozen": Frozen, "keyed": Keyed}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--designs", default="defaults,frozen,keyed")
+    parser.add_argument("--checkpoints", default="1000,10000")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    marks = sorted({int(part) for part in args.checkpoints.split(",")})
+    print(
+        f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores; seed {args.seed}"
+    )
+    print("design    episodes  states  joint agree  agents agree  largest difference  wall s")
+    for name in args.designs.split(","):
+        env = SensorNetworkEnv()
+        counts = [int(env.action_space(agent).n) for agent in env.possible_agents]
+        reference = CMARLCDStochastic(counts, seed=args.seed)
+        config = DeepCMARLCDConfig()
+        candidate = DESIGNS[name](counts, config, marks[-1], n_states=43, seed=args.seed)
+        stream, start = Stream(env, reference, candidate, args.seed), time.perf_counter()
+        for mark in marks:
+            stream.play(mark - stream.episodes)
+            point = stream.compare()
+            print(
+                f"{name:<9} {mark:>8,}  {point.states:>6}  {100 * point.agreement:>10.1f} %  "
+                f"{100 * point.agent_agreement:>11.1f} %  {point.max_difference:>18.3f}  "
+                f"{time.perf_counter() - start:>6.0f}",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()
