@@ -279,3 +279,40 @@ def test_bad_dials_on_the_command_line_are_one_line(tmp_path, option, value) -> 
     done = CliRunner().invoke(app, ["readings", option, value, "--store", str(store)])
     assert done.exit_code == 2 and option in done.output and not store.exists()
     assert "Traceback" not in done.output
+
+
+def test_the_tournament_options_of_a_reading_play_that_reading(tmp_path, monkeypatch) -> None:
+    """The command the report prints for the reading the study points to plays exactly
+    that reading: its options, parsed by ``cmarl-cd tournament``, give its readings."""
+    from cmarlcd.cli import tournament as command
+
+    assert study.tournament_options(Readings()) == []
+    reading = study.with_hit_rate(Readings(gamma=0.03, tolerance=1.0, unseen="random"), 0.9)
+    options = study.tournament_options(reading)
+    expected = ["--gamma", "0.03", "--tolerance", "1", "--unseen", "random"]
+    expected += ["--marine", "3,1,0.9", "--gunner", "6,2,0.9"]
+    assert options == expected
+    played = []
+    monkeypatch.setattr(command, "print_results", lambda run, work: played.append(run))
+    monkeypatch.setattr(command.tour, "Tournament", lambda **kw: played.append(kw["readings"]))
+    args = ["tournament", *options, "--store", str(tmp_path / "s.sqlite")]
+    done = CliRunner().invoke(app, args)
+    assert done.exit_code == 0, done.output
+    assert played[0] == reading
+
+
+def test_a_study_whose_main_claim_was_never_checked_points_nowhere() -> None:
+    """Tournaments of the deep learners alone (a study still computing) check no claim
+    of CMARL-CD: the report names no reading rather than the first one."""
+    from cmarlcd.reports.readings import _pointed_to
+
+    unchecked = [claim_checks.Claim(claim_checks.CLAIMS[0], claim_checks.NOT_CHECKED, "")]
+    default, loose, _ = study.single_readings()
+    outcomes = [study.Outcome(r, [], [], unchecked) for r in (default, loose)]
+    assert _pointed_to(outcomes) is None
+    checked = claim_checks.Claim(
+        claim_checks.CLAIMS[0], claim_checks.CONTRADICTED, "",
+        (claim_checks.Margin("vdn", -0.1, 0.01, 10),),
+    )  # fmt: skip
+    outcomes[1] = study.Outcome(loose, [], [], [checked])
+    assert _pointed_to(outcomes) == default  # the switch did not raise the margin above NaN

@@ -170,21 +170,25 @@ def _dial_figures(
 
 def _pointed_to(outcomes: Sequence[Outcome]) -> study.Reading | None:
     """The reading the study points to (:func:`study.pointed_to`), when it has the
-    defaults to compare with."""
+    defaults to compare with and any tournament's main claim was checked."""
     scores = {o.reading: o.score for o in outcomes}
-    if not any(r.kind == "default" for r in scores):
+    if not any(r.kind == "default" for r in scores) or all(math.isnan(v) for v in scores.values()):
         return None
     return study.pointed_to(scores)
 
 
 def _pointed_text(pointed: study.Reading) -> str:
-    options = " ".join(study.tournament_options(pointed.readings))
+    command = [
+        "cmarl-cd tournament",
+        *study.tournament_options(pointed.readings),
+        *("--rounds", str(tour.PAPER_ROUNDS)),
+        *("--learn-episodes", f"{tour.PAPER_LEARN_EPISODES // 1000}k"),
+        *("--eval-episodes", f"{tour.PAPER_EVAL_EPISODES // 1000}k"),
+    ]
     return (
         f"The reading the study points to (the dials' best point, with every switch that "
         f"raised CMARL-CD's mean margin above the defaults'): {pointed.name}. At the "
-        f"paper's full protocol: cmarl-cd tournament {options} --rounds "
-        f"{tour.PAPER_ROUNDS} --learn-episodes {tour.PAPER_LEARN_EPISODES // 1000}k "
-        f"--eval-episodes {tour.PAPER_EVAL_EPISODES // 1000}k."
+        f"paper's full protocol: {' '.join(command)}."
     )
 
 
