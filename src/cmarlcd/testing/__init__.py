@@ -11,7 +11,9 @@ own tests run them on every registered one (PettingZoo ships its tests the same 
 * :func:`check_learner` (:mod:`~.learners`): the compiled loops against the object API,
   determinism by seed, legal greedy actions, both sides of a two-team game;
 * :data:`CHAIN` and :data:`DUEL` (:mod:`~.games`): one-team and two-team games small
-  enough to learn in a second.
+  enough to learn in a second;
+* :func:`~.streams.stream_equivalence` (:mod:`~.streams`): whether a learner fed another's
+  stream of visits learns what that one learns (deep CMARL-CD against the table).
 """
 
 from cmarlcd.testing.envs import CHECKS, check_game
