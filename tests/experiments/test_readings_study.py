@@ -19,7 +19,7 @@ from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments.tournament import Readings, Unit
 from cmarlcd.learners.automata import LAOCA
 from cmarlcd.learners.coordination import CMARLCDStochastic
-from cmarlcd.reports.readings import margin_text
+from cmarlcd.reports.readings import _pointed_text, _pointed_to, margin_text
 
 LEARNERS = tour.battlefield_learners()
 
@@ -171,10 +171,11 @@ def test_bad_hit_rates_are_rejected(rates, message) -> None:
 
 def test_a_study_too_large_as_a_whole_is_refused_at_once() -> None:
     four = tuple(LEARNERS.values())[:4]  # 10 matches a round
-    # 3 switches + 5 hit rates + 5 γ, then 6 γ again and a combination: 20 tournaments
-    study.ReadingsStudy(four, rounds=1_000)  # 200,000 runs: within the cap
+    # 3 switches + 5 hit rates + 5 γ (0.9: the defaults), then 5 γ again (0.9: the
+    # favoured hit rate's own tournament) and a combination: 19 tournaments at most
+    study.ReadingsStudy(four, rounds=1_052)  # 199,880 runs: within the cap of 200,000
     with pytest.raises(ConfigError, match="rounds"):
-        study.ReadingsStudy(four, rounds=1_001)  # each tournament fits, the study does not
+        study.ReadingsStudy(four, rounds=1_053)  # each tournament fits, the study does not
 
 
 def test_a_claim_s_cell_is_its_verdict_and_margins() -> None:
@@ -200,7 +201,6 @@ def test_a_claim_s_cell_is_its_verdict_and_margins() -> None:
 # ---------------------------------------------------------------- end to end
 
 
-@pytest.mark.slow
 def test_the_study_runs_resumes_and_is_a_section_of_the_report(tmp_path) -> None:
     where = ["--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "figures")]
     args = ["readings", "--algorithms", "cmarl-cd,la-oca", "--rounds", "2"]
@@ -302,17 +302,57 @@ def test_the_tournament_options_of_a_reading_play_that_reading(tmp_path, monkeyp
 
 
 def test_a_study_whose_main_claim_was_never_checked_points_nowhere() -> None:
-    """Tournaments of the deep learners alone (a study still computing) check no claim
-    of CMARL-CD: the report names no reading rather than the first one."""
-    from cmarlcd.reports.readings import _pointed_to
-
+    """Tournaments of the deep learners alone (a study still computing, or one without
+    CMARL-CD) check no claim of CMARL-CD: the study favours no hit rate, plays no second
+    γ dial and points to no reading, rather than to whichever came first."""
     unchecked = [claim_checks.Claim(claim_checks.CLAIMS[0], claim_checks.NOT_CHECKED, "")]
+    learners = (LEARNERS["cmarl-cd"], LEARNERS["vdn"])
+    plan = study.ReadingsStudy(learners, rounds=1, hit_rates=(0.6, 0.9), gammas=(0.0,))
+    scores = dict.fromkeys(plan.first_stage(), math.nan)
+    assert study.favoured_hit_rate(scores) is None and plan.second_stage(scores) == []
+    assert study.pointed_to(scores) is None and study.combination(scores) is None
     default, loose, _ = study.single_readings()
     outcomes = [study.Outcome(r, [], [], unchecked) for r in (default, loose)]
     assert _pointed_to(outcomes) is None
-    checked = claim_checks.Claim(
-        claim_checks.CLAIMS[0], claim_checks.CONTRADICTED, "",
-        (claim_checks.Margin("vdn", -0.1, 0.01, 10),),
-    )  # fmt: skip
-    outcomes[1] = study.Outcome(loose, [], [], [checked])
-    assert _pointed_to(outcomes) == default  # the switch did not raise the margin above NaN
+    # the defaults unchecked: no switch can be said to help, whatever its margin
+    assert study.pointed_to({default: math.nan, loose: -0.1}) is None
+
+
+def test_without_a_tabular_learner_there_is_no_gamma_dial() -> None:
+    plan = study.ReadingsStudy((LEARNERS["vdn"], LEARNERS["qmix"]), rounds=1, hit_rates=(0.9,))
+    assert [r.kind for r in plan.first_stage()] == ["default", "single", "single", "hit rate"]
+    assert plan.second_stage(dict.fromkeys(plan.first_stage(), 0.1)) == []
+
+
+def test_the_report_says_when_the_combination_did_worse_than_its_point() -> None:
+    def scored(reading: study.Reading, value: float) -> study.Outcome:
+        claim = claim_checks.Claim(
+            claim_checks.CLAIMS[0], claim_checks.CONTRADICTED, "",
+            (claim_checks.Margin("vdn", value, 0.01, 10),),
+        )  # fmt: skip
+        return study.Outcome(reading, [], [], [claim])
+
+    default, _, unseen = study.single_readings()
+    (high,) = study.dial((0.9,))
+    combined = study.Reading(study.with_hit_rate(Readings(unseen="random"), 0.9))
+    outcomes = [scored(default, -0.2), scored(unseen, -0.1), scored(high, 0.05)]
+    pointed = _pointed_to(outcomes)
+    assert pointed == combined
+    text = _pointed_text(pointed, outcomes)
+    assert "unseen states: random; hit rate 0.9 (not played yet)" in text
+    assert "best point alone: hit rate 0.9 (mean margin +5.0)" in text
+    assert "--unseen random --marine 3,1,0.9 --gunner 6,2,0.9 --rounds 30" in text
+    text = _pointed_text(pointed, [*outcomes, scored(combined, 0.01)])
+    assert "(mean margin +1.0)" in text and "did worse than its point alone" in text
+
+
+def test_minus_zero_is_the_same_discount_as_zero() -> None:
+    """``--gammas -0`` plays the γ = 0 tournament, sharing its stored matches."""
+    (negative,), (zero,) = study.gamma_dial((-0.0,)), study.gamma_dial((0.0,))
+    assert negative.name == "γ = 0" and study.tournament_options(negative.readings)[1] == "0"
+    learners = (LEARNERS["cmarl-cd"],)
+    keys = [
+        [s.key for s in study.ReadingsStudy(learners, rounds=1).tournament(r).specs()]
+        for r in (negative, zero)
+    ]
+    assert keys[0] == keys[1]

@@ -39,12 +39,15 @@ from cmarlcd.reports.readings import readings_section
 from cmarlcd.sweeps.runner import SweepResult
 
 
-def parse_numbers(text: str, parameter: str) -> tuple[float, ...]:
-    """``"0.6,0.8,1"`` -> (0.6, 0.8, 1.0), sorted, each once (the study checks the range)."""
+def parse_numbers(text: str, parameter: str, example: str) -> tuple[float, ...]:
+    """``"0.6,0.8,1"`` -> (0.6, 0.8, 1.0), sorted, each once (the study checks the range);
+    ``example`` is a good value of the option, for the message."""
+    if not text.strip():
+        raise ConfigError(parameter, f"give at least one number, e.g. {example}")
     try:
-        numbers = tuple(float(part) for part in text.split(","))
+        numbers = tuple(float(part) + 0.0 for part in text.split(","))  # -0 is 0
     except ValueError:
-        form = f"expected a comma list of numbers such as 0.6,0.8,1 (got {text!r})"
+        form = f"expected a comma list of numbers such as {example} (got {text!r})"
         raise ConfigError(parameter, form) from None
     return tuple(sorted(set(numbers)))
 
@@ -60,12 +63,14 @@ def run_study(
     tally: list[SweepResult] = []
 
     def play(readings: list[study_module.Reading], label: str) -> None:
-        records, done = compute_runs(study.specs(readings), run, label, seed_batch)
-        stored.update((rec.key, rec) for rec in records)
+        new = [spec for spec in study.specs(readings) if spec.key not in stored]
+        if new:  # each match computed and counted once, whichever stage shares it
+            records, done = compute_runs(new, run, label, seed_batch)
+            stored.update((rec.key, rec) for rec in records)
+            tally.append(done)
         outcomes.extend(
             study_module.outcome(r, study_module.records_of(study, r, stored)) for r in readings
         )
-        tally.append(done)
 
     def scores() -> dict[study_module.Reading, float]:
         return {o.reading: o.score for o in outcomes}
@@ -79,12 +84,17 @@ def run_study(
         rate = study_module.favoured_hit_rate(scores())
         say(f"the hit-rate dial favours {rate:g}: the γ dial there")
         play(second, "readings: γ dial")
+    elif study.hit_rates and study.has_tabular:
+        say("no tournament of the hit-rate dial checked CMARL-CD's claim: no second γ dial")
+    pointed = study_module.pointed_to(scores())
     combined = study_module.combination(scores())
     if combined is not None:
         say(f"the dials and switches point to: {combined.name}")
         play([combined], "readings combined")
+    elif pointed is not None:
+        say(f"the study points to a tournament it played: {pointed.name}")
     else:
-        say(f"the study points to a tournament it played: {study_module.pointed_to(scores()).name}")
+        say("no tournament checked CMARL-CD's claim against the defaults: the study points nowhere")
     doc = present(readings_section(outcomes, run.figures), console)
     return {**doc, **run_counts(_total(tally), run.store, console)}
 
@@ -133,8 +143,8 @@ def readings(
         learn_episodes=parse_count(learn_episodes, "learn_episodes"),
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),
         seed=seed,
-        hit_rates=parse_numbers(hit_rates, "hit_rates"),
-        gammas=parse_numbers(gammas, "gammas"),
+        hit_rates=parse_numbers(hit_rates, "hit_rates", "0.6,0.8,1"),
+        gammas=parse_numbers(gammas, "gammas", "0,0.1,0.9"),
     )
     check_seed_batch(seed_batch)
     print_results(run, lambda console: run_study(study, run, console, seed_batch))

@@ -139,28 +139,33 @@ def _ranked(score: float) -> float:
 
 def favoured_hit_rate(scores: Mapping[Reading, float]) -> float | None:
     """The hit rate of the hit-rate dial's tournament with the highest main-claim margin
-    (:func:`main_margin`), or None when the dial was not played."""
-    dialled_ = [r for r in scores if r.kind == "hit rate"]
-    if not dialled_:
+    (:func:`main_margin`; on a tie the first played, the lower hit rate), or None when
+    the dial was not played or none of its tournaments checked the claim."""
+    checked = [r for r in scores if r.kind == "hit rate" and not math.isnan(scores[r])]
+    if not checked:
         return None
-    return dialled(max(dialled_, key=lambda r: _ranked(scores[r])).readings)
+    return dialled(max(checked, key=lambda r: scores[r]).readings)
 
 
 def best_dial_point(scores: Mapping[Reading, float]) -> Reading:
     """The tournament of the dials (the defaults, the hit-rate dial, the γ dial at each
-    hit rate it was played at) with the highest main-claim margin; the first played of
-    those that tie."""
+    hit rate it was played at) with the highest main-claim margin; on a tie the first
+    played. An unchecked claim (NaN) ranks below every number."""
     points = [r for r in scores if r.kind in DIAL_KINDS]
     return max(points, key=lambda r: _ranked(scores[r]))
 
 
-def pointed_to(scores: Mapping[Reading, float]) -> Reading:
+def pointed_to(scores: Mapping[Reading, float]) -> Reading | None:
     """[choice] The reading the study points to: the best point of the dials
     (:func:`best_dial_point`: its γ and hit rate), with every single switch whose
-    tournament's main-claim margin is above the defaults'."""
-    default = next(score for reading, score in scores.items() if reading.kind == "default")
+    tournament's main-claim margin is above the defaults' (on the point estimates: no
+    threshold of standard errors). None when the defaults' margin is unknown (not played,
+    or the claim not checked): nothing can be said to help."""
+    default = [score for reading, score in scores.items() if reading.kind == "default"]
+    if not default or math.isnan(default[0]):
+        return None
     point = best_dial_point(scores)
-    switches = [r for r, s in scores.items() if r.kind == "single" and s > default]
+    switches = [r for r, s in scores.items() if r.kind == "single" and s > default[0]]
     settings = {
         name: getattr(reading.readings, name)
         for reading in (point, *switches)
@@ -173,7 +178,7 @@ def combination(scores: Mapping[Reading, float]) -> Reading | None:
     """The reading the study points to (:func:`pointed_to`) when it is a tournament not
     played yet (a combination of a dial's point and one or more switches), else None."""
     reading = pointed_to(scores)
-    return None if reading in scores else reading
+    return None if reading is None or reading in scores else reading
 
 
 @dataclass(frozen=True)
@@ -194,22 +199,28 @@ class ReadingsStudy:
         require(len(set(self.hit_rates)) == len(self.hit_rates), "hit_rates", "each at most once")
         check_gammas(self.gammas)
         planned = [self.tournament(r) for r in self.first_stage()]  # each one checked
-        later = len(self.gammas) + 1 if self.hit_rates else 1  # γ dial again + combination
+        again = [r for r in gamma_dial(self.gammas) if r.kind == "gamma"]  # γ 0.9: played
+        later = (len(again) if self.hit_rates and self.has_tabular else 0) + 1  # + combination
         runs = sum(t.run_count() for t in planned) + later * planned[0].run_count()
         check_run_count(runs, "rounds")
 
+    @property
+    def has_tabular(self) -> bool:
+        """Whether a tabular learner plays (the γ dial turns their discount only)."""
+        return any(tour.is_tabular(learner) for learner in self.learners)
+
     def first_stage(self) -> list[Reading]:
-        """The switches, the hit-rate dial and the γ dial at the default unit stats,
-        each tournament once (γ = 0.9 is the defaults)."""
-        every = single_readings() + dial(self.hit_rates) + gamma_dial(self.gammas)
-        return list(dict.fromkeys(every))
+        """The switches, the hit-rate dial and the γ dial at the default unit stats (when
+        a tabular learner plays), each tournament once (γ = 0.9 is the defaults)."""
+        gammas = gamma_dial(self.gammas) if self.has_tabular else []
+        return list(dict.fromkeys(single_readings() + dial(self.hit_rates) + gammas))
 
     def second_stage(self, scores: Mapping[Reading, float]) -> list[Reading]:
         """The γ dial again at the hit rate the first stage's dial favours
-        (:func:`favoured_hit_rate`), less the tournaments already played; none when the
-        study has no hit-rate dial."""
+        (:func:`favoured_hit_rate`), less the tournaments already played; none without a
+        tabular learner, or when no tournament of the hit-rate dial checked the claim."""
         rate = favoured_hit_rate(scores)
-        if rate is None:
+        if rate is None or not self.has_tabular:
             return []
         return [r for r in gamma_dial(self.gammas, rate) if r not in scores]
 
@@ -320,10 +331,17 @@ def tournament_options(readings: Readings) -> list[str]:
     for name in changed(readings):
         value = getattr(readings, name)
         if name in tour.UNIT_KINDS:
-            options += [f"--{name}", f"{value.hp},{value.damage},{value.hit_rate:g}"]
+            options += [f"--{name}", f"{value.hp},{value.damage},{_number(value.hit_rate)}"]
         else:
-            options += [f"--{name}", value if isinstance(value, str) else f"{value:g}"]
+            options += [f"--{name}", value if isinstance(value, str) else _number(value)]
     return options
+
+
+def _number(value: float) -> str:
+    """A number as the shortest text that reads back as it (``0.1``, ``1``, not
+    ``0.1000000000000000055``, nor ``0.123457`` for 0.1234567)."""
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
 
 
 # ------------------------------------------------------------ from the store
@@ -408,9 +426,9 @@ def _at_battlefield_settings(records: Sequence[RunRecord]) -> bool:
 
 
 def _place(found: Outcome) -> tuple:
-    """Defaults, single switches (in field order: γ, tolerance, unseen, units), the
-    hit-rate dial by hit rate, the γ dial by hit rate (the default unit stats first)
-    then γ, then combinations."""
+    """Defaults, single switches (in field order: tolerance, unseen, one unit kind's
+    stats), the hit-rate dial by hit rate, the γ dial by hit rate (the default unit stats
+    first) then γ, then combinations."""
     readings = found.reading.readings
     order = [f.name for f in fields(Readings)]
     which = [order.index(name) for name in changed(readings)]

@@ -113,10 +113,11 @@ class Readings:
     def __post_init__(self) -> None:
         if self.gamma is not None:
             check_discount(self.gamma)
-            object.__setattr__(self, "gamma", float(self.gamma))  # 0 and 0.0: one match
+            # 0, 0.0 and -0.0: one match
+            object.__setattr__(self, "gamma", float(self.gamma) + 0.0)
         if self.tolerance is not None:
             check_tolerance(self.tolerance)
-            object.__setattr__(self, "tolerance", float(self.tolerance))
+            object.__setattr__(self, "tolerance", float(self.tolerance) + 0.0)
         check_unseen(self.unseen)
 
     def as_reading(self) -> dict[str, Any]:

@@ -91,7 +91,7 @@ def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
     pairing = tour.pairing_of(first)
     rounds = max(len({r.key.run_index for r in o.records}) for o in outcomes)
     settings = (
-        f"{len(outcomes)} tournaments of up to {rounds} rounds, "
+        f"{len(outcomes)} tournaments of up to {rounds} round{'s' if rounds != 1 else ''}, "
         f"{pairing.learn_episodes:,} learning and {pairing.eval_episodes:,} "
         f"evaluation episodes per match, seed {first.key.root_seed}"
     )
@@ -133,10 +133,11 @@ def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
         ),
     )
     if pointed is not None:
-        section.add(TextBlock(_pointed_text(pointed)))
+        section.add(TextBlock(_pointed_text(pointed, outcomes)))
+    bars = "± 2 standard errors" if rounds > 1 else "one round: no error bars"
     captions = {
         "hit_rates": f"win rate against hit rate, {settings}",
-        "gamma": f"each tabular learner's margin against γ (± 2 standard errors), {settings}",
+        "gamma": f"each tabular learner's margin against γ ({bars}), {settings}",
     }
     section.add(*(FigureBlock(path, captions[key]) for key, path in paths.items()))
     return section
@@ -169,15 +170,27 @@ def _dial_figures(
 
 
 def _pointed_to(outcomes: Sequence[Outcome]) -> study.Reading | None:
-    """The reading the study points to (:func:`study.pointed_to`), when it has the
-    defaults to compare with and any tournament's main claim was checked."""
+    """The reading the study points to (:func:`study.pointed_to`), None when the
+    defaults' main claim was not checked."""
+    return study.pointed_to({o.reading: o.score for o in outcomes})
+
+
+def _pointed_text(pointed: study.Reading, outcomes: Sequence[Outcome]) -> str:
+    """The reading the study points to, its mean margin beside the dials' best point's
+    (a combination may do worse than the point alone), and the command that plays it at
+    the paper's full protocol."""
     scores = {o.reading: o.score for o in outcomes}
-    if not any(r.kind == "default" for r in scores) or all(math.isnan(v) for v in scores.values()):
-        return None
-    return study.pointed_to(scores)
+    best = study.best_dial_point(scores)
 
+    def margin(reading: study.Reading) -> str:
+        score = scores.get(reading, math.nan)
+        return "not played yet" if math.isnan(score) else f"mean margin {100 * score:+.1f}"
 
-def _pointed_text(pointed: study.Reading) -> str:
+    words = f"{pointed.name} ({margin(pointed)})"
+    if pointed != best:
+        words += f"; the dials' best point alone: {best.name} ({margin(best)})"
+        if scores.get(pointed, math.inf) < scores[best]:
+            words += ", so the combination did worse than its point alone"
     command = [
         "cmarl-cd tournament",
         *study.tournament_options(pointed.readings),
@@ -186,9 +199,9 @@ def _pointed_text(pointed: study.Reading) -> str:
         *("--eval-episodes", f"{tour.PAPER_EVAL_EPISODES // 1000}k"),
     ]
     return (
-        f"The reading the study points to (the dials' best point, with every switch that "
-        f"raised CMARL-CD's mean margin above the defaults'): {pointed.name}. At the "
-        f"paper's full protocol: {' '.join(command)}."
+        "The reading the study points to (the dials' best point, with every switch that "
+        f"raised CMARL-CD's mean margin above the defaults'): {words}. At the paper's "
+        f"full protocol: {' '.join(command)}."
     )
 
 
