@@ -20,8 +20,14 @@ table's tolerance. They differ in what the degree network is regressed to:
   visited states do not dominate). With one-hot states the memory is the table and the
   network its distillation.
 
+For each design and checkpoint it prints, over every state the stream has visited, the
+share where both learners' greedy joint actions agree (a design that learns what the
+table learns: 100 %), the share of (state, agent) pairs that agree, and the largest
+difference of their coordination degrees (0), with the wall time so far.
+
 Usage: python benchmarks/deep_cmarlcd_designs.py [--designs defaults,frozen,keyed]
-           [--checkpoints 1000,10000] [--seed S]
+           [--checkpoints 1000,10000] [--seed S] [--set NAME=VALUE ...]
+       (--set: deep CMARL-CD's settings for every design, e.g. lr=1e-2)
 """
 
 from __future__ import annotations
@@ -32,10 +38,12 @@ import os
 import platform
 import time
 from collections import deque
+from dataclasses import fields, replace
 
 import numpy as np
 import torch
 
+from cmarlcd.errors import ConfigError
 from cmarlcd.games.sensor_network import SensorNetworkEnv
 from cmarlcd.learners import CMARLCDStochastic, DeepCMARLCDConfig, StochasticConfig
 from cmarlcd.learners.coordination import coordination_rule
@@ -174,22 +182,45 @@ class Keyed(ExactRecordAgent):
 DESIGNS = {"defaults": DegreeAgent, "frozen": Frozen, "keyed": Keyed}
 
 
+def config_with(settings: list[str]) -> DeepCMARLCDConfig:
+    """Deep CMARL-CD's defaults with ``NAME=VALUE`` settings applied (ValueError names a
+    setting it does not have)."""
+    config = DeepCMARLCDConfig()
+    types = {f.name: type(getattr(config, f.name)) for f in fields(config)}
+    changes = {}
+    for item in settings:
+        name, _, value = item.partition("=")
+        if name not in types:
+            raise ValueError(f"no setting {name!r} (one of {', '.join(types)})")
+        kind = types[name]
+        changes[name] = value.lower() in ("1", "true") if kind is bool else kind(value)
+    return replace(config, **changes)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--designs", default="defaults,frozen,keyed")
     parser.add_argument("--checkpoints", default="1000,10000")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--set", dest="settings", action="append", default=[])
     args = parser.parse_args()
     marks = sorted({int(part) for part in args.checkpoints.split(",")})
+    designs = args.designs.split(",")
+    if unknown := [name for name in designs if name not in DESIGNS]:
+        parser.error(f"--designs: no design {unknown[0]!r} (one of {', '.join(DESIGNS)})")
+    try:
+        config = config_with(args.settings)
+    except (ValueError, ConfigError) as why:  # exit status 2, one line
+        parser.error(f"--set: {why}")
     print(
         f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores; seed {args.seed}"
     )
+    print(f"# deep CMARL-CD settings: {', '.join(args.settings) or 'defaults'}")
     print("design    episodes  states  joint agree  agents agree  largest difference  wall s")
-    for name in args.designs.split(","):
+    for name in designs:
         env = SensorNetworkEnv()
         counts = [int(env.action_space(agent).n) for agent in env.possible_agents]
         reference = CMARLCDStochastic(counts, seed=args.seed)
-        config = DeepCMARLCDConfig()
         candidate = DESIGNS[name](counts, config, marks[-1], n_states=43, seed=args.seed)
         stream, start = Stream(env, reference, candidate, args.seed), time.perf_counter()
         for mark in marks:
