@@ -25,8 +25,13 @@ share where both learners' greedy joint actions agree (a design that learns what
 table learns: 100 %), the share of (state, agent) pairs that agree, and the largest
 difference of their coordination degrees (0), with the wall time so far.
 
+With ``--own-play L`` each design (and the table, ``table``) learns from its own play
+instead, L episodes, and its greedy policy is evaluated as the DSN's tables are: the share
+of ``--eval-episodes`` episodes that return the optimum, 42, in 3 steps.
+
 Usage: python benchmarks/deep_cmarlcd_designs.py [--designs defaults,frozen,keyed]
            [--checkpoints 1000,10000] [--seed S] [--set NAME=VALUE ...]
+           [--own-play L [--eval-episodes E]]
        (--set: deep CMARL-CD's settings for every design, e.g. lr=1e-2)
 """
 
@@ -44,6 +49,7 @@ import numpy as np
 import torch
 
 from cmarlcd.errors import ConfigError
+from cmarlcd.experiments.sensor_network import optimal_episodes
 from cmarlcd.games.sensor_network import SensorNetworkEnv
 from cmarlcd.learners import CMARLCDStochastic, DeepCMARLCDConfig, StochasticConfig
 from cmarlcd.learners.coordination import coordination_rule
@@ -51,6 +57,7 @@ from cmarlcd.learners.deep_config import scheduled_work
 from cmarlcd.learners.degree_agent import DegreeAgent
 from cmarlcd.learners.max_return import RECORD, TIE, compare_return
 from cmarlcd.testing.streams import Stream
+from cmarlcd.training.episodes import play_episodes
 
 #: The table's rule and tolerance (the paper's DSN settings).
 TABLE = StochasticConfig()
@@ -197,17 +204,34 @@ def config_with(settings: list[str]) -> DeepCMARLCDConfig:
     return replace(config, **changes)
 
 
+def own_play(name: str, config: DeepCMARLCDConfig, episodes: int, evals: int, seed: int):
+    """(success rate of the greedy policy, seconds) after ``episodes`` of own play."""
+    env = SensorNetworkEnv()
+    counts = [int(env.action_space(agent).n) for agent in env.possible_agents]
+    if name == "table":
+        learner = CMARLCDStochastic(counts, seed=seed)
+    else:
+        learner = DESIGNS[name](counts, config, episodes, n_states=43, seed=seed)
+    start = time.perf_counter()
+    play_episodes(env, learner, episodes, seed=seed)
+    stats = play_episodes(env, learner, evals, learn=False)
+    return float(optimal_episodes(stats).mean()), time.perf_counter() - start
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--designs", default="defaults,frozen,keyed")
     parser.add_argument("--checkpoints", default="1000,10000")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--set", dest="settings", action="append", default=[])
+    parser.add_argument("--own-play", type=int, default=0)
+    parser.add_argument("--eval-episodes", type=int, default=2_000)
     args = parser.parse_args()
     marks = sorted({int(part) for part in args.checkpoints.split(",")})
     designs = args.designs.split(",")
-    if unknown := [name for name in designs if name not in DESIGNS]:
-        parser.error(f"--designs: no design {unknown[0]!r} (one of {', '.join(DESIGNS)})")
+    known = [*DESIGNS, "table"] if args.own_play else list(DESIGNS)
+    if unknown := [name for name in designs if name not in known]:
+        parser.error(f"--designs: no design {unknown[0]!r} (one of {', '.join(known)})")
     try:
         config = config_with(args.settings)
     except (ValueError, ConfigError) as why:  # exit status 2, one line
@@ -216,6 +240,12 @@ def main() -> None:
         f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores; seed {args.seed}"
     )
     print(f"# deep CMARL-CD settings: {', '.join(args.settings) or 'defaults'}")
+    if args.own_play:
+        print(f"design    own play  greedy success over {args.eval_episodes:,} episodes  wall s")
+        for name in designs:
+            rate, seconds = own_play(name, config, args.own_play, args.eval_episodes, args.seed)
+            print(f"{name:<9} {args.own_play:>8,}  {100 * rate:>38.1f} %  {seconds:>6.0f}")
+        return
     print("design    episodes  states  joint agree  agents agree  largest difference  wall s")
     for name in designs:
         env = SensorNetworkEnv()
