@@ -11,9 +11,10 @@ kept as one shared value.
 For stochastic games (Algorithm 2) the same rules apply per state, driven by the
 max-return indicator of :mod:`cmarlcd.learners.max_return` (eqs. 14-17).
 
-This file is the whole learner: its configs (:class:`RepeatedConfig`,
-:class:`StochasticConfig`), its tables, its compiled functions (the rules, written once,
-over plain arrays) and its object APIs (:class:`CMARLCD`, :class:`CMARLCDStochastic`).
+This file is the whole learner but its rules: its configs (:class:`RepeatedConfig`,
+:class:`StochasticConfig`), its tables, its compiled functions and its object APIs
+(:class:`CMARLCD`, :class:`CMARLCDStochastic`); the rules both algorithms (and deep
+CMARL-CD) share, written once over plain arrays, are :mod:`~.degree_rules`'s.
 Agents may have different action counts: per-agent rows are padded to the largest count
 and ``counts[i]`` says how many entries of row ``i`` are real.
 """
@@ -22,13 +23,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, NamedTuple
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 from numba import njit
 
 from cmarlcd.compiled import kernel
 from cmarlcd.errors import require
+from cmarlcd.learners.degree_rules import (
+    check_degree_settings,
+    clip_degrees,
+    is_pure,
+    reinforce,
+)
 from cmarlcd.learners.max_return import (
     BELOW,
     RECORD,
@@ -49,40 +56,6 @@ from cmarlcd.learners.tabular import (
     no_step_update,
 )
 from cmarlcd.limits import MAX_GAMES, check_at_most
-
-# --------------------------------------------------------------------------- rules
-
-
-@njit(cache=True)
-def reinforce(c_row: np.ndarray, count: int, action: int, step: float) -> None:
-    """Eqs. (2)-(3) and (14)-(15): the selected action ``+step``, every other ``-step``."""
-    for a in range(count):
-        if a == action:
-            c_row[a] += step
-        else:
-            c_row[a] -= step
-
-
-@njit(cache=True)
-def clip_degrees(c_row: np.ndarray, count: int, c_min: float, c_max: float) -> None:
-    """Section IV-D: confine every coordination degree to ``[c_min, c_max]``."""
-    for a in range(count):
-        c_row[a] = min(max(c_row[a], c_min), c_max)
-
-
-@njit(cache=True)
-def is_pure(p: np.ndarray, counts: np.ndarray, threshold: float) -> bool:
-    """The stopping rule: every agent has some action with probability above ``threshold``."""
-    for i in range(counts.shape[0]):
-        pure = False
-        for a in range(counts[i]):
-            if p[i, a] > threshold:
-                pure = True
-                break
-        if not pure:
-            return False
-    return True
-
 
 # ------------------------------------------------------- Algorithm 1: repeated games
 
@@ -415,19 +388,6 @@ def coordination_end_episode(tables, params, states, joints, rewards, length, co
     coordination_backward(
         degrees, probs, legal, r_max, params, states, joints, rewards, length, counts
     )
-
-
-def check_degree_settings(config: Any) -> None:
-    """Validate Algorithm 2's steps, temperature and degree bounds (``delta``,
-    ``delta_reset``, ``temperature`` > 0; ``0 < c_min <= c_init <= c_max``) of any
-    config that has them (the tabular and the deep learner)."""
-    for name in ("delta", "delta_reset", "temperature"):
-        value = getattr(config, name)
-        require(bool(np.isfinite(value)) and value > 0, name, f"must be > 0 (got {value})")
-    lo, hi, init = config.c_min, config.c_max, config.c_init
-    require(bool(np.isfinite(lo)) and lo > 0, "c_min", f"must be > 0 (got {lo})")
-    require(bool(np.isfinite(hi)) and lo <= hi, "c_max", f"must be >= c_min = {lo} (got {hi})")
-    require(lo <= init <= hi, "c_init", f"must lie in [c_min, c_max] = [{lo}, {hi}] (got {init})")
 
 
 @dataclass(frozen=True)

@@ -38,8 +38,8 @@ from typing import ClassVar
 import numpy as np
 
 from cmarlcd.errors import check_discount, require
-from cmarlcd.learners.coordination import check_degree_settings
 from cmarlcd.learners.deep_config import DeepLearnerConfig
+from cmarlcd.learners.degree_rules import check_degree_settings
 
 
 @dataclass(frozen=True)
