@@ -97,7 +97,7 @@ def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
     )
     records = [rec for o in outcomes for rec in o.records]
     margins = study.gamma_margins(outcomes)
-    paths = _dial_figures(outcomes, margins, settings, figures)
+    paths = _dial_figures(outcomes, records, margins, settings, figures)
     pointed = _pointed_to(outcomes)
     section = new_section(
         TITLE,
@@ -144,12 +144,16 @@ def readings_section(outcomes: Sequence[Outcome], figures: Path) -> Section:
 
 
 def _dial_figures(
-    outcomes: Sequence[Outcome], margins: Sequence, settings: str, figures: Path
+    outcomes: Sequence[Outcome],
+    records: Sequence[RunRecord],
+    margins: Sequence,
+    settings: str,
+    figures: Path,
 ) -> dict[str, Path]:
-    """The hit-rate dial's figure and the γ dial's, each where it has two points or more."""
+    """The hit-rate dial's figure and the γ dial's, each where it has two points or more
+    (``records``: the study's matches)."""
     from cmarlcd.reports import figures as figs
 
-    records = [rec for o in outcomes for rec in o.records]
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
     seed = records[0].key.root_seed
     names = {n: registry.display_name(n) for n in _order(outcomes)}
