@@ -1,24 +1,27 @@
 """Study: redesigns of deep CMARL-CD's update, measured by the stream-equivalence test.
 
-Each design is a prototype on the object API (:class:`DegreeAgent`'s networks and
-schedule); the one the test picks goes into the compiled path. All share an **exact
-record**: ``R_max(s)`` is a maximum kept per state (a keyed memory; with one-hot states
-it is a table), so a visit is classified once, as the table classifies it, with the
-table's tolerance. They differ in what the degree network is regressed to:
+Each design runs on the object API (:class:`DegreeAgent`'s networks and schedule): the
+package's own updates, and the prototype of one more. All but ``replayed`` keep an
+**exact record**: ``R_max(s)`` is a maximum kept per state (a keyed memory; with one-hot
+states it is a table), so a visit is classified once, as the table classifies it, with
+the table's tolerance. They differ in what the degree network is regressed to:
 
-* ``defaults``: the package's deep CMARL-CD as it is (targets recomputed from the
-  network's present degrees at every replay; an expectile record).
-* ``frozen``: *frozen per-visit targets*. When an episode ends, its visits are folded
-  backwards into one target per state, the table's rule applied once per visit to the
+* ``replayed``: the package's first design (``update="replayed"``: targets recomputed
+  from the network's present degrees at every replay; an expectile record).
+* ``frozen``: *frozen per-visit targets* (a prototype here). When an episode ends, its
+  visits are folded backwards into one target per state, the table's rule applied once
+  per visit to the
   degrees of a *target copy* of the degree network (as in DQN; refreshed every
   ``target_every`` steps); each (state, target) is stored in a ring and replayed until
   met (fitted targets, as in neural fitted Q): replaying a visit converges to its
   target instead of adding to it.
-* ``keyed``: the same targets, but folded onto the latest target of the state kept in a
-  keyed memory (the network's degrees only for a state not in it), and the network
-  regressed to the memory's targets, drawn per state (every state alike, so often
-  visited states do not dominate). With one-hot states the memory is the table and the
-  network its distillation.
+* ``keyed``: the package's default (``update="keyed"``,
+  :mod:`cmarlcd.learners.degree_memory`): the same targets, but folded onto the state's
+  entry in a keyed memory (the network's degrees only for a state not in it), and the
+  network regressed to the memory, every kept state alike. With one-hot states the
+  memory is the table and the network its distillation.
+* ``keyed-estimate``: ``keyed`` with ``unseen_record="estimate"``: a state not in the
+  memory is compared with a record network's estimate rather than ``-inf``.
 
 For each design and checkpoint it prints, over every state the stream has visited, the
 share where both learners' greedy joint actions agree (a design that learns what the
@@ -29,7 +32,7 @@ With ``--own-play L`` each design (and the table, ``table``) learns from its own
 instead, L episodes, and its greedy policy is evaluated as the DSN's tables are: the share
 of ``--eval-episodes`` episodes that return the optimum, 42, in 3 steps.
 
-Usage: python benchmarks/deep_cmarlcd_designs.py [--designs defaults,frozen,keyed]
+Usage: python benchmarks/deep_cmarlcd_designs.py [--designs replayed,frozen,keyed]
            [--checkpoints 1000,10000] [--seed S] [--set NAME=VALUE ...]
            [--own-play L [--eval-episodes E]]
        (--set: deep CMARL-CD's settings for every design, e.g. lr=1e-2)
@@ -163,30 +166,23 @@ class Frozen(ExactRecordAgent):
         self.target_agents.load_state_dict(self.model.agents.state_dict())
 
 
-class Keyed(ExactRecordAgent):
-    """Targets folded onto the state's latest target in a keyed memory; the network is
-    regressed to the memory, every state alike."""
+def package_design(update: str, unseen_record: str = "first-visit"):
+    """The package's :class:`DegreeAgent` with the given ``update`` (and rule for states
+    not kept), whatever ``--set`` says of them."""
 
-    def __init__(self, *args, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self.memory: dict[int, np.ndarray] = {}
+    def make(counts, config, episodes, **kwargs):
+        config = replace(config, update=update, unseen_record=unseen_record)
+        return DegreeAgent(counts, config, episodes, **kwargs)
 
-    def base(self, state: int) -> np.ndarray:
-        rows = self.memory.get(state)
-        return rows.copy() if rows is not None else self.network_rows(self.model.agents, state)
-
-    def store(self, targets: dict[int, np.ndarray]) -> None:
-        self.memory.update(targets)
-        self.fitted = self.config.batch_size if self.memory else 0
-
-    def fit(self) -> None:
-        keys = list(self.memory)
-        picks = self.replay_rng.integers(len(keys), size=self.config.batch_size)
-        states = [keys[k] for k in picks]
-        self.regress(states, [self.memory[s] for s in states])
+    return make
 
 
-DESIGNS = {"defaults": DegreeAgent, "frozen": Frozen, "keyed": Keyed}
+DESIGNS = {
+    "keyed": package_design("keyed"),
+    "keyed-estimate": package_design("keyed", "estimate"),
+    "replayed": package_design("replayed"),
+    "frozen": Frozen,
+}
 
 
 def config_with(settings: list[str]) -> DeepCMARLCDConfig:
@@ -220,7 +216,7 @@ def own_play(name: str, config: DeepCMARLCDConfig, episodes: int, evals: int, se
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--designs", default="defaults,frozen,keyed")
+    parser.add_argument("--designs", default="replayed,frozen,keyed")
     parser.add_argument("--checkpoints", default="1000,10000")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--set", dest="settings", action="append", default=[])

@@ -48,7 +48,7 @@ def test_degrees_outside_the_bounds_are_read_clipped() -> None:
 def test_the_record_network_fits_the_expectile_of_the_returns() -> None:
     """Returns 0 and 10 equally often: the τ-expectile v solves τ(10 - v) = (1 - τ) v,
     so v = 10 τ (9 at τ = 0.9)."""
-    net = model(DeepCMARLCDConfig(expectile=0.9, lr=0.02))
+    net = model(DeepCMARLCDConfig(update="replayed", expectile=0.9, lr=0.02))
     batch = {
         "state": torch.zeros((1, 2), dtype=torch.int64),
         "actions": torch.zeros((1, 2, 1), dtype=torch.int64),

@@ -32,7 +32,7 @@ from cmarlcd.compiled import kernel
 from cmarlcd.errors import require
 from cmarlcd.learners.degree_rules import (
     check_degree_settings,
-    clip_degrees,
+    degree_step,
     is_pure,
     reinforce,
 )
@@ -326,13 +326,7 @@ def coordination_rule(
     local optima" rule, Section V-A); on a tie the step is ``delta``. Then the degrees are
     clipped to ``[c_min, c_max]`` and the strategy recomputed by eq. (17).
     """
-    step = params.delta
-    if new_record:
-        for a in range(count):
-            c_row[a] = params.c_init
-        step = params.delta_reset
-    reinforce(c_row, count, action, step)
-    clip_degrees(c_row, count, params.c_min, params.c_max)
+    degree_step(c_row, count, action, new_record, params)
     softmax_strategy(c_row, legal_row, count, params.temperature, p_row)
 
 

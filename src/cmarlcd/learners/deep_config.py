@@ -20,7 +20,8 @@ DISPLAY_NAMES = {"vdn": "VDN", "qmix": "QMIX"}
 class DeepLearnerConfig:
     """Base of the configs of the deep learners (VDN and QMIX, deep CMARL-CD): the fields
     every deep config has (``hidden``, ``buffer_size``, ``batch_size``, ``train_every``,
-    ``target_every``, ``lr``, ``gamma``; :func:`scheduled_work` reads them) and the
+    ``target_every``, ``lr``, ``gamma``; :func:`scheduled_work` reads them and
+    :meth:`ready`) and the
     constants its compiled kernels read. Its kernels and its stacked model are found by
     the config's type (:func:`cmarlcd.training.deep_side.register_deep_learner`)."""
 
@@ -37,6 +38,11 @@ class DeepLearnerConfig:
         """Whether its exploration depends on the learning budget L (eq. 18), so that a run
         is made per L rather than evaluated at every L on the way."""
         raise NotImplementedError
+
+    def ready(self, stored: int) -> bool:
+        """Whether ``stored`` entries of its replay are enough to learn from (default: a
+        batch's worth)."""
+        return stored >= self.batch_size
 
     def schedule(self, learn_episodes: int) -> list[float]:
         """The constants its compiled kernels read (``schedule``): entry
@@ -141,9 +147,9 @@ def scheduled_work(
 ) -> tuple[bool, bool]:
     """The schedule of every deep learner: once its environment steps have gone from
     ``before`` to ``after``, (take a gradient step, copy the target networks). A gradient
-    step is due at every multiple of ``train_every`` crossed, once ``batch_size``
-    transitions are stored (``stored``); a target copy at every multiple of
+    step is due at every multiple of ``train_every`` crossed, once the replay holds
+    enough to learn from (``stored``; ``config.ready``); a target copy at every multiple of
     ``target_every`` crossed."""
     step = after // config.train_every > before // config.train_every
     copy = after // config.target_every > before // config.target_every
-    return step and stored >= config.batch_size, copy
+    return step and config.ready(stored), copy

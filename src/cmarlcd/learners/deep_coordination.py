@@ -2,32 +2,30 @@
 conclusion proposes it), the settings; free of PyTorch so that they validate without the
 ``[deep]`` extra.
 
-The tables of Algorithm 2 become two networks per seed:
+Each agent's **coordination degrees** ``c_i(s, ·)`` come from an MLP (state -> ``hidden``
+ReLU units -> one output per action; one network per agent, or one shared by every agent
+with the agent's one-hot index as extra input, ``share``), clipped to ``[c_min, c_max]``;
+the strategy is ``softmax(c / T)`` over the legal actions (eq. 17) and greedy execution
+takes the argmax, as in the tabular learner. How Algorithm 2's updates reach the network
+is the ``update`` [choice]:
 
-* the **coordination degrees** ``c_i(s, ·)`` of each agent come from an MLP (state ->
-  ``hidden`` ReLU units -> one output per action; one network per agent, or one shared
-  by every agent with the agent's one-hot index as extra input, ``share``), clipped to
-  ``[c_min, c_max]``; the strategy is ``softmax(c / T)`` over the legal actions (eq. 17)
-  and greedy execution takes the argmax, as in the tabular learner;
-* the **record** ``R_max(s)`` comes from a second MLP (state -> ``record_hidden`` ReLU
-  units -> 1) fitted to the upper envelope of the discounted returns seen from ``s``: an
-  expectile regression at ``expectile`` τ (τ -> 1 is the paper's max; 0.5 the mean).
-
-After each episode every visit ``(s_t, a_t)`` is stored with its discounted return
-``G_t`` (eq. 1) in a replay ring; every ``train_every`` steps a batch of visits is drawn
-and Algorithm 2's two updates (lines 16-19) become regression targets for the degree
-network, compared with the record network's target copy ``R(s)``:
-
-* **record**, ``G > R(s) + margin``: every degree of ``s`` is reset to ``c_init``, and
-  the taken action moved by ``+delta_reset``, every other by ``-delta_reset``;
-* **tie**, ``|G - R(s)| <= tolerance``: the taken action ``+delta``, every other
-  ``-delta``, from the network's present degrees;
-* **neither** (below the record, or above it by no more than ``margin``): no target, the
-  degrees of ``s`` are left as they are.
-
-Targets are clipped to ``[c_min, c_max]``; the loss is the squared error over each
-agent's real actions, summed over the agents, on the record and tie visits; the record
-network's loss is the expectile loss on every visit. One Adam step for both.
+* ``keyed`` (the default): after each episode its visits are folded, backwards and once
+  each, into a **keyed memory** that holds, per state met, the record ``R_max(s)`` (a
+  maximum) and the degrees the table would hold (:mod:`cmarlcd.learners.degree_memory`:
+  a new record resets them to ``c_init`` and moves the taken action by ``+delta_reset``,
+  every other by ``-delta_reset``; a return within ``tolerance`` of the record moves them
+  by ``±delta``; a lower return changes nothing). Every ``train_every`` steps the degree
+  network is fitted to a batch of kept states drawn uniformly (squared error over each
+  agent's real actions). A state not kept starts from the network's degrees and is
+  compared with ``-inf`` (``unseen_record="first-visit"``, the table's rule) or with a
+  **record network**'s estimate (``"estimate"``; the record network, state ->
+  ``record_hidden`` ReLU units -> 1, is then fitted to the memory's records).
+* ``replayed`` (the first design, kept to compare with): every visit is stored with its
+  return ``G_t`` (eq. 1) in a ring; each replayed visit becomes a regression target from
+  the network's present degrees, against the record network's target copy ``R(s)``
+  fitted by an expectile regression at ``expectile`` τ: a new record when ``G > R(s) +
+  margin``, a tie when ``|G - R(s)| <= tolerance``. A tie then moves its state once per
+  replay, by Adam's step size rather than ``delta``.
 """
 
 from __future__ import annotations
@@ -41,6 +39,11 @@ from cmarlcd.errors import check_discount, require
 from cmarlcd.learners.deep_config import DeepLearnerConfig
 from cmarlcd.learners.degree_rules import check_degree_settings
 
+#: The ways Algorithm 2's updates reach the degree network (``DeepCMARLCDConfig.update``).
+UPDATES = ("keyed", "replayed")
+#: What a state not in the keyed memory is compared with (``unseen_record``).
+UNSEEN_RECORDS = ("first-visit", "estimate")
+
 
 @dataclass(frozen=True)
 class DeepCMARLCDConfig(DeepLearnerConfig):
@@ -50,17 +53,32 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     name: ClassVar[str] = "deep-cmarl-cd"  # type: ignore[misc]
     display_name: ClassVar[str] = "Deep CMARL-CD"  # type: ignore[misc]
 
+    update: str = "keyed"
+    """[choice] How Algorithm 2's updates reach the degree network: ``"keyed"`` folds each
+    episode once into a keyed memory of the table's records and degrees and fits the
+    network to it (:mod:`cmarlcd.learners.degree_memory`); ``"replayed"`` turns every
+    replayed visit into a regression target from the network's present degrees and an
+    expectile record (the first design; a tie then moves its state once per replay)."""
+    unseen_record: str = "first-visit"
+    """[choice] (``keyed``) What a state not in the memory is compared with:
+    ``"first-visit"``, the table's ``R_max = -inf`` (every first visit is a new record
+    and resets the state's degrees); ``"estimate"``, the record network's estimate (a tie
+    then starts from the network's degrees, so what it generalises carries over)."""
     hidden: int = 49
     """Hidden units of each degree network (VDN's agent networks: 49)."""
     share: bool = False
     """[choice] One degree network for every agent (the agent's one-hot index appended to
     its input) rather than one per agent (VDN's and QMIX's: none shared)."""
     record_hidden: int = 49
-    """Hidden units of the record network."""
+    """Hidden units of the record network (read by ``replayed``, and by ``keyed`` with
+    ``unseen_record="estimate"``, where it is fitted to the memory's records)."""
     buffer_size: int = 40_000
-    """Replay ring capacity, in visits (state, joint action, return)."""
+    """Capacity of the keyed memory, in states (``keyed``; with integer states it holds
+    at most one slot per state), or of the replay ring, in visits (``replayed``)."""
     batch_size: int = 400
-    """Visits per gradient step; learning starts once this many are stored."""
+    """States (``keyed``, drawn from the memory) or visits (``replayed``) per gradient
+    step; learning starts once a state is kept (``keyed``) or this many visits are
+    stored (``replayed``)."""
     train_every: int = 50
     """[choice] One gradient step every this many environment steps. Algorithm 2 learns
     from every episode; at VDN's one step per 200 the degrees get too few updates (on the
@@ -91,20 +109,33 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     gamma: float = 0.9
     """Discount of eq. (1), in [0, 1]."""
     expectile: float = 0.9999
-    """[choice] τ of the record network's expectile loss, in (0, 1): how close to the
+    """[choice] (``replayed``) τ of the record network's expectile loss, in (0, 1): how close to the
     upper envelope of the returns the record sits (-> 1: the paper's max). The DSN's
     returns from a state are skewed (most far below the best, which needs the targets
     nearly captured): at τ = 0.99 the record sits at about a third of the best return,
     and 5-7 % of the visits count as new records, each resetting its state's degrees."""
     margin: float = 2.0
-    """[choice] By how much a return must pass the record to count as a new one: the
-    record is an estimate that wavers by about a unit, and a record within that of it
-    would reset a state's degrees over and over."""
-    tolerance: float = 1.0
+    """[choice] (``replayed``) By how much a return must pass the record to count as a
+    new one: the record is an estimate that wavers by about a unit, and a record within
+    that of it would reset a state's degrees over and over."""
+    tolerance: float = 1e-9
     """[choice] Within how much of the record a return counts as reaching it (eq. 16's
-    equality, for an estimated record)."""
+    equality). The keyed memory's record is a maximum, as the table's, so the table's
+    1e-9; the ``replayed`` update's record is an estimate that wavers, and was measured
+    at 1.0 (:data:`REPLAYED_DEEP_CMARLCD`)."""
 
     def __post_init__(self) -> None:
+        require(
+            self.update in UPDATES,
+            "update",
+            f"must be one of {', '.join(UPDATES)} (got {self.update!r})",
+        )
+        unseen = self.unseen_record
+        require(
+            unseen in UNSEEN_RECORDS,
+            "unseen_record",
+            f"must be one of {', '.join(UNSEEN_RECORDS)} (got {unseen!r})",
+        )
         for name in ("hidden", "record_hidden", "buffer_size", "batch_size", "train_every"):
             value = getattr(self, name)
             require(value >= 1, name, f"must be >= 1 (got {value})")
@@ -122,6 +153,16 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             require(bool(np.isfinite(value)) and value >= 0, name, f"must be >= 0 (got {value})")
 
     @property
+    def keyed(self) -> bool:
+        """Whether the updates go through the keyed memory."""
+        return self.update == "keyed"
+
+    def ready(self, stored: int) -> bool:
+        """Keyed: learning starts once a state is kept (a batch draws states with
+        replacement); replayed: once a batch's worth of visits is stored."""
+        return stored >= (1 if self.keyed else self.batch_size)
+
+    @property
     def anneals(self) -> bool:
         """Its exploration is its strategy: nothing depends on L."""
         return False
@@ -137,6 +178,11 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.train_every,
         ]
 
+
+#: The first design, kept to compare with: targets recomputed at every replay against
+#: an expectile record, with the tolerance it was measured at (the deep CMARL-CD page of
+#: the documentation).
+REPLAYED_DEEP_CMARLCD = DeepCMARLCDConfig(update="replayed", tolerance=1.0)
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 50 transitions, batches of 400, a 40k

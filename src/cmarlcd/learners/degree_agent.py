@@ -5,9 +5,10 @@ extra).
 :class:`cmarlcd.learners.deep_agent.DeepAgent`, so the generic loop
 (:func:`cmarlcd.training.episodes.play_episodes`) drives it like them; the seed-batched
 compiled path for the games of :mod:`cmarlcd.games` is :mod:`cmarlcd.training.deep`.
-The rule (Algorithm 2 as regression targets) is :mod:`cmarlcd.learners.degree_model`'s:
-each agent samples from softmax(c/T) over its legal actions (eq. 17); every visit is
-stored with its discounted return when its episode ends; the schedule of gradient steps
+The rule is :mod:`cmarlcd.learners.degree_model`'s: each agent samples from softmax(c/T)
+over its legal actions (eq. 17); when its episode ends, the episode is folded into the
+keyed memory (:mod:`cmarlcd.learners.degree_memory`; ``replayed``: every visit is stored
+with its discounted return) and the schedule of gradient steps
 and record copies is every deep learner's (:func:`~cmarlcd.learners.deep_config.scheduled_work`).
 """
 
@@ -21,6 +22,14 @@ import torch
 from cmarlcd.learners.deep_agent import StepAgent
 from cmarlcd.learners.deep_config import scheduled_work
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+from cmarlcd.learners.degree_memory import (
+    features_key,
+    fold_episode,
+    keyed_params,
+    memory_view,
+    new_memory,
+    sample_memory,
+)
 from cmarlcd.learners.degree_model import DegreeModel
 from cmarlcd.learners.replay import new_ring, push_visit, push_visit_row, seed_view
 
@@ -46,9 +55,29 @@ class DegreeAgent(StepAgent):
         self.config = config
         self.model = DegreeModel(self.counts, self.in_dim, config, [self.init_seed], self.device)
         n = len(self.counts)
-        self.ring = new_ring(1, config.buffer_size, n, self.width, n_states or 1, state_dim or 0)
-        self._view = seed_view(self.ring, 0)
+        if config.keyed:
+            capacity = min(config.buffer_size, n_states) if n_states else config.buffer_size
+            self.memory = new_memory(1, capacity, n, self.width, state_dim or 0)
+            self._memory = memory_view(self.memory, 0)
+            self._params = keyed_params(config)
+        else:
+            size = config.buffer_size
+            self.ring = new_ring(1, size, n, self.width, n_states or 1, state_dim or 0)
+            self._view = seed_view(self.ring, 0)
         self._visits: list[tuple[object, tuple[int, ...], float]] = []
+
+    @property
+    def stored(self) -> int:
+        """States kept in the memory (``keyed``), or visits in the ring (``replayed``)."""
+        return int(self._memory.size[0]) if self.config.keyed else int(self.ring.size[0])
+
+    def _replay_batch(self) -> dict[str, torch.Tensor]:
+        """A batch of kept states (``keyed``) or of stored visits, drawn with the agent's
+        replay stream, on its device."""
+        if not self.config.keyed:
+            return super()._replay_batch()
+        batch = sample_memory(self.memory, [self.replay_rng], self.config.batch_size)
+        return {key: torch.from_numpy(a).to(self.device) for key, a in batch.items()}
 
     def _degrees(self, state, masks) -> tuple[np.ndarray, np.ndarray]:
         """Each agent's clipped degrees at ``state`` and its legal actions, (n, width)."""
@@ -89,9 +118,44 @@ class DegreeAgent(StepAgent):
             self.model.sync_target()
 
     def end_episode(self, final_state=None, terminated: bool = True) -> None:
-        """Store every visit of the episode with its discounted return (the episode's
-        rewards from that visit on; nothing is bootstrapped: a cut episode's return is
-        what it collected)."""
+        """Fold the episode into the keyed memory (``keyed``), or store every visit with
+        its discounted return (``replayed``). Returns are the episode's rewards from each
+        visit on: nothing is bootstrapped, a cut episode's return is what it collected."""
+        if self.config.keyed:
+            self._fold()
+        else:
+            self._store()
+        self._visits.clear()
+        self.episode += 1
+
+    def _fold(self) -> None:
+        """The episode into the memory (:func:`~cmarlcd.learners.degree_memory.fold_episode`),
+        with the networks' degrees and record estimate at every visit for the states not
+        kept."""
+        if not self._visits:
+            return
+        states = [state for state, _, _ in self._visits]
+        x = self._encode_many(states)
+        with torch.no_grad():
+            bases = self.model.agents(x)[0].cpu().numpy()
+            estimates = self.model.record(x)[0].double().cpu().numpy()
+        if not self._params.estimate_unseen:
+            estimates[:] = -np.inf
+        if self.integer_states:
+            inputs = np.array([int(s) for s in states], np.int64)
+            keys = inputs.astype(np.uint64)
+        else:
+            inputs = x[0].cpu().numpy()
+            keys = np.array([features_key(row) for row in inputs], np.uint64)
+        joints = np.array([joint for _, joint, _ in self._visits], np.int64)
+        rewards = np.array([reward for _, _, reward in self._visits])
+        fold_episode(
+            self._memory, keys, inputs, bases, estimates, joints, rewards, self.counts,
+            len(states), self._params,
+        )  # fmt: skip
+
+    def _store(self) -> None:
+        """Every visit with its discounted return, into the ring."""
         value = 0.0
         for state, joint, reward in reversed(self._visits):
             value = reward + self.config.gamma * value
@@ -101,5 +165,3 @@ class DegreeAgent(StepAgent):
             else:
                 obs = np.asarray(state, dtype=np.float32).ravel()
                 push_visit_row(self._view, obs, actions, value)
-        self._visits.clear()
-        self.episode += 1

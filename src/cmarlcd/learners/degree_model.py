@@ -159,6 +159,27 @@ class DegreeModel(StackedModel):
         return self.optimise(self.loss(batch))
 
     def loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The seeds' summed losses on a batch (:meth:`keyed_loss` or
+        :meth:`replayed_loss`, as the config's ``update``)."""
+        if self.config.keyed:
+            return self.keyed_loss(batch)
+        return self.replayed_loss(batch)
+
+    def keyed_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The seeds' summed losses on a batch of kept states: ``state`` (B, N[, in]),
+        ``target`` (B, N, n, A): the degrees the memory holds there, ``record`` (B, N):
+        their records. The degrees' squared distance to the targets over each agent's
+        real actions, summed over the agents and averaged over the states; with
+        ``unseen_record="estimate"`` plus the record network's squared error."""
+        state = batch["state"]
+        degrees = self.agents(state)
+        valid = self.valid.to(degrees.dtype)
+        loss = (((degrees - batch["target"]) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
+        if self.config.unseen_record == "estimate":
+            loss = loss + ((self.record(state) - batch["record"]) ** 2).mean(dim=1).sum()
+        return loss
+
+    def replayed_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
         """The seeds' summed losses on a batch of visits: ``state`` (B, N[, in]),
         ``actions`` (B, N, n), ``reward`` (B, N): each visit's discounted return (every
         tensor on the model's device). The degrees' squared distance to their targets,
@@ -177,6 +198,18 @@ class DegreeModel(StackedModel):
         below = (returns < estimate).to(estimate.dtype).detach()
         expectile = (tau + (1 - 2 * tau) * below) * (returns - estimate) ** 2
         return degree_loss + expectile.mean(dim=1).sum()
+
+    @torch.no_grad()
+    def record_table(self) -> torch.Tensor:
+        """The record network's estimate of every integer state, (B, S)."""
+        record = self.record
+        return record.second(torch.relu(record.first.table()))[..., 0]
+
+    def record_weights(self) -> tuple[torch.Tensor, ...]:
+        """The record network's layers as the compiled loop reads them (one "agent" per
+        seed): (B, in, H), (B, H), (B, H, 1), (B, 1)."""
+        first, second = self.record.first, self.record.second
+        return first.weight, first.bias, second.weight, second.bias
 
     def sync_target(self) -> None:
         """Clone the record network into its target copy."""

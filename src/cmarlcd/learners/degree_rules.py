@@ -32,6 +32,22 @@ def clip_degrees(c_row: np.ndarray, count: int, c_min: float, c_max: float) -> N
 
 
 @njit(cache=True)
+def degree_step(c_row: np.ndarray, count: int, action: int, new_record: bool, params) -> None:
+    """Algorithm 2, lines 16-18, for one agent at one visit that reached its state's
+    record: on a new record the degrees are first reset to ``c_init`` and the step is
+    ``delta_reset``, on a tie it is ``delta``; the selected action ``+step``, every other
+    ``-step`` (eqs. 14-15), then clipped to ``[c_min, c_max]`` (Section IV-D).
+    ``params`` has ``delta``, ``delta_reset``, ``c_init``, ``c_min`` and ``c_max``."""
+    step = params.delta
+    if new_record:
+        for a in range(count):
+            c_row[a] = params.c_init
+        step = params.delta_reset
+    reinforce(c_row, count, action, step)
+    clip_degrees(c_row, count, params.c_min, params.c_max)
+
+
+@njit(cache=True)
 def is_pure(p: np.ndarray, counts: np.ndarray, threshold: float) -> bool:
     """The stopping rule: every agent has some action with probability above ``threshold``."""
     for i in range(counts.shape[0]):

@@ -249,8 +249,9 @@ def index_greedy(side, env, team, offset, legal, rng, joint) -> None:
         joint[i] = greedy_action(side.values[s, i], legal[offset + i], side.counts[i])
 
 
-def deep_kernels(spec: GameSpec, inputs: str) -> SideKernels:
-    """The side kernels of a deep learner on ``spec`` reading ``inputs``."""
+def deep_kernels(spec: GameSpec, inputs: str, config: object = None) -> SideKernels:
+    """The side kernels of VDN or QMIX on ``spec`` reading ``inputs`` (``config`` is not
+    read: theirs are the same for either mixer)."""
     bound = {"game": spec.kernels}
     if inputs == "features":
         enter, act, observe = features_enter, features_act, features_observe

@@ -32,6 +32,7 @@ take their gradient steps together. A play alone is a group of one.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 import torch
@@ -42,7 +43,6 @@ from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep_config import DeepConfig, DeepLearnerConfig, scheduled_work
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 from cmarlcd.learners.degree_model import DegreeModel
-from cmarlcd.learners.replay import new_ring, sample, seed_view
 from cmarlcd.learners.tabular import full_legal
 from cmarlcd.learners.value_decomposition import ValueDecomposition
 from cmarlcd.training.deep_kernels import (
@@ -56,35 +56,45 @@ from cmarlcd.training.deep_kernels import (
     deep_kernels,
     inputs_of,
 )
+from cmarlcd.training.deep_replay import KEYED, RING
 from cmarlcd.training.degree_kernels import degree_kernels
 from cmarlcd.training.loop import Group
 from cmarlcd.training.protocol import Side, SideKernels
 
 # ------------------------------------------------------------------ learners
 
-#: Each deep learner's parts, by its config's type: its side kernels (from the game and
-#: the inputs) and its stacked model (from the action counts, the input size, the config
-#: and the seeds).
-DEEP_LEARNERS: dict[type, tuple[Callable, Callable]] = {}
+#: Each deep learner's parts, by its config's type: its side kernels (from the game, the
+#: inputs and the config), its stacked model (from the action counts, the input size,
+#: the config and the seeds) and its replay kind (from the config;
+#: :mod:`cmarlcd.training.deep_replay`).
+DEEP_LEARNERS: dict[type, tuple[Callable, Callable, Callable]] = {}
 
 
-def register_deep_learner(config_type: type, kernels: Callable, model: Callable) -> None:
+def register_deep_learner(
+    config_type: type, kernels: Callable, model: Callable, replay: Callable = lambda config: RING
+) -> None:
     """Let the deep side play the learner whose config is a ``config_type`` (a
     :class:`~cmarlcd.learners.deep_config.DeepLearnerConfig`): a plug-in deep learner
-    registers itself once, in its own module."""
-    DEEP_LEARNERS[config_type] = (kernels, model)
+    registers itself once, in its own module (its replay: a ring of transitions unless
+    it says otherwise)."""
+    DEEP_LEARNERS[config_type] = (kernels, model, replay)
 
 
-def parts_of(config: DeepLearnerConfig) -> tuple[Callable, Callable]:
-    """The side kernels and the model of ``config``'s learner."""
-    for config_type, parts in DEEP_LEARNERS.items():
+def parts_of(config: DeepLearnerConfig) -> tuple[Callable, Callable, Any]:
+    """The side kernels, the model and the replay kind of ``config``'s learner."""
+    for config_type, (kernels, model, replay) in DEEP_LEARNERS.items():
         if isinstance(config, config_type):
-            return parts
+            return kernels, model, replay(config)
     raise TypeError(f"{type(config).__name__} is no registered deep learner")
 
 
+def degree_replay(config: DeepCMARLCDConfig) -> Any:
+    """Deep CMARL-CD's keyed memory, or a ring of visits for its ``replayed`` update."""
+    return KEYED if config.keyed else RING
+
+
 register_deep_learner(DeepConfig, deep_kernels, ValueDecomposition)
-register_deep_learner(DeepCMARLCDConfig, degree_kernels, DegreeModel)
+register_deep_learner(DeepCMARLCDConfig, degree_kernels, DegreeModel, degree_replay)
 
 # ------------------------------------------------------------------ groups
 
@@ -138,11 +148,12 @@ class DeepGroup(Group):
         self.alone = False
         """Whether the group trains itself between loop calls (a play on its own) rather
         than when its batch says (:class:`cmarlcd.training.loop.PlayBatch`)."""
-        new_kernels, new_model = parts_of(config)
+        new_kernels, new_model, self.replay_kind = parts_of(config)
         device = devices.current() if device is None else device
         self.model = new_model(counts, features or spec.n_states, config, init_seeds, device)
         self.replay_rngs = list(replay_rngs)
-        self.ring = new_ring(seeds, config.buffer_size, n, width, spec.n_states, features)
+        self.ring = self.replay_kind.new(config, seeds, counts, spec, features)
+        """Every seed's replay (a ring of transitions, or a learner's own kind)."""
         if inputs == "features":
             self.weights = Weights(
                 np.zeros((seeds * n, features, config.hidden), np.float32),
@@ -158,9 +169,10 @@ class DeepGroup(Group):
             self.seen = np.zeros((seeds, spec.n_states), np.bool_)
             """The states each seed has met."""
             self.model.set_state_legal(torch.from_numpy(self.legal))  # on a CPU: shared
-        kernels = new_kernels(spec, inputs)
+        kernels = new_kernels(spec, inputs, config)
         self.views = [DeepSide(self, b, counts, kernels, learn_episodes) for b in range(len(teams))]
         self._copy_weights()
+        self.replay_kind.refresh(self.ring, self.model, inputs)
 
     def train(self) -> None:
         """The gradient step and target copy due once the learning sides have played
@@ -175,11 +187,12 @@ class DeepGroup(Group):
         for view in due:
             view.counters[PAUSED_AT] = view.counters[TURNS]
         self.masks_changed()
-        stored = min(int(self.ring.size[view.index]) for view in due)
+        stored = min(self.replay_kind.stored(self.ring, view.index) for view in due)
         step, copy = scheduled_work(before, after, stored, self.config)
         if step:
             self.model.learn(self.sample())
             self._copy_weights()
+            self.replay_kind.refresh(self.ring, self.model, self.inputs)
         if copy:
             self.model.sync_target()
 
@@ -196,7 +209,7 @@ class DeepGroup(Group):
 
     def sample(self) -> dict[str, torch.Tensor]:
         """A replay batch per seed, drawn with that seed's own generator."""
-        batch = sample(self.ring, self.replay_rngs, self.config.batch_size)
+        batch = self.replay_kind.draw(self.ring, self.replay_rngs, self.config.batch_size)
         device = self.model.device
         return {key: torch.from_numpy(array).to(device) for key, array in batch.items()}
 
@@ -236,7 +249,7 @@ class DeepSide(Side):
         config, spec = group.config, group.spec
         n, width, steps = counts.shape[0], int(counts.max()), spec.max_steps
         self.group, self.index, self.kernels, self.frozen = group, index, kernels, False
-        replay = seed_view(group.ring, index)
+        replay = group.replay_kind.view(group.ring, index)
         counters = np.zeros(4, np.int64)
         schedule = np.array(config.schedule(learn_episodes), np.float64)
         joints, rewards = np.zeros((steps, n), np.int64), np.zeros(steps)
@@ -322,7 +335,7 @@ class DeepSide(Side):
 
     def memory_bytes(self) -> int:
         share = self.group.memory_bytes() // len(self.group.views)
-        return share + sum(a.nbytes for a in self.data.replay)
+        return share + self.group.replay_kind.nbytes(self.data.replay)
 
 
 def streams_of(

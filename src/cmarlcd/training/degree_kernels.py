@@ -7,14 +7,21 @@ shares).
 Acting samples each agent's action from ``softmax(c / T)`` of its clipped degrees over
 the legal actions (eq. 17), one uniform per agent in agent order, as the tabular
 learner does; greedy execution takes the legal action of largest clipped degree (lowest
-index on ties). After each episode every visit is stored with its discounted return
-(eq. 1, computed backwards) for the gradient steps.
+index on ties). After each episode the keyed update folds the episode into the keyed
+memory (:func:`keyed_index_store`, :func:`keyed_features_store`: each visit keyed by its
+state index or the hash of its features, the network's degrees and record estimate read
+for the states not kept); the replayed update stores every visit with its discounted
+return (eq. 1, computed backwards) in the ring.
 """
 
 from __future__ import annotations
 
+import numpy as np
+
 from cmarlcd.compiled import kernel, specialise_kernel
 from cmarlcd.games.spec import GameSpec
+from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+from cmarlcd.learners.degree_memory import features_key, find, fold_episode
 from cmarlcd.learners.policy import greedy_action, sample_action, softmax_strategy
 from cmarlcd.learners.replay import push_visit, push_visit_row
 from cmarlcd.training.deep_kernels import (
@@ -135,13 +142,74 @@ def index_greedy(side, env, team, offset, legal, rng, joint) -> None:
         joint[i] = greedy_degrees(side, side.values[s, i], legal[offset + i], side.counts[i])
 
 
-def degree_kernels(spec: GameSpec, inputs: str) -> SideKernels:
-    """The side kernels of deep CMARL-CD on ``spec`` reading ``inputs``."""
+# ------------------------------------------------- the keyed memory's stores
+
+
+@kernel
+def record_estimate(replay, x) -> float:
+    """The record network's estimate at features ``x``."""
+    weights, hidden = replay.record_weights, replay.record_hidden
+    hidden_layer(weights, 0, x, hidden)
+    value = weights[3][0, 0]
+    for h in range(hidden.shape[0]):
+        value += hidden[h] * weights[2][0, h, 0]
+    return value
+
+
+@kernel
+def keyed_index_store(side, length: int) -> None:
+    """``end_episode``: fold the episode into the keyed memory; a state not kept starts
+    from the network's degrees (its row of the loop's copy) and is compared with the
+    record network's estimate or ``-inf``."""
+    replay = side.replay
+    estimate = replay.params.estimate_unseen
+    for t in range(length):
+        s = side.obs[t]
+        replay.keys[t] = np.uint64(s)
+        for i in range(side.counts.shape[0]):
+            for a in range(side.counts[i]):
+                replay.bases[t, i, a] = side.values[s, i, a]
+        replay.estimates[t] = replay.record_table[s] if estimate else -np.inf
+    fold_episode(
+        replay.memory, replay.keys, side.obs, replay.bases, replay.estimates, side.joints,
+        side.rewards, side.counts, length, replay.params,
+    )  # fmt: skip
+    side.counters[EPISODES] += 1
+
+
+@kernel
+def keyed_features_store(side, length: int) -> None:
+    """``end_episode``: fold the episode into the keyed memory, keyed by the hash of each
+    visit's features; for a state not kept, the network's degrees there (and, with
+    ``estimate_unseen``, the record network's estimate, else ``-inf``)."""
+    replay = side.replay
+    estimate = replay.params.estimate_unseen
+    for t in range(length):
+        x = side.obs[t]
+        key = features_key(x)
+        replay.keys[t] = key
+        if find(replay.memory, key) >= 0:
+            continue
+        for i in range(side.counts.shape[0]):
+            agent_degrees(side.weights, i, x, side.counts[i], side.hidden, replay.bases[t, i])
+        replay.estimates[t] = record_estimate(replay, x) if estimate else -np.inf
+    fold_episode(
+        replay.memory, replay.keys, side.obs, replay.bases, replay.estimates, side.joints,
+        side.rewards, side.counts, length, replay.params,
+    )  # fmt: skip
+    side.counters[EPISODES] += 1
+
+
+def degree_kernels(spec: GameSpec, inputs: str, config: DeepCMARLCDConfig) -> SideKernels:
+    """The side kernels of deep CMARL-CD (``config``) on ``spec`` reading ``inputs``."""
     bound = {"game": spec.kernels}
+    keyed = config.keyed
     if inputs == "features":
-        enter, act, store, greedy = features_enter, features_act, features_store, features_greedy
+        enter, act, greedy = features_enter, features_act, features_greedy
+        store = keyed_features_store if keyed else features_store
     else:
-        enter, act, store, greedy = index_enter, index_act, index_store, index_greedy
+        enter, act, greedy = index_enter, index_act, index_greedy
+        store = keyed_index_store if keyed else index_store
     return SideKernels(
         deep_fits,
         specialise_kernel(enter, **bound),

@@ -1,0 +1,217 @@
+"""Deep CMARL-CD's keyed memory: Algorithm 2's tables, kept for the states met, that the
+degree network is regressed to (compiled; no PyTorch here).
+
+The memory holds, for each state it keeps, the record ``R_max(s)`` (a maximum, as in
+the table) and the coordination degrees the table would hold there (the *targets*),
+with the state's network input. After each episode its visits are folded in backwards
+by the table's own rule (:func:`fold_episode`: eqs. 1 and 14-16, Algorithm 2 lines
+13-19), once per visit; the degree network is then fitted to the memory, every kept
+state alike (:func:`sample_memory`). So a tie moves a state's targets by ``delta`` once,
+however often the network is fitted, and a record is a maximum: replaying a visit never
+counts as news.
+
+A state is found by its **key**: its index for integer states, a 64-bit FNV-1a hash of
+the feature vector's bytes otherwise (:func:`features_key`). The memory is a
+direct-mapped table of ``capacity`` slots (slot = key mod capacity); a state whose slot
+holds another state's entry replaces it. With integer states and a capacity of at least
+the number of states every state has its own slot and nothing is ever replaced: the
+memory is then the tabular learner's table, and the network its distillation.
+
+A state not in the memory is compared with an estimate of its record (``estimates``:
+``-inf`` under the table's rule, every first visit a new record; or a record network's
+estimate), and a tie there starts from the network's degrees (``bases``), so a network
+that generalises carries over to states never met.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+from numba.extending import overload
+
+from cmarlcd.compiled import kernel
+from cmarlcd.learners.degree_rules import degree_step
+from cmarlcd.learners.max_return import BELOW, RECORD, compare_return
+
+
+class KeyedParams(NamedTuple):
+    """The table's constants the fold reads (the deep config's)."""
+
+    delta: float
+    delta_reset: float
+    c_init: float
+    c_min: float
+    c_max: float
+    gamma: float
+    tolerance: float
+    estimate_unseen: bool
+    """Whether a state not kept is compared with an estimate (else ``-inf``)."""
+
+
+def keyed_params(config) -> KeyedParams:
+    """The constants of deep CMARL-CD's ``config`` that the fold reads."""
+    return KeyedParams(
+        config.delta,
+        config.delta_reset,
+        config.c_init,
+        config.c_min,
+        config.c_max,
+        config.gamma,
+        config.tolerance,
+        config.unseen_record == "estimate",
+    )
+
+
+class DegreeMemory(NamedTuple):
+    """The keyed memory of B seeds (or, as a seed's view, of one seed without the seed
+    axis); slot ``k`` of seed ``b`` is one state's entry."""
+
+    key: np.ndarray
+    """(B, capacity) uint64: the state's key (meaningful where ``filled``)."""
+    filled: np.ndarray
+    """(B, capacity) bool."""
+    record: np.ndarray
+    """(B, capacity) float64: ``R_max`` of the state."""
+    target: np.ndarray
+    """(B, capacity, n_agents, width) float32: the degrees the table would hold."""
+    state: np.ndarray
+    """(B, capacity) int64 state indices, or (B, capacity, n_features) float32 features:
+    the network's input for the entry."""
+    order: np.ndarray
+    """(B, capacity) int64: the filled slots, in the order they were first filled."""
+    size: np.ndarray
+    """(B,) int64: slots filled."""
+
+
+def new_memory(
+    seeds: int, capacity: int, n_agents: int, width: int, n_features: int = 0
+) -> DegreeMemory:
+    """Empty memories of ``capacity`` slots for ``seeds`` seeds, of feature vectors when
+    ``n_features`` > 0, else of state indices."""
+    state_shape = (seeds, capacity, n_features) if n_features else (seeds, capacity)
+    return DegreeMemory(
+        np.zeros((seeds, capacity), np.uint64),
+        np.zeros((seeds, capacity), np.bool_),
+        np.full((seeds, capacity), -np.inf),
+        np.zeros((seeds, capacity, n_agents, width), np.float32),
+        np.zeros(state_shape, np.float32 if n_features else np.int64),
+        np.zeros((seeds, capacity), np.int64),
+        np.zeros(seeds, np.int64),
+    )
+
+
+def memory_view(memory: DegreeMemory, b: int) -> DegreeMemory:
+    """Seed ``b``'s memory, as views (``size`` of one entry)."""
+    return DegreeMemory(*(array[b] for array in memory[:6]), memory.size[b : b + 1])
+
+
+@kernel
+def features_key(x) -> np.uint64:
+    """The 64-bit FNV-1a hash of a float32 feature vector's bytes (its key)."""
+    h = np.uint64(14695981039346656037)
+    prime = np.uint64(1099511628211)
+    bits = x.view(np.uint32)
+    for f in range(bits.shape[0]):
+        h = (h ^ np.uint64(bits[f])) * prime
+    return h
+
+
+def put_input(state: np.ndarray, slot: int, inputs: np.ndarray, t: int) -> None:
+    """``state[slot]`` := ``inputs[t]``: a state index, or a feature vector copied entry
+    by entry (compiled kernels copy no array slices)."""
+    state[slot] = inputs[t]
+
+
+@overload(put_input, jit_options={"cache": True})
+def _put_input(state, slot, inputs, t):
+    if state.ndim == 1:
+        return lambda state, slot, inputs, t: _put_scalar(state, slot, inputs, t)
+    return lambda state, slot, inputs, t: _put_row(state, slot, inputs, t)
+
+
+@kernel
+def _put_scalar(state, slot, inputs, t) -> None:
+    state[slot] = inputs[t]
+
+
+@kernel
+def _put_row(state, slot, inputs, t) -> None:
+    for f in range(state.shape[1]):
+        state[slot, f] = inputs[t, f]
+
+
+@kernel
+def find(memory, key) -> int:
+    """The slot holding ``key``'s entry, or -1."""
+    slot = np.int64(key % np.uint64(memory.key.shape[0]))
+    if memory.filled[slot] and memory.key[slot] == key:
+        return slot
+    return -1
+
+
+@kernel
+def claim(memory, key) -> int:
+    """``key``'s slot, given to it (the entry it held, if any, is dropped)."""
+    slot = np.int64(key % np.uint64(memory.key.shape[0]))
+    if not memory.filled[slot]:
+        memory.filled[slot] = True
+        memory.order[memory.size[0]] = slot
+        memory.size[0] += 1
+    memory.key[slot] = key
+    return slot
+
+
+@kernel
+def fold_episode(
+    memory, keys, inputs, bases, estimates, joints, rewards, counts, length: int, params
+) -> None:
+    """Fold an episode of ``length`` visits into the memory, backwards (Algorithm 2,
+    lines 13-19): visit ``t`` (key ``keys[t]``, network input ``inputs[t]``, joint action
+    ``joints[t]``, followed by ``rewards[t]``) has return ``G_t = r + γ G_{t+1}`` (eq. 1),
+    compared (eq. 16, within ``tolerance``) with the state's record, or with
+    ``estimates[t]`` for a state not in the memory. A new record raises the record and
+    resets the targets; a tie moves them by ``delta`` (eqs. 14-15); a lower return
+    changes nothing. A state entering the memory starts from the network's degrees at
+    the visit, ``bases[t]`` (n_agents, width), clipped to ``[c_min, c_max]``."""
+    g = 0.0
+    for t in range(length - 1, -1, -1):
+        g = rewards[t] + params.gamma * g
+        slot = find(memory, keys[t])
+        best = memory.record[slot] if slot >= 0 else estimates[t]
+        outcome = compare_return(g, best, params.tolerance)
+        if outcome == BELOW:
+            continue
+        if slot < 0:
+            slot = claim(memory, keys[t])
+            put_input(memory.state, slot, inputs, t)
+            memory.record[slot] = best
+            for i in range(counts.shape[0]):
+                for a in range(counts[i]):
+                    memory.target[slot, i, a] = min(max(bases[t, i, a], params.c_min), params.c_max)
+        if outcome == RECORD:
+            memory.record[slot] = g
+        for i in range(counts.shape[0]):
+            degree_step(memory.target[slot, i], counts[i], joints[t, i], outcome == RECORD, params)
+
+
+def sample_memory(
+    memory: DegreeMemory, rngs: Sequence[np.random.Generator], batch_size: int
+) -> dict[str, np.ndarray]:
+    """``batch_size`` kept states per seed, uniformly with replacement over the filled
+    slots, with seed b's generator ``rngs[b]``: ``state``, ``target`` (their degrees) and
+    ``record`` (float32). A seed with nothing kept draws nothing and gets slot 0."""
+    picks = np.zeros((len(rngs), batch_size), np.int64)
+    for b, rng in enumerate(rngs):
+        kept = int(memory.size[b])
+        if kept:
+            picks[b] = memory.order[b, rng.integers(0, kept, batch_size)]
+    seeds = np.arange(len(rngs))[:, None]
+    return {
+        "state": memory.state[seeds, picks],
+        "target": memory.target[seeds, picks],
+        "record": np.where(memory.filled[seeds, picks], memory.record[seeds, picks], 0.0).astype(
+            np.float32
+        ),
+    }

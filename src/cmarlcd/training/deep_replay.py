@@ -1,0 +1,136 @@
+"""What a deep side keeps to learn from (``[deep]`` extra): each learner's *replay kind*,
+the part of :class:`cmarlcd.training.deep_side.DeepGroup` that differs with it.
+
+* :data:`RING`: a ring of transitions (VDN and QMIX; deep CMARL-CD's ``replayed``
+  update, a ring of visits), :mod:`cmarlcd.learners.replay`;
+* :data:`KEYED`: deep CMARL-CD's keyed memory (:mod:`cmarlcd.learners.degree_memory`)
+  with what its compiled side needs to fold an episode in (:class:`KeyedReplay`): each
+  visit's key, the network's degrees and record estimate at it, and a copy of the record
+  network to estimate with.
+
+A kind makes B seeds' replay, gives each seed's view to its side's kernels, says how much
+a seed has kept, draws a batch per seed with the seed's own stream, and refreshes what
+its kernels read of the model after a gradient step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+import torch
+
+from cmarlcd.games.spec import GameSpec
+from cmarlcd.learners.degree_memory import (
+    DegreeMemory,
+    KeyedParams,
+    keyed_params,
+    memory_view,
+    new_memory,
+    sample_memory,
+)
+from cmarlcd.learners.replay import new_ring, sample, seed_view
+from cmarlcd.training.deep_kernels import Weights
+
+
+class KeyedReplay(NamedTuple):
+    """Deep CMARL-CD's keyed memory as its compiled side reads it (B seeds, or one seed's
+    view without the seed axis)."""
+
+    memory: DegreeMemory
+    keys: np.ndarray
+    """(B, max_steps) uint64: the episode's keys ..."""
+    bases: np.ndarray
+    """... (B, max_steps, n_agents, width) float32: the network's degrees at each visit ..."""
+    estimates: np.ndarray
+    """... (B, max_steps) float64: the record each visit of a state not kept is compared
+    with (-inf: the table's first visit)."""
+    record_table: np.ndarray
+    """(B, n_states) float32: the record network's estimate of every integer state, or
+    (B, 0) for feature inputs ..."""
+    record_weights: Weights
+    """... (one "agent" per seed) the record network's layers for feature inputs, or empty."""
+    record_hidden: np.ndarray
+    """(B, record_hidden) scratch for the record network's hidden layer."""
+    params: KeyedParams
+
+
+class RingKind:
+    """A ring of transitions or visits (:mod:`cmarlcd.learners.replay`)."""
+
+    def new(self, config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int):
+        n, width = counts.shape[0], int(counts.max())
+        return new_ring(seeds, config.buffer_size, n, width, spec.n_states, features)
+
+    def view(self, replay, b: int):
+        return seed_view(replay, b)
+
+    def stored(self, replay, b: int) -> int:
+        return int(replay.size[b])
+
+    def draw(self, replay, rngs: Sequence[np.random.Generator], batch_size: int) -> dict:
+        return sample(replay, rngs, batch_size)
+
+    def refresh(self, replay, model: Any, inputs: str) -> None:
+        """Nothing of the model is read from the ring."""
+
+    def nbytes(self, view) -> int:
+        return sum(array.nbytes for array in view)
+
+
+class KeyedKind:
+    """Deep CMARL-CD's keyed memory and its episode scratch (:class:`KeyedReplay`)."""
+
+    def new(self, config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int):
+        n, width, steps = counts.shape[0], int(counts.max()), spec.max_steps
+        capacity = config.buffer_size if features else min(config.buffer_size, spec.n_states)
+        hidden = config.record_hidden
+        shapes = ((features, hidden), (hidden,), (hidden, 1), (1,)) if features else ((0, 0),) * 4
+        return KeyedReplay(
+            new_memory(seeds, capacity, n, width, features),
+            np.zeros((seeds, steps), np.uint64),
+            np.zeros((seeds, steps, n, width), np.float32),
+            np.zeros((seeds, steps)),
+            np.zeros((seeds, 0 if features else spec.n_states), np.float32),
+            Weights(*(np.zeros((seeds, *shape), np.float32) for shape in shapes)),
+            np.zeros((seeds, hidden)),
+            keyed_params(config),
+        )
+
+    def view(self, replay: KeyedReplay, b: int) -> KeyedReplay:
+        return KeyedReplay(
+            memory_view(replay.memory, b),
+            replay.keys[b],
+            replay.bases[b],
+            replay.estimates[b],
+            replay.record_table[b],
+            Weights(*(array[b : b + 1] for array in replay.record_weights)),
+            replay.record_hidden[b],
+            replay.params,
+        )
+
+    def stored(self, replay: KeyedReplay, b: int) -> int:
+        return int(replay.memory.size[b])
+
+    def draw(self, replay: KeyedReplay, rngs: Sequence[np.random.Generator], batch_size: int):
+        return sample_memory(replay.memory, rngs, batch_size)
+
+    def refresh(self, replay: KeyedReplay, model: Any, inputs: str) -> None:
+        """Copy the record network's estimates (integer states: every state's; features:
+        its layers) for the fold, where unseen states are compared with them."""
+        if not replay.params.estimate_unseen:
+            return
+        with torch.no_grad():
+            if inputs == "index":
+                np.copyto(replay.record_table, model.record_table().cpu().numpy())
+                return
+            for copy, weight in zip(replay.record_weights, model.record_weights(), strict=True):
+                np.copyto(copy, weight.cpu().numpy())
+
+    def nbytes(self, view: KeyedReplay) -> int:
+        arrays = [*view.memory, view.keys, view.bases, view.estimates, view.record_table]
+        return sum(array.nbytes for array in arrays)
+
+
+RING, KEYED = RingKind(), KeyedKind()

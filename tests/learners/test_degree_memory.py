@@ -1,0 +1,132 @@
+"""Deep CMARL-CD's keyed memory: an episode folded in by the table's rule, once per visit
+(a record resets, a tie moves by δ, a lower return moves nothing), the record a maximum,
+the estimate a state not kept is compared with, keys of feature vectors, replacement in
+a full slot, and draws over the kept states."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cmarlcd.learners.degree_memory import (
+    KeyedParams,
+    features_key,
+    find,
+    fold_episode,
+    memory_view,
+    new_memory,
+    sample_memory,
+)
+
+#: δ 0.05, δ_reset 0.5, c_init 1.5, c in [0.5, 3], γ 0.5, tolerance 0.5.
+PARAMS = KeyedParams(0.05, 0.5, 1.5, 0.5, 3.0, 0.5, 0.5, False)
+COUNTS = np.array([3, 2])
+
+
+def fold(memory, states, joints, rewards, *, bases=None, estimates=None, params=PARAMS):
+    """Fold one episode of integer states (their index is their key)."""
+    states = np.asarray(states, np.int64)
+    length = states.shape[0]
+    bases = np.full((length, 2, 3), 1.5, np.float32) if bases is None else bases
+    estimates = np.full(length, -np.inf) if estimates is None else np.asarray(estimates, float)
+    fold_episode(
+        memory, states.astype(np.uint64), states, bases, estimates,
+        np.asarray(joints, np.int64), np.asarray(rewards, float), COUNTS, length, params,
+    )  # fmt: skip
+
+
+def entry(memory, state: int) -> tuple[float, np.ndarray]:
+    slot = find(memory, np.uint64(state))
+    assert slot >= 0, f"state {state} is not kept"
+    return float(memory.record[slot]), memory.target[slot].copy()
+
+
+def test_a_first_visit_is_a_record_and_resets_the_degrees_by_the_large_step() -> None:
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    fold(memory, [4], [[2, 0]], [6.0])
+    record, target = entry(memory, 4)
+    assert record == 6.0
+    # reset to 1.5, then the taken action +0.5, the others -0.5; agent 1 has 2 actions
+    assert target[0].tolist() == [1.0, 1.0, 2.0]
+    assert target[1, :2].tolist() == [2.0, 1.0]
+
+
+def test_returns_are_discounted_backwards_and_each_visit_is_folded_once() -> None:
+    """Rewards 1, 2, 4 with γ 0.5 in states 7, 8, 7: returns 1 + 0.5 (2 + 0.5·4) = 3 at
+    the first visit of 7, 4 at 8, 4 at the second visit of 7. Backwards: 7 gets its record
+    4 (reset), then 3 is below 4 - 0.5: state 7 keeps the one reset."""
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    fold(memory, [7, 8, 7], [[0, 0], [1, 1], [2, 1]], [1.0, 2.0, 4.0])
+    assert entry(memory, 7)[0] == 4.0 and entry(memory, 8)[0] == 4.0
+    assert entry(memory, 7)[1][0].tolist() == [1.0, 1.0, 2.0]
+    assert memory.size[0] == 2
+
+
+def test_a_tie_moves_by_delta_a_lower_return_moves_nothing_and_the_record_is_a_maximum() -> None:
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    fold(memory, [3], [[1, 1]], [10.0])  # record 10: agent 0 (1.0, 2.0, 1.0)
+    fold(memory, [3], [[1, 1]], [9.6])  # |9.6 - 10| <= 0.5: a tie, +-0.05
+    record, target = entry(memory, 3)
+    assert record == 10.0
+    assert target[0].tolist() == pytest.approx([0.95, 2.05, 0.95])
+    fold(memory, [3], [[0, 0]], [9.0])  # below 10 - 0.5: nothing moves
+    assert entry(memory, 3)[1] == pytest.approx(target)
+    fold(memory, [3], [[0, 0]], [10.5])  # within the tolerance above: a tie, not a record
+    assert entry(memory, 3)[0] == 10.0
+    fold(memory, [3], [[0, 0]], [12.0])  # a new record: the maximum, and a reset
+    record, target = entry(memory, 3)
+    assert record == 12.0 and target[0].tolist() == [2.0, 1.0, 1.0]
+
+
+def test_degrees_are_clipped_to_their_bounds() -> None:
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    fold(memory, [0], [[0, 0]], [1.0])
+    for _ in range(40):  # 40 ties: +2.0 on 2.0 and -2.0 on 1.0, clipped to [0.5, 3]
+        fold(memory, [0], [[0, 0]], [1.0])
+    assert entry(memory, 0)[1][0].tolist() == [3.0, 0.5, 0.5]
+
+
+def test_a_state_not_kept_is_compared_with_the_estimate_and_starts_from_the_network() -> None:
+    params = PARAMS._replace(estimate_unseen=True)
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    bases = np.array([[[2.0, 4.0, 0.0], [1.0, 1.2, 0.0]]], np.float32)
+    fold(memory, [5], [[0, 1]], [3.0], bases=bases, estimates=[4.0], params=params)
+    assert find(memory, np.uint64(5)) < 0  # below the estimate: not kept
+    fold(memory, [5], [[0, 1]], [4.3], bases=bases, estimates=[4.0], params=params)
+    record, target = entry(memory, 5)  # a tie with the estimate: from the network, clipped
+    assert record == 4.0
+    assert target[0].tolist() == pytest.approx([2.05, 2.95, 0.5])
+    assert target[1, :2].tolist() == pytest.approx([0.95, 1.25])
+    fold(memory, [6], [[0, 1]], [9.0], bases=bases, estimates=[4.0], params=params)
+    record, target = entry(memory, 6)  # a record over the estimate: a reset
+    assert record == 9.0 and target[0].tolist() == [2.0, 1.0, 1.0]
+
+
+def test_feature_vectors_are_keyed_by_their_bytes_and_a_full_slot_is_replaced() -> None:
+    x = np.array([0.5, 1.0, -2.0], np.float32)
+    assert features_key(x) == features_key(x.copy())
+    assert features_key(x) != features_key(np.array([0.5, 1.0, -2.5], np.float32))
+    assert features_key(x) != features_key(x[::-1].copy())
+    memory = memory_view(new_memory(1, 1, 2, 3, n_features=3), 0)  # one slot
+    rows = np.array([x, 2 * x], np.float32)
+    keys = np.array([features_key(rows[0]), features_key(rows[1])], np.uint64)
+    for t in range(2):
+        fold_episode(
+            memory, keys[t : t + 1], rows[t : t + 1], np.full((1, 2, 3), 1.5, np.float32),
+            np.full(1, -np.inf), np.zeros((1, 2), np.int64), np.ones(1), COUNTS, 1, PARAMS,
+        )  # fmt: skip
+    assert memory.size[0] == 1 and find(memory, keys[0]) < 0 and find(memory, keys[1]) == 0
+    assert memory.state[0].tolist() == (2 * x).tolist()
+
+
+def test_draws_are_uniform_over_the_kept_states_with_each_seed_s_stream() -> None:
+    memory = new_memory(2, 50, 2, 3)
+    fold(memory_view(memory, 0), [3, 30, 40], [[0, 0]] * 3, [1.0, 1.0, 1.0])
+    fold(memory_view(memory, 1), [9], [[1, 1]], [2.0])
+    batch = sample_memory(memory, [np.random.default_rng(0), np.random.default_rng(1)], 3000)
+    assert set(batch["state"][0].tolist()) == {3, 30, 40}
+    counts = np.bincount(batch["state"][0], minlength=41)[[3, 30, 40]]
+    assert counts.min() > 900  # 1,000 each expected
+    assert set(batch["state"][1].tolist()) == {9} and set(batch["record"][1].tolist()) == {2.0}
+    again = sample_memory(memory, [np.random.default_rng(0), np.random.default_rng(1)], 3000)
+    assert np.array_equal(batch["state"], again["state"])

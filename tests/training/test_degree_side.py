@@ -1,0 +1,92 @@
+"""Deep CMARL-CD's keyed memory in the compiled loop and the object API: what an episode
+folds in (the network's degrees and record estimate at a state not kept, computed as the
+networks compute them), and a tie fitted many times moving the network by δ, not more."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from cmarlcd.learners.automata import AutomatonConfig  # noqa: E402
+from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig  # noqa: E402
+from cmarlcd.learners.degree_agent import DegreeAgent  # noqa: E402
+from cmarlcd.learners.degree_memory import features_key, find  # noqa: E402
+from cmarlcd.testing import DUEL  # noqa: E402
+from cmarlcd.training.match import Match  # noqa: E402
+
+SMALL = DeepCMARLCDConfig(
+    buffer_size=1000, batch_size=8, train_every=4, target_every=8, tolerance=0.5,
+    unseen_record="estimate",
+)  # fmt: skip
+
+
+def duel_side(config: DeepCMARLCDConfig):
+    env, a, b = (np.random.default_rng(k) for k in range(3))
+    return Match(DUEL, (config, AutomatonConfig()), env, (a, b), 5).sides[0]
+
+
+def test_a_state_not_kept_folds_in_from_the_networks_degrees_and_record_estimate() -> None:
+    """One visit whose return ties the record network's estimate at its features: it is
+    kept with that record, and its targets are the degree network's clipped degrees there,
+    the taken action +δ and the others -δ (the compiled forward passes agree with the
+    networks). A second, far better visit elsewhere is a new record: a reset."""
+    side = duel_side(SMALL)
+    data, model = side.data, side.model
+    x = np.array([[0.5, 0.25], [1.0, 0.0]], np.float32)
+    data.obs[:2] = x
+    with torch.no_grad():
+        degrees = model.agents(torch.from_numpy(x)[None])[0].clamp(0.5, 3.0).numpy()
+        estimate = model.record(torch.from_numpy(x)[None])[0].numpy().astype(float)
+    data.joints[:2] = [[2, 0], [1, 1]]
+    # visit 1 (folded first) a record far above; visit 0: G_0 = r_0 + 0.9 G_1 ties
+    data.rewards[1] = estimate[1] + 10.0
+    data.rewards[0] = estimate[0] - 0.9 * data.rewards[1]
+    side.kernels.end_episode(data, 2)
+    memory = data.replay.memory
+    tied, record = find(memory, features_key(x[0])), find(memory, features_key(x[1]))
+    assert tied >= 0 and record >= 0 and memory.size[0] == 2
+    assert memory.record[tied] == pytest.approx(estimate[0], abs=1e-4)
+    assert memory.record[record] == pytest.approx(estimate[1] + 10.0, abs=1e-4)
+    step = np.where(np.arange(3) == 2, 0.05, -0.05)
+    expected = np.clip(degrees[0, 0] + step, 0.5, 3.0)
+    assert memory.target[tied, 0] == pytest.approx(expected, abs=1e-5)
+    assert memory.target[record, 0].tolist() == [1.0, 2.0, 1.0]  # c_init 1.5 +- 0.5
+    assert memory.state[tied].tolist() == x[0].tolist()
+
+
+def test_under_the_table_s_rule_a_first_visit_is_always_a_record() -> None:
+    side = duel_side(replace(SMALL, unseen_record="first-visit"))
+    data = side.data
+    data.obs[:1] = [[0.0, 0.75]]
+    data.joints[:1] = [[0, 2]]
+    data.rewards[:1] = [-100.0]
+    side.kernels.end_episode(data, 1)
+    memory = data.replay.memory
+    slot = find(memory, features_key(data.obs[0]))
+    assert memory.record[slot] == -100.0
+    assert memory.target[slot, 1].tolist() == [1.0, 1.0, 2.0]
+
+
+def test_a_tie_fitted_many_times_moves_the_degree_network_by_delta() -> None:
+    """One state, three actions: a record (return 5) then a tie (5 again), each fitted by
+    400 gradient steps. The network ends where the table is: the record's reset (the
+    taken action 2.0), then δ = 0.05 further, however many steps fit the tie."""
+    config = DeepCMARLCDConfig(batch_size=16, buffer_size=64, lr=1e-2, tolerance=0.5)
+    agent = DegreeAgent([3], config, 10, n_states=1, seed=0)
+
+    def episode_then_fit() -> np.ndarray:
+        agent.observe(0, (1,), 5.0)
+        agent.end_episode()
+        for _ in range(400):
+            agent.model.learn(agent._replay_batch())
+        return agent.degrees(0)[0]
+
+    after_record = episode_then_fit()
+    after_tie = episode_then_fit()
+    moved = after_tie[1] - after_record[1]
+    assert after_record == pytest.approx([1.0, 2.0, 1.0], abs=0.01)
+    assert moved == pytest.approx(0.05, abs=0.01)
