@@ -4,8 +4,9 @@ Trains B seeds of each learner for the same number of learning episodes (the run
 stacked model, one-hot state inputs) and prints, per learner, the environment steps per
 second over all seeds (gradient steps included), the seconds per gradient step, and deep
 CMARL-CD's cost per environment step and per gradient step as a ratio of VDN's measured
-in the same run. Deep CMARL-CD runs with its defaults (a gradient step every 50 env
-steps) and with VDN's schedule (every 200), so both ratios are shown.
+in the same run. Deep CMARL-CD runs with its defaults (the keyed update, a gradient step
+every 50 env steps), with VDN's schedule (every 200), so both ratios are shown, and with
+its first design (``replayed``).
 
 Usage: python benchmarks/bench_deep_cmarlcd.py [--episodes E] [--seeds B [B ...]]
 """
@@ -23,7 +24,7 @@ import torch
 
 from cmarlcd.games import sensor_network as dsn
 from cmarlcd.learners.deep_config import DeepConfig
-from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep_coordination import REPLAYED_DEEP_CMARLCD, DeepCMARLCDConfig
 from cmarlcd.training.deep import DeepBatch
 
 
@@ -61,6 +62,7 @@ def main() -> None:
         "VDN": DeepConfig(),
         "deep CMARL-CD": deep,
         "deep CMARL-CD, VDN's schedule": replace(deep, train_every=200, target_every=2_000),
+        "deep CMARL-CD, replayed": REPLAYED_DEEP_CMARLCD,
     }
     for config in learners.values():  # compile every kernel first
         measure(config, 1, 5)

@@ -57,6 +57,7 @@ from cmarlcd.games.sensor_network import SensorNetworkEnv
 from cmarlcd.learners import CMARLCDStochastic, DeepCMARLCDConfig, StochasticConfig
 from cmarlcd.learners.coordination import coordination_rule
 from cmarlcd.learners.deep_config import scheduled_work
+from cmarlcd.learners.deep_coordination import REPLAYED_DEEP_CMARLCD
 from cmarlcd.learners.degree_agent import DegreeAgent
 from cmarlcd.learners.max_return import RECORD, TIE, compare_return
 from cmarlcd.testing.streams import Stream
@@ -166,28 +167,25 @@ class Frozen(ExactRecordAgent):
         self.target_agents.load_state_dict(self.model.agents.state_dict())
 
 
-def package_design(update: str, unseen_record: str = "first-visit"):
-    """The package's :class:`DegreeAgent` with the given ``update`` (and rule for states
-    not kept), whatever ``--set`` says of them."""
-
-    def make(counts, config, episodes, **kwargs):
-        config = replace(config, update=update, unseen_record=unseen_record)
-        return DegreeAgent(counts, config, episodes, **kwargs)
-
-    return make
-
-
+#: Each design: how it is made, and the settings it starts from (``--set`` goes on top).
 DESIGNS = {
-    "keyed": package_design("keyed"),
-    "keyed-estimate": package_design("keyed", "estimate"),
-    "replayed": package_design("replayed"),
-    "frozen": Frozen,
+    "keyed": (DegreeAgent, DeepCMARLCDConfig()),
+    "keyed-estimate": (DegreeAgent, DeepCMARLCDConfig(unseen_record="estimate")),
+    "replayed": (DegreeAgent, REPLAYED_DEEP_CMARLCD),
+    # the prototype learns once a batch's worth of targets is stored, as it always did
+    "frozen": (Frozen, DeepCMARLCDConfig(update="replayed")),
 }
 
 
-def config_with(settings: list[str]) -> DeepCMARLCDConfig:
-    """Deep CMARL-CD's defaults with ``NAME=VALUE`` settings applied (ValueError names a
-    setting it does not have)."""
+def make_design(name: str, changes: dict, counts, episodes: int, seed: int):
+    """Design ``name`` with its settings and ``changes``, for the DSN's 43 states."""
+    factory, base = DESIGNS[name]
+    return factory(counts, replace(base, **changes), episodes, n_states=43, seed=seed)
+
+
+def config_with(settings: list[str]) -> dict:
+    """``NAME=VALUE`` settings as changes to a config, checked on deep CMARL-CD's
+    defaults (ValueError names a setting it does not have; ConfigError a bad value)."""
     config = DeepCMARLCDConfig()
     types = {f.name: type(getattr(config, f.name)) for f in fields(config)}
     changes = {}
@@ -197,17 +195,18 @@ def config_with(settings: list[str]) -> DeepCMARLCDConfig:
             raise ValueError(f"no setting {name!r} (one of {', '.join(types)})")
         kind = types[name]
         changes[name] = value.lower() in ("1", "true") if kind is bool else kind(value)
-    return replace(config, **changes)
+    replace(config, **changes)  # validates the values
+    return changes
 
 
-def own_play(name: str, config: DeepCMARLCDConfig, episodes: int, evals: int, seed: int):
+def own_play(name: str, changes: dict, episodes: int, evals: int, seed: int):
     """(success rate of the greedy policy, seconds) after ``episodes`` of own play."""
     env = SensorNetworkEnv()
     counts = [int(env.action_space(agent).n) for agent in env.possible_agents]
     if name == "table":
         learner = CMARLCDStochastic(counts, seed=seed)
     else:
-        learner = DESIGNS[name](counts, config, episodes, n_states=43, seed=seed)
+        learner = make_design(name, changes, counts, episodes, seed)
     start = time.perf_counter()
     play_episodes(env, learner, episodes, seed=seed)
     stats = play_episodes(env, learner, evals, learn=False)
@@ -229,7 +228,7 @@ def main() -> None:
     if unknown := [name for name in designs if name not in known]:
         parser.error(f"--designs: no design {unknown[0]!r} (one of {', '.join(known)})")
     try:
-        config = config_with(args.settings)
+        changes = config_with(args.settings)
     except (ValueError, ConfigError) as why:  # exit status 2, one line
         parser.error(f"--set: {why}")
     print(
@@ -239,7 +238,7 @@ def main() -> None:
     if args.own_play:
         print(f"design    own play  greedy success over {args.eval_episodes:,} episodes  wall s")
         for name in designs:
-            rate, seconds = own_play(name, config, args.own_play, args.eval_episodes, args.seed)
+            rate, seconds = own_play(name, changes, args.own_play, args.eval_episodes, args.seed)
             print(f"{name:<9} {args.own_play:>8,}  {100 * rate:>38.1f} %  {seconds:>6.0f}")
         return
     print("design    episodes  states  joint agree  agents agree  largest difference  wall s")
@@ -247,7 +246,7 @@ def main() -> None:
         env = SensorNetworkEnv()
         counts = [int(env.action_space(agent).n) for agent in env.possible_agents]
         reference = CMARLCDStochastic(counts, seed=args.seed)
-        candidate = DESIGNS[name](counts, config, marks[-1], n_states=43, seed=args.seed)
+        candidate = make_design(name, changes, counts, marks[-1], args.seed)
         stream, start = Stream(env, reference, candidate, args.seed), time.perf_counter()
         for mark in marks:
             stream.play(mark - stream.episodes)

@@ -74,7 +74,15 @@ def test_shared_degree_network_gives_the_loop_each_agent_s_layers() -> None:
 
 @pytest.mark.parametrize(
     ("field", "value"),
-    [("expectile", 1.0), ("margin", -1.0), ("c_init", 9.0), ("hidden", 0), ("tolerance", np.nan)],
+    [
+        ("expectile", 1.0),
+        ("margin", -1.0),
+        ("c_init", 9.0),
+        ("hidden", 0),
+        ("tolerance", np.nan),
+        ("update", "bogus"),
+        ("unseen_record", "never"),
+    ],
 )
 def test_bad_settings_are_rejected(field, value) -> None:
     with pytest.raises(ConfigError) as err:
