@@ -15,13 +15,14 @@ the table's tolerance. They differ in what the degree network is regressed to:
   ``target_every`` steps); each (state, target) is stored in a ring and replayed until
   met (fitted targets, as in neural fitted Q): replaying a visit converges to its
   target instead of adding to it.
-* ``keyed``: the package's default (``update="keyed"``,
-  :mod:`cmarlcd.learners.degree_memory`): the same targets, but folded onto the state's
+* ``keyed``: the package's keyed update (``update="keyed"``,
+  :mod:`cmarlcd.learners.degree_memory`) under the table's rule for first visits
+  (``unseen_record="first-visit"``): the same targets, but folded onto the state's
   entry in a keyed memory (the network's degrees only for a state not in it), and the
   network regressed to the memory, every kept state alike. With one-hot states the
   memory is the table and the network its distillation.
-* ``keyed-estimate``: ``keyed`` with ``unseen_record="estimate"``: a state not in the
-  memory is compared with a record network's estimate rather than ``-inf``.
+* ``keyed-estimate``: the package's default, ``keyed`` with ``unseen_record="estimate"``:
+  a state not in the memory is compared with a record network's estimate, not ``-inf``.
 
 For each design and checkpoint it prints, over every state the stream has visited, the
 share where both learners' greedy joint actions agree (a design that learns what the
@@ -169,7 +170,7 @@ class Frozen(ExactRecordAgent):
 
 #: Each design: how it is made, and the settings it starts from (``--set`` goes on top).
 DESIGNS = {
-    "keyed": (DegreeAgent, DeepCMARLCDConfig()),
+    "keyed": (DegreeAgent, DeepCMARLCDConfig(unseen_record="first-visit")),
     "keyed-estimate": (DegreeAgent, DeepCMARLCDConfig(unseen_record="estimate")),
     "replayed": (DegreeAgent, REPLAYED_DEEP_CMARLCD),
     # the prototype learns once a batch's worth of targets is stored, as it always did

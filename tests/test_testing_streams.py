@@ -70,8 +70,9 @@ def test_deep_cmarl_cd_is_compared_on_every_visited_state() -> None:
 
 @pytest.mark.skipif(not HAS_TORCH, reason="needs the [deep] extra (torch)")
 def test_deep_cmarl_cd_s_keyed_memory_holds_the_table_and_its_network_follows() -> None:
-    """On the table's own stream, deep CMARL-CD's keyed memory holds the table: on every
-    visited state the same record and the same degrees (to float32's precision); and the
+    """On the table's own stream, deep CMARL-CD's keyed memory under the table's rule for
+    first visits holds the table: on every visited state the same record and the same
+    degrees (to float32's precision); and the
     network fitted to it agrees with the table's greedy joint action on most states
     after 1,000 episodes (69 % on this stream; the replayed update: 0 %)."""
     from cmarlcd.learners import DeepCMARLCDConfig
@@ -81,7 +82,8 @@ def test_deep_cmarl_cd_s_keyed_memory_holds_the_table_and_its_network_follows() 
 
     env = SensorNetworkEnv()
     reference = CMARLCDStochastic(counts(env), seed=1)
-    candidate = DegreeAgent(counts(env), DeepCMARLCDConfig(), 1_000, n_states=43, seed=1)
+    config = DeepCMARLCDConfig(unseen_record="first-visit")  # the table's rule throughout
+    candidate = DegreeAgent(counts(env), config, 1_000, n_states=43, seed=1)
     stream = Stream(env, reference, candidate, 1)
     stream.play(1_000)
     memory = candidate._memory

@@ -17,9 +17,9 @@ is the ``update`` [choice]:
   by ``±delta``; a lower return changes nothing). Every ``train_every`` steps the degree
   network is fitted to a batch of kept states drawn uniformly (squared error over each
   agent's real actions). A state not kept starts from the network's degrees and is
-  compared with ``-inf`` (``unseen_record="first-visit"``, the table's rule) or with a
-  **record network**'s estimate (``"estimate"``; the record network, state ->
-  ``record_hidden`` ReLU units -> 1, is then fitted to the memory's records).
+  compared with a **record network**'s estimate (``unseen_record="estimate"``; state ->
+  ``record_hidden`` ReLU units -> 1, fitted to the memory's records) or with ``-inf``
+  (``"first-visit"``, the table's rule).
 * ``replayed`` (the first design, kept to compare with): every visit is stored with its
   return ``G_t`` (eq. 1) in a ring; each replayed visit becomes a regression target from
   the network's present degrees, against the record network's target copy ``R(s)``
@@ -59,11 +59,15 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     network to it (:mod:`cmarlcd.learners.degree_memory`); ``"replayed"`` turns every
     replayed visit into a regression target from the network's present degrees and an
     expectile record (the first design; a tie then moves its state once per replay)."""
-    unseen_record: str = "first-visit"
+    unseen_record: str = "estimate"
     """[choice] (``keyed``) What a state not in the memory is compared with:
+    ``"estimate"``, the record network's estimate (fitted to the memory's records): a
+    visit is kept only when its return reaches what the network expects there, and a tie
+    starts from the network's degrees, so what it generalises carries over;
     ``"first-visit"``, the table's ``R_max = -inf`` (every first visit is a new record
-    and resets the state's degrees); ``"estimate"``, the record network's estimate (a tie
-    then starts from the network's degrees, so what it generalises carries over)."""
+    and resets the state's degrees, whatever its return). Level on the DSN's one-hot
+    states; where states rarely recur (simple_spread) ``first-visit`` fits the network to
+    its own exploration (the deep CMARL-CD page of the documentation)."""
     hidden: int = 49
     """Hidden units of each degree network (VDN's agent networks: 49)."""
     share: bool = False
