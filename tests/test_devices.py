@@ -106,12 +106,12 @@ def _value_decomposition(mixer: str, device: str):
     return model
 
 
-def _degree_model(share: bool, device: str):
+def _degree_model(share: bool, device: str, update: str = "keyed"):
     from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
     from cmarlcd.learners.degree_model import DegreeModel
 
     seeds = [np.random.SeedSequence(k) for k in range(2)]
-    config = DeepCMARLCDConfig(share=share)
+    config = DeepCMARLCDConfig(share=share, update=update)
     model = DegreeModel([3, 3, 2], 5, config, seeds, device)
     model.set_state_legal(torch.ones((5, 3, 3), dtype=torch.bool))
     return model
@@ -130,12 +130,30 @@ def test_a_td_loss_makes_no_tensor_off_the_models_device(mixer: str, integer: bo
     assert model.greedy_table().device.type == "meta"
 
 
+def _memory_batch(seeds: int, states: int, agents: int, integer: bool, device: str) -> dict:
+    """A batch drawn from deep CMARL-CD's keyed memory: kept states, their targets and
+    records."""
+    batch = _td_batch(seeds, states, agents, integer, device)
+    return {
+        "state": batch["state"],
+        "target": torch.full((seeds, states, agents, 3), 1.5, device=device),
+        "record": batch["reward"],
+    }
+
+
+@pytest.mark.parametrize("update", ["keyed", "replayed"])
 @pytest.mark.parametrize("share", [False, True], ids=["per-agent", "shared"])
 @pytest.mark.parametrize("integer", [True, False], ids=["one-hot", "features"])
-def test_a_degree_loss_makes_no_tensor_off_the_models_device(share: bool, integer: bool) -> None:
-    model = _degree_model(share, "meta")
-    model.loss(_td_batch(2, 4, 3, integer, "meta")).backward()
-    assert all(p.grad is not None for p in model.parameters() if p.requires_grad)
+def test_a_degree_loss_makes_no_tensor_off_the_models_device(
+    share: bool, integer: bool, update: str
+) -> None:
+    """Both updates; the keyed loss (with the record network fitted to the memory's
+    records, the default) reaches every parameter, as the replayed one does."""
+    model = _degree_model(share, "meta", update)
+    make_batch = _memory_batch if update == "keyed" else _td_batch
+    model.loss(make_batch(2, 4, 3, integer, "meta")).backward()
+    trained = [p for name, p in model.named_parameters() if not name.startswith("target_")]
+    assert all(p.grad is not None for p in trained if p.requires_grad)
     assert model.greedy_table().device.type == "meta"
 
 
