@@ -130,3 +130,12 @@ def test_draws_are_uniform_over_the_kept_states_with_each_seed_s_stream() -> Non
     assert set(batch["state"][1].tolist()) == {9} and set(batch["record"][1].tolist()) == {2.0}
     again = sample_memory(memory, [np.random.default_rng(0), np.random.default_rng(1)], 3000)
     assert np.array_equal(batch["state"], again["state"])
+
+
+def test_keys_of_zero_one_features_spread_over_the_slots() -> None:
+    """The slot is the key modulo the capacity: 0/1 features (the sensor network's) must
+    not crowd into a few slots. 4,096 distinct 12-bit vectors in 40,000 slots: uniform
+    hashing leaves about 200 of them sharing a slot (4,096² / 80,000)."""
+    vectors = ((np.arange(4096)[:, None] >> np.arange(12)) & 1).astype(np.float32)
+    slots = {int(features_key(v)) % 40_000 for v in vectors}
+    assert len(slots) > 3_800

@@ -47,7 +47,10 @@ def test_a_state_not_kept_folds_in_from_the_networks_degrees_and_record_estimate
     data.rewards[0] = estimate[0] - 0.9 * data.rewards[1]
     side.kernels.end_episode(data, 2)
     memory = data.replay.memory
-    tied, record = find(memory, features_key(x[0])), find(memory, features_key(x[1]))
+    tied, record = (
+        find(memory, np.uint64(features_key(x[0]))),
+        find(memory, np.uint64(features_key(x[1]))),
+    )
     assert tied >= 0 and record >= 0 and memory.size[0] == 2
     assert memory.record[tied] == pytest.approx(estimate[0], abs=1e-4)
     assert memory.record[record] == pytest.approx(estimate[1] + 10.0, abs=1e-4)
@@ -66,7 +69,8 @@ def test_under_the_table_s_rule_a_first_visit_is_always_a_record() -> None:
     data.rewards[:1] = [-100.0]
     side.kernels.end_episode(data, 1)
     memory = data.replay.memory
-    slot = find(memory, features_key(data.obs[0]))
+    slot = find(memory, np.uint64(features_key(data.obs[0])))
+    assert slot >= 0
     assert memory.record[slot] == -100.0
     assert memory.target[slot, 1].tolist() == [1.0, 1.0, 2.0]
 
@@ -90,3 +94,33 @@ def test_a_tie_fitted_many_times_moves_the_degree_network_by_delta() -> None:
     moved = after_tie[1] - after_record[1]
     assert after_record == pytest.approx([1.0, 2.0, 1.0], abs=0.01)
     assert moved == pytest.approx(0.05, abs=0.01)
+
+
+def test_a_state_replaced_during_the_fold_is_read_from_the_network_not_stale_data() -> None:
+    """A memory of one slot. `first` is kept; an episode at another state `other` is
+    left out (below its estimate); then an episode visits `first` and `second`: folded
+    backwards, `second` replaces `first`, whose own visit then re-enters as a state not
+    kept, compared with the estimate at `first` (a tie), not with what an earlier
+    episode left in the scratch."""
+    side = duel_side(replace(SMALL, buffer_size=1, batch_size=1))
+    data, model = side.data, side.model
+    first, other, second = np.array([[0.5, 0.25], [0.0, 1.0], [1.0, 0.0]], np.float32)
+    with torch.no_grad():
+        estimate = model.record(torch.from_numpy(np.stack([first, other, second]))[None])[0]
+        degrees = model.agents(torch.from_numpy(first)[None, None])[0, 0].clamp(0.5, 3.0)
+    for obs, reward in ((first, estimate[0] + 5.0), (other, estimate[1] - 5.0)):
+        data.obs[:1], data.joints[:1], data.rewards[:1] = [obs], [[0, 0]], [float(reward)]
+        side.kernels.end_episode(data, 1)
+    memory = data.replay.memory
+    assert find(memory, np.uint64(features_key(first))) == 0  # `other` was left out
+    data.obs[:2] = [first, second]
+    data.joints[:2] = [[2, 2], [1, 1]]
+    data.rewards[1] = float(estimate[2]) + 5.0  # a new record at `second`
+    data.rewards[0] = float(estimate[0]) - 0.9 * data.rewards[1]  # G at `first` = estimate
+    side.kernels.end_episode(data, 2)
+    assert find(memory, np.uint64(features_key(first))) == 0  # `first` is back, from the tie
+    assert memory.record[0] == pytest.approx(float(estimate[0]), abs=1e-4)
+    step = np.where(np.arange(3) == 2, 0.05, -0.05)
+    assert memory.target[0, 0] == pytest.approx(
+        np.clip(degrees[0].numpy() + step, 0.5, 3), abs=1e-5
+    )

@@ -10,8 +10,8 @@ state alike (:func:`sample_memory`). So a tie moves a state's targets by ``delta
 however often the network is fitted, and a record is a maximum: replaying a visit never
 counts as news.
 
-A state is found by its **key**: its index for integer states, a 64-bit FNV-1a hash of
-the feature vector's bytes otherwise (:func:`features_key`). The memory is a
+A state is found by its **key**: its index for integer states, a 64-bit hash of the
+feature vector's 32-bit words otherwise (:func:`features_key`). The memory is a
 direct-mapped table of ``capacity`` slots (slot = key mod capacity); a state whose slot
 holds another state's entry replaces it. With integer states and a capacity of at least
 the number of states every state has its own slot and nothing is ever replaced: the
@@ -109,12 +109,21 @@ def memory_view(memory: DegreeMemory, b: int) -> DegreeMemory:
 
 @kernel
 def features_key(x) -> np.uint64:
-    """The 64-bit FNV-1a hash of a float32 feature vector's bytes (its key)."""
+    """A float32 feature vector's key: FNV-1a over its 32-bit words, then MurmurHash3's
+    64-bit finaliser. The finaliser matters: the slot is the key modulo the capacity, and
+    without it the key's low bits depend only on the words' low bits, which are zero for
+    features such as 0 and 1 (65,536 distinct 0/1-like vectors fell into 625 slots of
+    40,000)."""
     h = np.uint64(14695981039346656037)
     prime = np.uint64(1099511628211)
     bits = x.view(np.uint32)
     for f in range(bits.shape[0]):
         h = (h ^ np.uint64(bits[f])) * prime
+    h ^= h >> np.uint64(33)
+    h *= np.uint64(0xFF51AFD7ED558CCD)
+    h ^= h >> np.uint64(33)
+    h *= np.uint64(0xC4CEB9FE1A85EC53)
+    h ^= h >> np.uint64(33)
     return h
 
 
