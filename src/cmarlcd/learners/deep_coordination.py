@@ -85,12 +85,14 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     stored (``replayed``)."""
     train_every: int = 50
     """[choice] One gradient step every this many environment steps. Algorithm 2 learns
-    from every episode; at VDN's one step per 200 the degrees get too few updates (on the
-    DSN at L = 100k, 2 runs: 6.7 % success against 21.8 % at 50 and 10.3 % at 25; the
-    deep CMARL-CD page of the documentation)."""
+    from every episode; with the first design (``replayed``), at VDN's one step per 200
+    the degrees got too few updates (on the DSN at L = 100k, 2 runs: 6.7 % success
+    against 21.8 % at 50 and 10.3 % at 25; the deep CMARL-CD page of the documentation).
+    Not yet measured with the keyed update."""
     target_every: int = 500
-    """[choice] Copy the record network to its target copy every this many environment
-    steps (every 10 gradient steps, VDN's ratio)."""
+    """[choice] (``replayed``) Copy the record network to its target copy every this many
+    environment steps (every 10 gradient steps, VDN's ratio); the keyed update reads the
+    record network itself."""
     lr: float = 1e-3
     """Adam learning rate of the degree networks (VDN's)."""
     record_lr: float = 1e-2
@@ -189,14 +191,14 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
 REPLAYED_DEEP_CMARLCD = DeepCMARLCDConfig(update="replayed", tolerance=1.0)
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
-#: transition, so the DSN's schedule (a step per 50 transitions, batches of 400, a 40k
-#: ring) would take 100 gradient steps in compare's 5,000 games, while Algorithm 1 moves a
-#: degree by δ in every game. A small ring and batch (500, 50), a step per 10 games and a
-#: degree learning rate of 1e-2. Measured first on 10-20 seeds (docs: deep CMARL-CD): with
+#: transition, so the DSN's schedule (a step per 50 transitions, batches of 400) would
+#: take 100 gradient steps in compare's 5,000 games, while Algorithm 1 moves a degree by δ
+#: in every game. A batch of 50 (and, for the first design, a ring of 500), a step per 10
+#: games and a degree learning rate of 1e-2. Measured first on 10-20 seeds (docs: deep CMARL-CD): with
 #: lr 1e-3 the degrees are still near c_init after 500 steps (penalty k = 0: 7-10 of 20);
-#: lr 1e-2, or a step every 2 games at 1e-3 (5x the time), 9-10 of 10. Over compare's 50
-#: runs the preset ends optimal on the climbing game and k = -100 in 100 %, on k = 0 and
-#: k = -10 in 64 % and 68 % only.
+#: lr 1e-2, or a step every 2 games at 1e-3 (5x the time), 9-10 of 10 (those with the first
+#: design). Over compare's 50 runs the keyed default ends optimal on the climbing game and
+#: every penalty game in 100 % (the first design: 64 % and 68 % at k = 0 and -10).
 REPEATED_DEEP_CMARLCD = DeepCMARLCDConfig(
     buffer_size=500,
     batch_size=50,

@@ -19,8 +19,11 @@ memory is then the tabular learner's table, and the network its distillation.
 
 A state not in the memory is compared with an estimate of its record (``estimates``:
 ``-inf`` under the table's rule, every first visit a new record; or a record network's
-estimate), and a tie there starts from the network's degrees (``bases``), so a network
-that generalises carries over to states never met.
+estimate), and a tie there (a return within ``tolerance`` of the estimate) starts from
+the network's degrees (``bases``). At the default tolerance, the table's 1e-9, a return
+ties an estimate only by accident: a state then enters the memory by beating its
+estimate, as a new record (a reset), and the network carries over to states never met
+through how it acts there.
 """
 
 from __future__ import annotations
