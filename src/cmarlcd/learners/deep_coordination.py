@@ -194,11 +194,12 @@ REPLAYED_DEEP_CMARLCD = DeepCMARLCDConfig(update="replayed", tolerance=1.0)
 #: transition, so the DSN's schedule (a step per 50 transitions, batches of 400) would
 #: take 100 gradient steps in compare's 5,000 games, while Algorithm 1 moves a degree by δ
 #: in every game. A batch of 50 (and, for the first design, a ring of 500), a step per 10
-#: games and a degree learning rate of 1e-2. Measured first on 10-20 seeds (docs: deep CMARL-CD): with
-#: lr 1e-3 the degrees are still near c_init after 500 steps (penalty k = 0: 7-10 of 20);
-#: lr 1e-2, or a step every 2 games at 1e-3 (5x the time), 9-10 of 10 (those with the first
-#: design). Over compare's 50 runs the keyed default ends optimal on the climbing game and
-#: every penalty game in 100 % (the first design: 64 % and 68 % at k = 0 and -10).
+#: games and a degree learning rate of 1e-2. Measured first on 10-20 seeds (docs: deep
+#: CMARL-CD): with lr 1e-3 the degrees are still near c_init after 500 steps (penalty
+#: k = 0: 7-10 of 20); lr 1e-2, or a step every 2 games at 1e-3 (5x the time), 9-10 of 10
+#: (those with the first design). Over compare's 50 runs the keyed default ends optimal on
+#: the climbing game and every penalty game in 100 % (the first design: 64 % and 68 % at
+#: k = 0 and -10).
 REPEATED_DEEP_CMARLCD = DeepCMARLCDConfig(
     buffer_size=500,
     batch_size=50,
