@@ -173,8 +173,9 @@ DESIGNS = {
     "keyed": (DegreeAgent, DeepCMARLCDConfig(unseen_record="first-visit")),
     "keyed-estimate": (DegreeAgent, DeepCMARLCDConfig(unseen_record="estimate")),
     "replayed": (DegreeAgent, REPLAYED_DEEP_CMARLCD),
-    # the prototype learns once a batch's worth of targets is stored, as it always did
-    "frozen": (Frozen, DeepCMARLCDConfig(update="replayed")),
+    # the prototype learns once a batch's worth of targets is stored, as it always did,
+    # on the schedule it was measured with (a step per 50 environment steps)
+    "frozen": (Frozen, DeepCMARLCDConfig(update="replayed", train_every=50, target_every=500)),
 }
 
 
