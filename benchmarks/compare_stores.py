@@ -37,7 +37,7 @@ def load(
         key[2] = without_settings(key[2], drop)
         values = json.loads(metrics)
         timings = [k for k in values if k in ("seconds", "device") or k.endswith("_seconds")]
-        for name in timings + [k for k in ignore if k in values]:
+        for name in set(timings) | {k for k in ignore if k in values}:
             del values[name]
         runs[tuple(key)] = values
     return runs

@@ -1,7 +1,8 @@
 """Deep CMARL-CD's keyed memory: an episode folded in by the table's rule, once per visit
 (a record resets, a tie moves by δ, a lower return moves nothing), the record a maximum,
 the estimate a state not kept is compared with, keys of feature vectors, replacement in
-a full slot, and draws over the kept states."""
+a full slot, which visits may need the network's values, and draws over the kept
+states."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from cmarlcd.learners.degree_memory import (
     features_key,
     find,
     fold_episode,
+    may_be_missing,
     memory_view,
     new_memory,
     sample_memory,
@@ -139,3 +141,16 @@ def test_keys_of_zero_one_features_spread_over_the_slots() -> None:
     vectors = ((np.arange(4096)[:, None] >> np.arange(12)) & 1).astype(np.float32)
     slots = {int(features_key(v)) % 40_000 for v in vectors}
     assert len(slots) > 3_800
+
+
+def test_only_visits_whose_state_may_be_missing_when_folded_need_the_network() -> None:
+    """Capacity 10, states 3 and 4 kept. An episode visits 3, 4, 14 and 5: 3 stays kept
+    (no other state of the episode maps to slot 3); 4 is kept now, but 14 shares its slot
+    and may replace it during the fold; 14 and 5 are not kept."""
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    fold(memory, [3, 4], [[0, 0], [0, 0]], [1.0, 1.0])
+    keys = np.array([3, 4, 14, 5], np.uint64)
+    assert [may_be_missing(memory, keys, 4, t) for t in range(4)] == [False, True, True, True]
+    # the same state twice in one episode is no conflict with itself
+    twice = np.array([3, 3], np.uint64)
+    assert [may_be_missing(memory, twice, 2, t) for t in range(2)] == [False, False]

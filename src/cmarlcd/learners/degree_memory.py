@@ -176,6 +176,23 @@ def claim(memory, key) -> int:
 
 
 @kernel
+def may_be_missing(memory, keys, length: int, t: int) -> bool:
+    """Whether visit ``t``'s state (of an episode of ``length`` visits keyed ``keys``)
+    may be missing from the memory when :func:`fold_episode` reaches it: it is not kept
+    now, or another state of the episode shares its slot (the fold's claims are the only
+    changes it makes to which states are kept). Only such visits need the network's
+    degrees and record estimate."""
+    if find(memory, keys[t]) < 0:
+        return True
+    capacity = np.uint64(memory.key.shape[0])
+    slot = keys[t] % capacity
+    for u in range(length):  # noqa: SIM110 (compiled: a loop, not any() of a generator)
+        if keys[u] != keys[t] and keys[u] % capacity == slot:
+            return True
+    return False
+
+
+@kernel
 def fold_episode(
     memory, keys, inputs, bases, estimates, joints, rewards, counts, length: int, params
 ) -> None:

@@ -21,7 +21,7 @@ import numpy as np
 from cmarlcd.compiled import kernel, specialise_kernel
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
-from cmarlcd.learners.degree_memory import features_key, fold_episode
+from cmarlcd.learners.degree_memory import features_key, fold_episode, may_be_missing
 from cmarlcd.learners.policy import greedy_action, sample_action, softmax_strategy
 from cmarlcd.learners.replay import push_visit, push_visit_row
 from cmarlcd.training.deep_kernels import (
@@ -181,16 +181,18 @@ def keyed_index_store(side, length: int) -> None:
 def keyed_features_store(side, length: int) -> None:
     """``end_episode``: fold the episode into the keyed memory, keyed by the hash of each
     visit's features, with the network's degrees and (with ``estimate_unseen``) the
-    record network's estimate, else ``-inf``, at every visit (read for a state not kept
-    when the fold reaches it)."""
+    record network's estimate, else ``-inf``, at each visit whose state may not be kept
+    when the fold reaches it (:func:`may_be_missing`; the fold reads them there only)."""
     replay = side.replay
     estimate = replay.params.estimate_unseen
-    for t in range(length):  # every visit: a kept state may be replaced during the fold
-        x = side.obs[t]
-        replay.keys[t] = features_key(x)
-        for i in range(side.counts.shape[0]):
-            agent_degrees(side.weights, i, x, side.counts[i], side.hidden, replay.bases[t, i])
-        replay.estimates[t] = record_estimate(replay, x) if estimate else -np.inf
+    for t in range(length):
+        replay.keys[t] = features_key(side.obs[t])
+    for t in range(length):
+        if may_be_missing(replay.memory, replay.keys, length, t):
+            x = side.obs[t]
+            for i in range(side.counts.shape[0]):
+                agent_degrees(side.weights, i, x, side.counts[i], side.hidden, replay.bases[t, i])
+            replay.estimates[t] = record_estimate(replay, x) if estimate else -np.inf
     fold_episode(
         replay.memory, replay.keys, side.obs, replay.bases, replay.estimates, side.joints,
         side.rewards, side.counts, length, replay.params,
