@@ -195,8 +195,8 @@ REPLAYED_DEEP_CMARLCD = DeepCMARLCDConfig(
 )
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
-#: transition, so the DSN's schedule (a step per 50 transitions, batches of 400) would
-#: take 100 gradient steps in compare's 5,000 games, while Algorithm 1 moves a degree by δ
+#: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
+#: take 25 gradient steps in compare's 5,000 games, while Algorithm 1 moves a degree by δ
 #: in every game. A batch of 50 (and, for the first design, a ring of 500), a step per 10
 #: games and a degree learning rate of 1e-2. Measured first on 10-20 seeds (docs: deep
 #: CMARL-CD): with lr 1e-3 the degrees are still near c_init after 500 steps (penalty
