@@ -18,7 +18,7 @@ import functools
 import hashlib
 import json
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Self
 
 import numpy as np
@@ -27,6 +27,29 @@ import numpy as np
 def canonical_json(config: Mapping[str, Any]) -> str:
     """The canonical text of a config: sorted keys, no whitespace."""
     return json.dumps(dict(config), sort_keys=True, separators=(",", ":"))
+
+
+#: Field metadata naming the version a setting was added in (:func:`added_setting`).
+ADDED_IN = "added_in"
+
+
+def added_setting(default: Any, version: str) -> Any:
+    """A dataclass field for a setting added in ``version``, after runs were stored: at
+    ``default``, the value that keeps the behaviour from before, it is left out of a
+    run's identity (:func:`identity`), so that stores made before it still resume and
+    every run keeps its seeds and numbers."""
+    return field(default=default, metadata={ADDED_IN: version})
+
+
+def identity(config: Any) -> dict[str, Any]:
+    """A settings dataclass as a run's identity: every field (nested ones as
+    :func:`dataclasses.asdict` writes them) but the settings added since runs were
+    stored (:func:`added_setting`) that hold their default."""
+    values = asdict(config)
+    for spec in fields(config):
+        if ADDED_IN in spec.metadata and getattr(config, spec.name) == spec.default:
+            del values[spec.name]
+    return values
 
 
 @dataclass(frozen=True)

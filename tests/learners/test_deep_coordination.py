@@ -82,12 +82,20 @@ def test_shared_degree_network_gives_the_loop_each_agent_s_layers() -> None:
         ("tolerance", np.nan),
         ("update", "bogus"),
         ("unseen_record", "never"),
+        ("act_from", "table"),
     ],
 )
 def test_bad_settings_are_rejected(field, value) -> None:
     with pytest.raises(ConfigError) as err:
         DeepCMARLCDConfig(**{field: value})
     assert err.value.parameter == field
+
+
+def test_acting_from_the_memory_needs_the_keyed_memory() -> None:
+    """The first design keeps no degrees per state: there is no memory to act from."""
+    with pytest.raises(ConfigError, match="keyed") as err:
+        DeepCMARLCDConfig(update="replayed", act_from="memory")
+    assert err.value.parameter == "act_from"
 
 
 def test_an_episode_is_stored_visit_by_visit_with_its_discounted_returns() -> None:

@@ -104,6 +104,32 @@ def test_a_state_not_kept_is_compared_with_the_estimate_and_starts_from_the_netw
     assert record == 9.0 and target[0].tolist() == [2.0, 1.0, 1.0]
 
 
+def test_a_state_below_its_estimate_is_kept_unmoved_when_asked_and_the_rule_goes_on() -> None:
+    """``keep_below``: a first return of 3 below the estimate 4 enters with record 3 and
+    the network's degrees, clipped and not stepped; a later 3.2 ties it (within 0.5: the
+    taken actions +δ, the others -δ); a later 2 is below it and moves nothing; a 9 is a
+    new record and resets."""
+    params = PARAMS._replace(estimate_unseen=True, keep_below=True)
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    bases = np.array([[[2.0, 4.0, 0.0], [1.0, 1.2, 0.0]]], np.float32)
+    fold(memory, [5], [[0, 1]], [3.0], bases=bases, estimates=[4.0], params=params)
+    record, target = entry(memory, 5)
+    assert record == 3.0
+    assert target[0].tolist() == pytest.approx([2.0, 3.0, 0.5])
+    assert target[1, :2].tolist() == pytest.approx([1.0, 1.2])
+    fold(memory, [5], [[0, 1]], [3.2], bases=bases, estimates=[4.0], params=params)
+    record, target = entry(memory, 5)
+    assert record == 3.0
+    assert target[0].tolist() == pytest.approx([2.05, 2.95, 0.5])
+    assert target[1, :2].tolist() == pytest.approx([0.95, 1.25])
+    fold(memory, [5], [[2, 0]], [2.0], bases=bases, estimates=[4.0], params=params)
+    assert entry(memory, 5)[0] == 3.0
+    assert entry(memory, 5)[1][0].tolist() == pytest.approx([2.05, 2.95, 0.5])
+    fold(memory, [5], [[2, 0]], [9.0], bases=bases, estimates=[4.0], params=params)
+    record, target = entry(memory, 5)
+    assert record == 9.0 and target[0].tolist() == [1.0, 1.0, 2.0]
+
+
 def test_feature_vectors_are_keyed_by_their_bytes_and_a_full_slot_is_replaced() -> None:
     x = np.array([0.5, 1.0, -2.0], np.float32)
     assert features_key(x) == features_key(x.copy())

@@ -15,7 +15,7 @@ from cmarlcd.learners.automata import AutomatonConfig  # noqa: E402
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig  # noqa: E402
 from cmarlcd.learners.degree_agent import DegreeAgent  # noqa: E402
 from cmarlcd.learners.degree_memory import features_key, find  # noqa: E402
-from cmarlcd.testing import DUEL  # noqa: E402
+from cmarlcd.testing import CHAIN, DUEL  # noqa: E402
 from cmarlcd.training.match import Match  # noqa: E402
 
 SMALL = DeepCMARLCDConfig(
@@ -124,3 +124,75 @@ def test_a_state_replaced_during_the_fold_is_read_from_the_network_not_stale_dat
     assert memory.target[0, 0] == pytest.approx(
         np.clip(degrees[0].numpy() + step, 0.5, 3), abs=1e-5
     )
+
+
+def test_acting_from_the_memory_reads_its_degrees_where_it_keeps_the_state() -> None:
+    """``act_from="memory"``, T = 0.01 (a draw from softmax(c/T) is then the argmax): at a
+    kept state the agents act on the memory's degrees, set here where the network would
+    not put them (agent 0 prefers action 0, agent 1 action 1); at a state not kept they
+    act on the network's, as the compiled forward pass computes them."""
+    side = duel_side(
+        replace(SMALL, act_from="memory", unseen_record="first-visit", temperature=0.01)
+    )
+    data, model = side.data, side.model
+    kept, unkept = np.array([[0.5, 0.25], [1.0, 0.0]], np.float32)
+    data.obs[:1], data.joints[:1], data.rewards[:1] = [kept], [[2, 2]], [1.0]
+    side.kernels.end_episode(data, 1)
+    memory = data.replay.memory
+    slot = find(memory, np.uint64(features_key(kept)))
+    memory.target[slot, 0] = [3.0, 0.5, 0.5]
+    memory.target[slot, 1] = [0.5, 3.0, 0.5]
+    data.obs[:2] = [kept, unkept]
+    data.legal[:2] = True
+    rng, joint = np.random.default_rng(0), np.zeros(2, np.int64)
+    side.kernels.act(data, 0, rng, joint)
+    assert joint.tolist() == [0, 1]
+    with torch.no_grad():
+        degrees = model.agents(torch.from_numpy(unkept)[None, None])[0, 0].clamp(0.5, 3.0)
+    side.kernels.act(data, 1, rng, joint)
+    assert joint.tolist() == degrees.argmax(dim=-1).tolist()
+
+
+def test_the_object_api_acts_from_the_memory_where_it_keeps_the_state() -> None:
+    """A record at state 0 (action 1 taken): the memory holds the table's reset, [1, 2, 1],
+    and the greedy action there is 1 whatever the untrained network says; at state 1,
+    never met, the degrees are the network's."""
+    config = DeepCMARLCDConfig(act_from="memory", unseen_record="first-visit")
+    agent = DegreeAgent([3], config, 10, n_states=2, seed=0)
+    network_before = agent.degrees(0)
+    agent.observe(0, (1,), 5.0)
+    agent.end_episode()
+    assert agent.degrees(0)[0].tolist() == [1.0, 2.0, 1.0]
+    assert agent.greedy(0) == (1,)
+    with torch.no_grad():
+        network = agent.model.agents(torch.tensor([[1]]))[0, 0].clamp(0.5, 3.0).numpy()
+    assert agent.degrees(1) == pytest.approx(network)
+    assert not np.allclose(network_before[0], [1.0, 2.0, 1.0])
+
+
+def test_the_greedy_table_takes_each_kept_state_s_action_from_the_memory() -> None:
+    """Index inputs: the executed greedy table is the networks' with each kept state's
+    row from its memory degrees over its masks (an illegal best action skipped; lowest
+    index on ties); rows of states not kept are the networks'."""
+    from cmarlcd.training.deep_replay import KEYED
+
+    config = DeepCMARLCDConfig(act_from="memory")
+    replay = KEYED.new(config, 1, np.array([3, 3]), CHAIN, 0)  # CHAIN: 4 states
+    memory = replay.memory
+    for slot, state, degrees in (
+        (0, 2, [[3.0, 1.0, 0.5], [1.0, 2.0, 2.0]]),
+        (1, 0, [[0.5, 0.5, 0.5], [0.5, 0.5, 3.0]]),
+    ):
+        memory.filled[0, slot], memory.state[0, slot] = True, state
+        memory.order[0, memory.size[0]] = slot
+        memory.size[0] += 1
+        memory.target[0, slot] = degrees
+    legal = np.ones((1, 4, 2, 3), bool)
+    legal[0, 2, 0, 0] = False  # state 2: agent 0's best action is illegal
+    network = np.full((1, 4, 2), 7)
+    table = KEYED.greedy_table(replay, network.copy(), legal, config)
+    assert table[0, 2].tolist() == [1, 1]  # agent 0: 1.0 > 0.5 among legal; agent 1: tie -> 1
+    assert table[0, 0].tolist() == [0, 2]
+    assert table[0, [1, 3]].tolist() == [[7, 7], [7, 7]]
+    acting_from_network = KEYED.greedy_table(replay, network.copy(), legal, SMALL)
+    assert (acting_from_network == 7).all()

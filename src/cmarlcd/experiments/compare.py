@@ -37,7 +37,7 @@ from cmarlcd.experiments.sensor_network import DSN_GAME, DsnSweep
 from cmarlcd.learners import joint_action
 from cmarlcd.learners.deep_config import DeepLearnerConfig
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
-from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, parse_settings
+from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.repeated import play_watching_greedy
 
@@ -78,7 +78,7 @@ class CompareRun(Settings):
             **where,
             "budget": self.budget,
             "learner": self.learner.name,
-            **asdict(self.learner),
+            **identity(self.learner),
         }
 
     @classmethod

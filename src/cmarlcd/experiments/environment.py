@@ -32,7 +32,7 @@ from cmarlcd.learners.deep_config import DeepLearnerConfig
 from cmarlcd.limits import check_at_most, check_episodes, check_run_count, check_seed
 from cmarlcd.progress import report_progress
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import Experiment, RunSpec, Settings
+from cmarlcd.runs import Experiment, RunSpec, Settings, identity
 from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
 from cmarlcd.training.episodes import play_episodes
 
@@ -245,7 +245,7 @@ class EnvRun(Settings):
         config["env_kwargs"] = dict(self.env_kwargs)
         config["algorithm"] = self.algorithm
         if self.learner is not None:
-            config["learner"] = asdict(self.learner)
+            config["learner"] = identity(self.learner)
         return config
 
     @classmethod

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any, Self
 
 import numpy as np
@@ -35,7 +35,7 @@ from cmarlcd.limits import (
 )
 from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, parse_settings
+from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
 from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.tabular import EpisodeStats, TabularRun, evaluate
@@ -141,7 +141,7 @@ class EpisodicRun(Settings):
             "eval_episodes": self.eval_episodes,
             "curve_points": self.curve_points,
             "curve_eval_episodes": self.curve_eval_episodes,
-            "learner": asdict(self.learner),
+            "learner": identity(self.learner),
         }
         if self.options:
             config["game"] = dict(self.options)
@@ -161,7 +161,7 @@ class EpisodicRun(Settings):
     def stream(self) -> dict[str, Any]:
         """The learner, the game's options, and L for a learner that anneals over it:
         the evaluation settings do not change what a run learns."""
-        stream: dict[str, Any] = {"algorithm": self.learner.name, "learner": asdict(self.learner)}
+        stream: dict[str, Any] = {"algorithm": self.learner.name, "learner": identity(self.learner)}
         if self.options:
             stream["game"] = dict(self.options)
         if anneals_over_budget(self.learner):

@@ -21,7 +21,7 @@ from cmarlcd.games.matrix import MatrixGame, check_size, climbing_game, random_g
 from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
 from cmarlcd.limits import check_run_count, check_seed
 from cmarlcd.paper import repeated_success
-from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, parse_settings
+from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.repeated import fit
 
 EXPERIMENT = "repeated"
@@ -47,7 +47,7 @@ class RepeatedCell(Settings):
 
     def to_config(self) -> dict[str, Any]:
         return {"case": self.case, "agents": self.agents, "actions": self.actions,
-                **asdict(self.learner)}  # fmt: skip
+                **identity(self.learner)}  # fmt: skip
 
     @classmethod
     def from_config(cls, config: Mapping[str, Any]) -> Self:

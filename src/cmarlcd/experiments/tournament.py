@@ -41,7 +41,7 @@ from cmarlcd.games.battlefield import GUNNER, MARINE, Battlefield, Unit
 from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, parse_settings
+from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.match import Match, MatchBatch
 from cmarlcd.training.tabular_side import UNSEEN_MODES, check_unseen
 
@@ -187,7 +187,7 @@ class Pairing(Settings):
     def to_config(self) -> dict[str, Any]:
         config: dict[str, Any] = {
             "algorithms": list(self.algorithms),
-            "learners": [asdict(learner) for learner in self.learners],
+            "learners": [identity(learner) for learner in self.learners],
             "learn_episodes": self.learn_episodes,
             "eval_episodes": self.eval_episodes,
         }

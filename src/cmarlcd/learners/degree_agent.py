@@ -24,6 +24,7 @@ from cmarlcd.learners.deep_config import scheduled_work
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 from cmarlcd.learners.degree_memory import (
     features_key,
+    find,
     fold_episode,
     keyed_params,
     memory_view,
@@ -80,11 +81,24 @@ class DegreeAgent(StepAgent):
         return {key: torch.from_numpy(a).to(self.device) for key, a in batch.items()}
 
     def _degrees(self, state, masks) -> tuple[np.ndarray, np.ndarray]:
-        """Each agent's clipped degrees at ``state`` and its legal actions, (n, width)."""
+        """Each agent's clipped degrees at ``state`` and its legal actions, (n, width):
+        the memory's where it keeps the state and ``act_from`` is ``"memory"``, else
+        the network's."""
         c = self.config
+        x = self._encode(state)
+        legal = self._legal(masks).cpu().numpy()
+        if c.acts_from_memory:
+            key = (
+                np.uint64(int(state))
+                if self.integer_states
+                else features_key(x[0, 0].cpu().numpy())
+            )
+            slot = find(self._memory, key)
+            if slot >= 0:
+                return self._memory.target[slot].astype(np.float64), legal
         with torch.no_grad():
-            degrees = self.model.agents(self._encode(state))[0, 0].clamp(c.c_min, c.c_max)
-        return degrees.cpu().numpy(), self._legal(masks).cpu().numpy()
+            degrees = self.model.agents(x)[0, 0].clamp(c.c_min, c.c_max)
+        return degrees.cpu().numpy(), legal
 
     def degrees(self, state, masks=None) -> np.ndarray:
         """Each agent's clipped degrees ``c_i(state, ·)``, shape (n_agents, width)."""

@@ -51,6 +51,9 @@ class KeyedParams(NamedTuple):
     tolerance: float
     estimate_unseen: bool
     """Whether a state not kept is compared with an estimate (else ``-inf``)."""
+    keep_below: bool = False
+    """Whether a state not kept whose return falls below its estimate still enters the
+    memory: with that return as its record and the network's degrees, unmoved."""
 
 
 def keyed_params(config) -> KeyedParams:
@@ -63,7 +66,8 @@ def keyed_params(config) -> KeyedParams:
         config.c_max,
         config.gamma,
         config.tolerance,
-        config.unseen_record == "estimate",
+        config.estimates_unseen,
+        config.unseen_record == "estimate-kept",
     )
 
 
@@ -203,22 +207,26 @@ def fold_episode(
     ``estimates[t]`` for a state not in the memory. A new record raises the record and
     resets the targets; a tie moves them by ``delta`` (eqs. 14-15); a lower return
     changes nothing. A state entering the memory starts from the network's degrees at
-    the visit, ``bases[t]`` (n_agents, width), clipped to ``[c_min, c_max]``."""
+    the visit, ``bases[t]`` (n_agents, width), clipped to ``[c_min, c_max]``; with
+    ``keep_below`` a state not kept whose return falls below its estimate enters too,
+    with that return as its record and those degrees unmoved."""
     g = 0.0
     for t in range(length - 1, -1, -1):
         g = rewards[t] + params.gamma * g
         slot = find(memory, keys[t])
         best = memory.record[slot] if slot >= 0 else estimates[t]
         outcome = compare_return(g, best, params.tolerance)
-        if outcome == BELOW:
+        if outcome == BELOW and (slot >= 0 or not params.keep_below):
             continue
         if slot < 0:
             slot = claim(memory, keys[t])
             put_input(memory.state, slot, inputs, t)
-            memory.record[slot] = best
+            memory.record[slot] = g if outcome == BELOW else best
             for i in range(counts.shape[0]):
                 for a in range(counts[i]):
                     memory.target[slot, i, a] = min(max(bases[t, i, a], params.c_min), params.c_max)
+        if outcome == BELOW:
+            continue
         if outcome == RECORD:
             memory.record[slot] = g
         for i in range(counts.shape[0]):

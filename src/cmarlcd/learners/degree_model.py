@@ -170,12 +170,12 @@ class DegreeModel(StackedModel):
         ``target`` (B, N, n, A): the degrees the memory holds there, ``record`` (B, N):
         their records. The degrees' squared distance to the targets over each agent's
         real actions, summed over the agents and averaged over the states; with
-        ``unseen_record="estimate"`` plus the record network's squared error."""
+        ``unseen_record`` compared with an estimate, plus the record network's squared error."""
         state = batch["state"]
         degrees = self.agents(state)
         valid = self.valid.to(degrees.dtype)
         loss = (((degrees - batch["target"]) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
-        if self.config.unseen_record == "estimate":
+        if self.config.estimates_unseen:
             loss = loss + ((self.record(state) - batch["record"]) ** 2).mean(dim=1).sum()
         return loss
 

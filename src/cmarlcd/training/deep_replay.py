@@ -75,6 +75,10 @@ class RingKind:
     def refresh(self, replay, model: Any, inputs: str) -> None:
         """Nothing of the model is read from the ring."""
 
+    def greedy_table(self, replay, table: np.ndarray, legal: np.ndarray, config) -> np.ndarray:
+        """The greedy table of the networks, ``table``: a ring holds no degrees."""
+        return table
+
     def nbytes(self, view) -> int:
         return sum(array.nbytes for array in view)
 
@@ -127,6 +131,23 @@ class KeyedKind:
                 return
             for copy, weight in zip(replay.record_weights, model.record_weights(), strict=True):
                 np.copyto(copy, weight.cpu().numpy())
+
+    def greedy_table(
+        self, replay: KeyedReplay, table: np.ndarray, legal: np.ndarray, config
+    ) -> np.ndarray:
+        """(index inputs) The greedy table (B, n_states, n_agents) the side executes:
+        the networks' ``table``, with (``act_from="memory"``) each kept state's greedy
+        joint action from its memory degrees over its masks ``legal`` (B, n_states,
+        n_agents, width); lowest index on ties, as the compiled greedy takes it."""
+        if not config.acts_from_memory:
+            return table
+        memory = replay.memory
+        for b in range(table.shape[0]):
+            slots = memory.order[b, : memory.size[b]]
+            states = memory.state[b, slots]
+            degrees = np.where(legal[b, states], memory.target[b, slots], -np.inf)
+            table[b, states] = degrees.argmax(axis=-1)
+        return table
 
     def nbytes(self, view: KeyedReplay) -> int:
         arrays = [*view.memory, view.keys, view.bases, view.estimates, view.record_table]

@@ -217,7 +217,8 @@ class DeepGroup(Group):
         """(B, n_states, n_agents) (index inputs): each seed's greedy joint action in every
         state, over the masks it has read (including those read since the last step)."""
         self.masks_changed()
-        return self.model.greedy_table().cpu().numpy()
+        table = self.model.greedy_table().cpu().numpy()
+        return self.replay_kind.greedy_table(self.ring, table, self.legal, self.config)
 
     def _copy_weights(self) -> None:
         """The loops' copy of the networks := the networks."""

@@ -12,6 +12,11 @@ memory (:func:`keyed_index_store`, :func:`keyed_features_store`: each visit keye
 state index or the hash of its features, the network's degrees and record estimate read
 for the states not kept); the replayed update stores every visit with its discounted
 return (eq. 1, computed backwards) in the ring.
+
+With ``act_from="memory"`` the side acts (and executes greedily) with the keyed memory's
+degrees where it keeps the state, found by the state's key as the fold finds it, and with
+the network's elsewhere (:func:`memory_features_act`, :func:`memory_index_act` and their
+greedy templates).
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ import numpy as np
 from cmarlcd.compiled import kernel, specialise_kernel
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
-from cmarlcd.learners.degree_memory import features_key, fold_episode, may_be_missing
+from cmarlcd.learners.degree_memory import features_key, find, fold_episode, may_be_missing
 from cmarlcd.learners.policy import greedy_action, sample_action, softmax_strategy
 from cmarlcd.learners.replay import push_visit, push_visit_row
 from cmarlcd.training.deep_kernels import (
@@ -142,6 +147,71 @@ def index_greedy(side, env, team, offset, legal, rng, joint) -> None:
         joint[i] = greedy_degrees(side, side.values[s, i], legal[offset + i], side.counts[i])
 
 
+# ------------------------------------------ acting from the keyed memory
+
+
+@kernel
+def memory_features_act(side, key: int, rng, joint) -> None:
+    """Eq. 17 with the memory's degrees where it keeps the state, else the network's."""
+    x, legal, raw = side.obs[key], side.legal[key], side.scratch[1]
+    memory = side.replay.memory
+    slot = find(memory, features_key(x))
+    for i in range(side.counts.shape[0]):
+        count = side.counts[i]
+        if slot >= 0:
+            for a in range(count):
+                raw[a] = memory.target[slot, i, a]
+        else:
+            agent_degrees(side.weights, i, x, count, side.hidden, raw)
+        joint[i] = sample_degrees(side, raw, legal[i], count, rng)
+
+
+def memory_features_greedy(side, env, team, offset, legal, rng, joint) -> None:
+    """Template: every agent's greedy legal action, with the memory's degrees where it
+    keeps the state, else the network's."""
+    x, raw = side.obs[side.obs.shape[0] - 1], side.scratch[1]
+    game.features(env, team, x)
+    game.legal(env, legal)
+    memory = side.replay.memory
+    slot = find(memory, features_key(x))
+    for i in range(joint.shape[0]):
+        count = side.counts[i]
+        if slot >= 0:
+            for a in range(count):
+                raw[a] = memory.target[slot, i, a]
+        else:
+            agent_degrees(side.weights, i, x, count, side.hidden, raw)
+        joint[i] = greedy_degrees(side, raw, legal[offset + i], count)
+
+
+@kernel
+def memory_or_network(side, s: int, i: int):
+    """Agent ``i``'s degrees at state index ``s``: the memory's where it keeps ``s``,
+    else the network's (its row of the loop's copy)."""
+    memory = side.replay.memory
+    slot = find(memory, np.uint64(s))
+    if slot >= 0:
+        return memory.target[slot, i]
+    return side.values[s, i]
+
+
+@kernel
+def memory_index_act(side, s: int, rng, joint) -> None:
+    for i in range(side.counts.shape[0]):
+        raw = memory_or_network(side, s, i)
+        joint[i] = sample_degrees(side, raw, side.legal[s, i], side.counts[i], rng)
+
+
+def memory_index_greedy(side, env, team, offset, legal, rng, joint) -> None:
+    """Template: every agent's greedy legal action, with the memory's degrees where it
+    keeps the state, else the network's."""
+    s = game.state(env, team)
+    game.legal(env, legal)
+    for i in range(joint.shape[0]):
+        raw = memory_or_network(side, s, i)
+        joint[i] = greedy_degrees(side, raw, legal[offset + i], side.counts[i])
+
+
 # ------------------------------------------------- the keyed memory's stores
 
 
@@ -204,11 +274,20 @@ def degree_kernels(spec: GameSpec, inputs: str, config: DeepCMARLCDConfig) -> Si
     """The side kernels of deep CMARL-CD (``config``) on ``spec`` reading ``inputs``."""
     bound = {"game": spec.kernels}
     keyed = config.keyed
+    memory = config.acts_from_memory
     if inputs == "features":
-        enter, act, greedy = features_enter, features_act, features_greedy
+        enter = features_enter
+        act, greedy = (
+            (memory_features_act, memory_features_greedy)
+            if memory
+            else (features_act, features_greedy)
+        )
         store = keyed_features_store if keyed else features_store
     else:
-        enter, act, greedy = index_enter, index_act, index_greedy
+        enter = index_enter
+        act, greedy = (
+            (memory_index_act, memory_index_greedy) if memory else (index_act, index_greedy)
+        )
         store = keyed_index_store if keyed else index_store
     return SideKernels(
         deep_fits,
