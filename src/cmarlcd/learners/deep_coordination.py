@@ -166,7 +166,8 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
         require(
             self.keyed or self.act_from == "network",
             "act_from",
-            "'memory' needs the keyed memory (update='keyed')",
+            "'memory' needs the keyed memory (update='keyed'); "
+            "with update='replayed' set act_from=network",
         )
         for name in ("hidden", "record_hidden", "buffer_size", "batch_size", "train_every"):
             value = getattr(self, name)
