@@ -151,19 +151,24 @@ def index_greedy(side, env, team, offset, legal, rng, joint) -> None:
 
 
 @kernel
+def kept_or_network_degrees(side, slot: int, i: int, x, count: int, raw) -> None:
+    """``raw[:count]`` := agent ``i``'s degrees at features ``x``: the memory's entry
+    ``slot`` where the memory keeps the state (``slot`` >= 0), else the network's."""
+    if slot >= 0:
+        for a in range(count):
+            raw[a] = side.replay.memory.target[slot, i, a]
+    else:
+        agent_degrees(side.weights, i, x, count, side.hidden, raw)
+
+
+@kernel
 def memory_features_act(side, key: int, rng, joint) -> None:
     """Eq. 17 with the memory's degrees where it keeps the state, else the network's."""
     x, legal, raw = side.obs[key], side.legal[key], side.scratch[1]
-    memory = side.replay.memory
-    slot = find(memory, features_key(x))
+    slot = find(side.replay.memory, features_key(x))
     for i in range(side.counts.shape[0]):
-        count = side.counts[i]
-        if slot >= 0:
-            for a in range(count):
-                raw[a] = memory.target[slot, i, a]
-        else:
-            agent_degrees(side.weights, i, x, count, side.hidden, raw)
-        joint[i] = sample_degrees(side, raw, legal[i], count, rng)
+        kept_or_network_degrees(side, slot, i, x, side.counts[i], raw)
+        joint[i] = sample_degrees(side, raw, legal[i], side.counts[i], rng)
 
 
 def memory_features_greedy(side, env, team, offset, legal, rng, joint) -> None:
@@ -172,16 +177,10 @@ def memory_features_greedy(side, env, team, offset, legal, rng, joint) -> None:
     x, raw = side.obs[side.obs.shape[0] - 1], side.scratch[1]
     game.features(env, team, x)
     game.legal(env, legal)
-    memory = side.replay.memory
-    slot = find(memory, features_key(x))
+    slot = find(side.replay.memory, features_key(x))
     for i in range(joint.shape[0]):
-        count = side.counts[i]
-        if slot >= 0:
-            for a in range(count):
-                raw[a] = memory.target[slot, i, a]
-        else:
-            agent_degrees(side.weights, i, x, count, side.hidden, raw)
-        joint[i] = greedy_degrees(side, raw, legal[offset + i], count)
+        kept_or_network_degrees(side, slot, i, x, side.counts[i], raw)
+        joint[i] = greedy_degrees(side, raw, legal[offset + i], side.counts[i])
 
 
 @kernel
