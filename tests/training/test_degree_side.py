@@ -196,3 +196,36 @@ def test_the_greedy_table_takes_each_kept_state_s_action_from_the_memory() -> No
     assert table[0, [1, 3]].tolist() == [[7, 7], [7, 7]]
     acting_from_network = KEYED.greedy_table(replay, network.copy(), legal, SMALL)
     assert (acting_from_network == 7).all()
+
+
+def test_acting_from_the_memory_on_state_indices_in_the_compiled_loop() -> None:
+    """One-hot inputs (CHAIN's 4 states), T = 0.01: at a kept state the side acts on the
+    memory's degrees (set where the network would not put them), elsewhere on its row of
+    the networks' table; then a whole learning stage runs and every kept state's greedy
+    action is its memory's argmax."""
+    from cmarlcd.training.deep import DeepBatch
+
+    config = DeepCMARLCDConfig(
+        act_from="memory", unseen_record="first-visit", temperature=0.01,
+        buffer_size=64, batch_size=8, train_every=4,
+    )  # fmt: skip
+    batch = DeepBatch(CHAIN, config, [np.random.SeedSequence(3)], 300)
+    data = batch.group.views[0].data
+    memory = data.replay.memory
+    memory.filled[2], memory.key[2] = True, np.uint64(2)
+    memory.target[2] = [[0.5, 3.0, 0.5], [0.5, 0.5, 3.0]]
+    rng, joint = np.random.default_rng(0), np.zeros(2, np.int64)
+    kernels = batch.group.views[0].kernels
+    kernels.act(data, 2, rng, joint)
+    assert joint.tolist() == [1, 2]
+    kernels.act(data, 0, rng, joint)
+    assert joint.tolist() == np.clip(data.values[0], 0.5, 3.0).argmax(axis=-1).tolist()
+    memory.filled[2] = False
+    batch.train([300], lambda k, point, policy: None)
+    tables = batch.greedy_tables()[0]
+    kept = memory.order[: memory.size[0]]
+    assert len(kept) > 0
+    for slot in kept:
+        state = int(memory.state[slot])
+        masked = np.where(batch.group.legal[0, state], memory.target[slot], -np.inf)
+        assert tables[state].tolist() == masked.argmax(axis=-1).tolist()
