@@ -83,6 +83,9 @@ def test_shared_degree_network_gives_the_loop_each_agent_s_layers() -> None:
         ("update", "bogus"),
         ("unseen_record", "never"),
         ("act_from", "table"),
+        ("record", "mean"),
+        ("record_step", 0.0),
+        ("record_step", 1.5),
     ],
 )
 def test_bad_settings_are_rejected(field, value) -> None:
@@ -96,6 +99,14 @@ def test_acting_from_the_memory_needs_the_keyed_memory() -> None:
     with pytest.raises(ConfigError, match="keyed") as err:
         DeepCMARLCDConfig(update="replayed", act_from="memory")
     assert err.value.parameter == "act_from"
+
+
+def test_the_expectile_record_is_kept_in_the_keyed_memory() -> None:
+    """The first design's record is its record network's expectile; the memory's
+    expectile record needs the memory."""
+    with pytest.raises(ConfigError, match="keyed") as err:
+        DeepCMARLCDConfig(update="replayed", record="expectile")
+    assert err.value.parameter == "record"
 
 
 def test_an_episode_is_stored_visit_by_visit_with_its_discounted_returns() -> None:

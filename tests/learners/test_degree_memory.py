@@ -80,6 +80,53 @@ def test_a_tie_moves_by_delta_a_lower_return_moves_nothing_and_the_record_is_a_m
     assert record == 12.0 and target[0].tolist() == [2.0, 1.0, 1.0]
 
 
+#: PARAMS with the expectile record: τ 0.9, a step of 0.5, a new record above it by > 2.
+EXPECTILE = PARAMS._replace(expectile_record=True, expectile=0.9, margin=2.0, record_step=0.5)
+
+
+def test_the_expectile_record_moves_at_every_visit_and_a_record_must_pass_the_margin() -> None:
+    """Hand-computed, one-step episodes (the return is the reward): the first visit sets
+    the record to its return 10 (and resets); 11.5 is above 10 but within the margin and
+    outside the tolerance, so no degree moves, and the record rises by 0.5·0.9·1.5 =
+    0.675; 10.5 lies within 0.5 of 10.675, a tie (±δ), and the record falls by
+    0.5·0.1·0.175 = 0.00875; a lower return 0 moves no degree but pulls the record down
+    by 0.5·0.1·10.66625 = 0.5333125; 14 passes 10.1329375 + 2: a new record, a reset,
+    and the record rises by only 0.5·0.9·3.8670625, not to 14."""
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    fold(memory, [3], [[1, 1]], [10.0], params=EXPECTILE)
+    record, reset = entry(memory, 3)
+    assert record == 10.0 and reset[0].tolist() == [1.0, 2.0, 1.0]
+    fold(memory, [3], [[0, 0]], [11.5], params=EXPECTILE)
+    record, target = entry(memory, 3)
+    assert record == pytest.approx(10.675) and target[0].tolist() == reset[0].tolist()
+    fold(memory, [3], [[1, 1]], [10.5], params=EXPECTILE)
+    record, target = entry(memory, 3)
+    assert record == pytest.approx(10.66625)
+    assert target[0].tolist() == pytest.approx([0.95, 2.05, 0.95])
+    fold(memory, [3], [[0, 0]], [0.0], params=EXPECTILE)
+    record, unmoved = entry(memory, 3)
+    assert record == pytest.approx(10.1329375) and unmoved == pytest.approx(target)
+    fold(memory, [3], [[0, 0]], [14.0], params=EXPECTILE)
+    record, target = entry(memory, 3)
+    assert record == pytest.approx(10.1329375 + 0.45 * 3.8670625)
+    assert target[0].tolist() == [2.0, 1.0, 1.0]
+
+
+def test_a_lucky_draw_sets_the_maximum_but_not_the_expectile_record() -> None:
+    """A state whose returns alternate 14 and 0 (the partially stochastic climbing game's
+    miscoordinated optimum) a thousand times: the maximum holds 14; the expectile record
+    settles near the returns' 0.9-expectile, 14·0.9 / (0.9 + 0.1) = 12.6."""
+    maximum = memory_view(new_memory(1, 10, 2, 3), 0)
+    expectile = memory_view(new_memory(1, 10, 2, 3), 0)
+    small_steps = EXPECTILE._replace(record_step=0.01)
+    for visit in range(1000):
+        reward = 14.0 if visit % 2 else 0.0
+        fold(maximum, [5], [[1, 1]], [reward])
+        fold(expectile, [5], [[1, 1]], [reward], params=small_steps)
+    assert entry(maximum, 5)[0] == 14.0
+    assert entry(expectile, 5)[0] == pytest.approx(12.6, abs=0.3)
+
+
 def test_degrees_are_clipped_to_their_bounds() -> None:
     memory = memory_view(new_memory(1, 10, 2, 3), 0)
     fold(memory, [0], [[0, 0]], [1.0])

@@ -36,7 +36,7 @@ from numba.extending import overload
 
 from cmarlcd.compiled import kernel
 from cmarlcd.learners.degree_rules import degree_step
-from cmarlcd.learners.max_return import BELOW, RECORD, compare_return
+from cmarlcd.learners.max_return import BELOW, RECORD, TIE, compare_return
 
 
 class KeyedParams(NamedTuple):
@@ -54,6 +54,14 @@ class KeyedParams(NamedTuple):
     keep_below: bool = False
     """Whether a state not kept whose return falls below its estimate still enters the
     memory: with that return as its record and the network's degrees, unmoved."""
+    expectile_record: bool = False
+    """Whether the record is a running expectile of the returns (else the maximum)."""
+    expectile: float = 1.0
+    """τ of the expectile record."""
+    margin: float = 0.0
+    """By how much a return must pass the expectile record to be a new one."""
+    record_step: float = 0.0
+    """How far a visit moves the expectile record towards its return."""
 
 
 def keyed_params(config) -> KeyedParams:
@@ -68,6 +76,10 @@ def keyed_params(config) -> KeyedParams:
         config.tolerance,
         config.estimates_unseen,
         config.unseen_record == "estimate-kept",
+        config.record == "expectile",
+        config.expectile,
+        config.margin,
+        config.record_step,
     )
 
 
@@ -197,17 +209,49 @@ def may_be_missing(memory, keys, length: int, t: int) -> bool:
 
 
 @kernel
+def classify_return(g: float, best: float, params) -> int:
+    """Eq. (16) against a state's record ``best``: with the maximum, RECORD above it by
+    more than ``tolerance``, TIE within it, else BELOW (the table's
+    :func:`~cmarlcd.learners.max_return.compare_return`); with the expectile record a
+    new record must pass it by more than ``margin``."""
+    if not params.expectile_record:
+        return compare_return(g, best, params.tolerance)
+    if g > best + params.margin:
+        return RECORD
+    if abs(g - best) <= params.tolerance:
+        return TIE
+    return BELOW
+
+
+@kernel
+def record_after(best: float, g: float, outcome: int, params) -> float:
+    """A state's record after a visit of return ``g`` classified ``outcome`` against its
+    record ``best``: the maximum becomes ``g`` on a new record and stays otherwise; the
+    expectile record (``-inf`` before the first visit: then ``g``) moves towards ``g`` by
+    ``record_step * w * (g - best)``, ``w = expectile`` above it, ``1 - expectile``
+    below."""
+    if not params.expectile_record:
+        return g if outcome == RECORD else best
+    if best == -np.inf:
+        return g
+    weight = params.expectile if g > best else 1.0 - params.expectile
+    return best + params.record_step * weight * (g - best)
+
+
+@kernel
 def fold_episode(
     memory, keys, inputs, bases, estimates, joints, rewards, counts, length: int, params
 ) -> None:
     """Fold an episode of ``length`` visits into the memory, backwards (Algorithm 2,
     lines 13-19): visit ``t`` (key ``keys[t]``, network input ``inputs[t]``, joint action
     ``joints[t]``, followed by ``rewards[t]``) has return ``G_t = r + γ G_{t+1}`` (eq. 1),
-    compared (eq. 16, within ``tolerance``) with the state's record, or with
-    ``estimates[t]`` for a state not in the memory. A new record raises the record and
-    resets the targets; a tie moves them by ``delta`` (eqs. 14-15); a lower return
-    changes nothing. A state entering the memory starts from the network's degrees at
-    the visit, ``bases[t]`` (n_agents, width), clipped to ``[c_min, c_max]``; with
+    compared (eq. 16, :func:`classify_return`) with the state's record, or with
+    ``estimates[t]`` for a state not in the memory. A new record resets the targets; a
+    tie moves them by ``delta`` (eqs. 14-15); a lower return leaves them. The record
+    then follows :func:`record_after` (the maximum is raised by a new record only; the
+    expectile record moves at every visit). A state entering the memory starts from the
+    network's degrees at the visit, ``bases[t]`` (n_agents, width), clipped to
+    ``[c_min, c_max]``; with
     ``keep_below`` a state not kept whose return falls below its estimate enters too,
     with that return as its record and those degrees unmoved."""
     g = 0.0
@@ -215,20 +259,20 @@ def fold_episode(
         g = rewards[t] + params.gamma * g
         slot = find(memory, keys[t])
         best = memory.record[slot] if slot >= 0 else estimates[t]
-        outcome = compare_return(g, best, params.tolerance)
+        outcome = classify_return(g, best, params)
+        if slot >= 0:
+            memory.record[slot] = record_after(best, g, outcome, params)
         if outcome == BELOW and (slot >= 0 or not params.keep_below):
             continue
         if slot < 0:
             slot = claim(memory, keys[t])
             put_input(memory.state, slot, inputs, t)
-            memory.record[slot] = g if outcome == BELOW else best
+            memory.record[slot] = g if outcome == BELOW else record_after(best, g, outcome, params)
             for i in range(counts.shape[0]):
                 for a in range(counts[i]):
                     memory.target[slot, i, a] = min(max(bases[t, i, a], params.c_min), params.c_max)
         if outcome == BELOW:
             continue
-        if outcome == RECORD:
-            memory.record[slot] = g
         for i in range(counts.shape[0]):
             degree_step(memory.target[slot, i], counts[i], joints[t, i], outcome == RECORD, params)
 
