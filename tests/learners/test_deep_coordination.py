@@ -86,6 +86,8 @@ def test_shared_degree_network_gives_the_loop_each_agent_s_layers() -> None:
         ("record", "mean"),
         ("record_step", 0.0),
         ("record_step", 1.5),
+        ("ways", 0),
+        ("ways", 50_000),
     ],
 )
 def test_bad_settings_are_rejected(field, value) -> None:

@@ -227,3 +227,33 @@ def test_only_visits_whose_state_may_be_missing_when_folded_need_the_network() -
     # the same state twice in one episode is no conflict with itself
     twice = np.array([3, 3], np.uint64)
     assert [may_be_missing(memory, twice, 2, t) for t in range(2)] == [False, False]
+
+
+def test_a_set_of_two_ways_keeps_two_states_of_one_set_and_replaces_the_least_recent() -> None:
+    """Capacity 10 in sets of 2: 5 sets, a key's set is key mod 5. States 2, 7 and 12 all
+    map to set 2 (slots 4 and 5). Direct-mapped, 2 and 12 would share slot 2; here 2 and 7
+    are both kept. After episodes visiting 2, then 7, then 2 again, 7 is the entry visited
+    least recently, so 12 replaces 7 and 2 stays."""
+    memory = memory_view(new_memory(1, 10, 2, 3, ways=2), 0)
+    fold(memory, [2], [[0, 0]], [1.0])
+    fold(memory, [7], [[0, 0]], [1.0])
+    assert find(memory, np.uint64(2)) == 4 and find(memory, np.uint64(7)) == 5
+    fold(memory, [2], [[0, 0]], [0.0])  # below the record: no degree moves, but a visit
+    fold(memory, [12], [[1, 1]], [1.0])
+    assert find(memory, np.uint64(7)) < 0
+    assert find(memory, np.uint64(2)) == 4 and find(memory, np.uint64(12)) == 5
+    assert memory.size[0] == 2 and entry(memory, 12)[1][0].tolist() == [1.0, 2.0, 1.0]
+
+
+def test_with_sets_a_visit_may_be_missing_when_another_state_of_its_set_is_in_the_episode() -> None:
+    """Sets of 2 in 10 slots: 3 and 8 share set 3, 4 is alone in set 4."""
+    memory = memory_view(new_memory(1, 10, 2, 3, ways=2), 0)
+    fold(memory, [3, 4], [[0, 0], [0, 0]], [1.0, 1.0])
+    keys = np.array([3, 8, 4], np.uint64)
+    assert [may_be_missing(memory, keys, 3, t) for t in range(3)] == [True, True, False]
+
+
+def test_a_capacity_is_rounded_up_to_whole_sets() -> None:
+    memory = new_memory(1, 10, 2, 3, ways=4)
+    assert memory.key.shape == (1, 12) and memory.visited.shape == (1, 12)
+    assert new_memory(1, 10, 2, 3).visited.shape == (1, 0)  # direct-mapped: no stamps

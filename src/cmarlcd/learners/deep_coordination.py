@@ -109,6 +109,12 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     buffer_size: int = 40_000
     """Capacity of the keyed memory, in states (``keyed``; with integer states it holds
     at most one slot per state), or of the replay ring, in visits (``replayed``)."""
+    ways: int = added_setting(1, "0.6.0")
+    """[choice] (``keyed``) Slots per set of the keyed memory: 1, direct-mapped (a state
+    whose slot holds another replaces it); more, set-associative (a state takes an empty
+    slot of its set, or the one visited least recently), so that fewer states are lost
+    to collisions while the memory has room: ``n`` states in ``m`` direct-mapped slots
+    keep about ``m (1 - exp(-n/m))`` of them."""
     batch_size: int = 400
     """States (``keyed``, drawn from the memory) or visits (``replayed``) per gradient
     step; learning starts once a state is kept (``keyed``) or this many visits are
@@ -202,11 +208,12 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             "'memory' needs the keyed memory (update='keyed'); "
             "with update='replayed' set act_from=network",
         )
-        for name in ("hidden", "record_hidden", "buffer_size", "batch_size", "train_every"):
+        for name in ("hidden", "record_hidden", "buffer_size", "batch_size", "train_every", "ways"):
             value = getattr(self, name)
             require(value >= 1, name, f"must be >= 1 (got {value})")
         require(self.target_every >= 1, "target_every", f"must be >= 1 (got {self.target_every})")
         require(self.batch_size <= self.buffer_size, "batch_size", "must be <= buffer_size")
+        require(self.ways <= self.buffer_size, "ways", "must be <= buffer_size")
         for name in ("lr", "record_lr"):
             value = getattr(self, name)
             require(bool(np.isfinite(value)) and value > 0, name, f"must be > 0 (got {value})")

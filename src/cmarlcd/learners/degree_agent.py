@@ -58,7 +58,7 @@ class DegreeAgent(StepAgent):
         n = len(self.counts)
         if config.keyed:
             capacity = min(config.buffer_size, n_states) if n_states else config.buffer_size
-            self.memory = new_memory(1, capacity, n, self.width, state_dim or 0)
+            self.memory = new_memory(1, capacity, n, self.width, state_dim or 0, config.ways)
             self._memory = memory_view(self.memory, 0)
             self._params = keyed_params(config)
         else:

@@ -12,10 +12,13 @@ counts as news.
 
 A state is found by its **key**: its index for integer states, a 64-bit hash of the
 feature vector's 32-bit words otherwise (:func:`features_key`). The memory is a
-direct-mapped table of ``capacity`` slots (slot = key mod capacity); a state whose slot
-holds another state's entry replaces it. With integer states and a capacity of at least
-the number of states every state has its own slot and nothing is ever replaced: the
-memory is then the tabular learner's table, and the network its distillation.
+set-associative table of ``capacity`` slots in sets of ``ways`` (the key's set is key mod
+``capacity / ways``; with one way, the default, it is direct-mapped: slot = key mod
+capacity). A state enters an empty way of its set, or else replaces the entry of its set
+visited least recently (by the episodes folded in). With integer states and a capacity
+of at least the number of states every state has its own slot and nothing is ever
+replaced: the memory is then the tabular learner's table, and the network its
+distillation.
 
 A state not in the memory is compared with an estimate of its record (``estimates``:
 ``-inf`` under the table's rule, every first visit a new record; or a record network's
@@ -100,15 +103,24 @@ class DegreeMemory(NamedTuple):
     the network's input for the entry."""
     order: np.ndarray
     """(B, capacity) int64: the filled slots, in the order they were first filled."""
+    visited: np.ndarray
+    """(B, capacity) int64: the episode (of ``clock``) that last visited the entry; (B, 0)
+    when direct-mapped, where nothing is chosen between ways."""
     size: np.ndarray
     """(B,) int64: slots filled."""
+    clock: np.ndarray
+    """(B,) int64: episodes folded in."""
+    ways: np.ndarray
+    """(B,) int64: slots per set (1: direct-mapped)."""
 
 
 def new_memory(
-    seeds: int, capacity: int, n_agents: int, width: int, n_features: int = 0
+    seeds: int, capacity: int, n_agents: int, width: int, n_features: int = 0, ways: int = 1
 ) -> DegreeMemory:
-    """Empty memories of ``capacity`` slots for ``seeds`` seeds, of feature vectors when
-    ``n_features`` > 0, else of state indices."""
+    """Empty memories of ``capacity`` slots (rounded up to a whole number of sets of
+    ``ways``) for ``seeds`` seeds, of feature vectors when ``n_features`` > 0, else of
+    state indices."""
+    capacity = -(-capacity // ways) * ways
     state_shape = (seeds, capacity, n_features) if n_features else (seeds, capacity)
     return DegreeMemory(
         np.zeros((seeds, capacity), np.uint64),
@@ -117,13 +129,23 @@ def new_memory(
         np.zeros((seeds, capacity, n_agents, width), np.float32),
         np.zeros(state_shape, np.float32 if n_features else np.int64),
         np.zeros((seeds, capacity), np.int64),
+        np.zeros((seeds, capacity if ways > 1 else 0), np.int64),
         np.zeros(seeds, np.int64),
+        np.zeros(seeds, np.int64),
+        np.full(seeds, ways, np.int64),
     )
 
 
+#: DegreeMemory's per-slot arrays (the rest are one entry per seed).
+_SLOT_ARRAYS = 7
+
+
 def memory_view(memory: DegreeMemory, b: int) -> DegreeMemory:
-    """Seed ``b``'s memory, as views (``size`` of one entry)."""
-    return DegreeMemory(*(array[b] for array in memory[:6]), memory.size[b : b + 1])
+    """Seed ``b``'s memory, as views (``size``, ``clock`` and ``ways`` of one entry)."""
+    return DegreeMemory(
+        *(array[b] for array in memory[:_SLOT_ARRAYS]),
+        *(array[b : b + 1] for array in memory[_SLOT_ARRAYS:]),
+    )
 
 
 @kernel
@@ -171,18 +193,35 @@ def _put_row(state, slot, inputs, t) -> None:
 
 
 @kernel
+def key_set(memory, key) -> np.uint64:
+    """The set ``key``'s entry lives in (key mod the number of sets)."""
+    return key % np.uint64(memory.key.shape[0] // memory.ways[0])
+
+
+@kernel
 def find(memory, key) -> int:
     """The slot holding ``key``'s entry, or -1."""
-    slot = np.int64(key % np.uint64(memory.key.shape[0]))
-    if memory.filled[slot] and memory.key[slot] == key:
-        return slot
+    ways = memory.ways[0]
+    first = np.int64(key_set(memory, key)) * ways
+    for slot in range(first, first + ways):
+        if memory.filled[slot] and memory.key[slot] == key:
+            return slot
     return -1
 
 
 @kernel
 def claim(memory, key) -> int:
-    """``key``'s slot, given to it (the entry it held, if any, is dropped)."""
-    slot = np.int64(key % np.uint64(memory.key.shape[0]))
+    """A slot of ``key``'s set given to it (``key`` not kept): the first empty way, else
+    the way visited least recently (first of them on a tie), whose entry is dropped."""
+    ways = memory.ways[0]
+    first = np.int64(key_set(memory, key)) * ways
+    slot = first
+    for way in range(first, first + ways):
+        if not memory.filled[way]:
+            slot = way
+            break
+        if ways > 1 and memory.visited[way] < memory.visited[slot]:
+            slot = way
     if not memory.filled[slot]:
         memory.filled[slot] = True
         memory.order[memory.size[0]] = slot
@@ -192,18 +231,24 @@ def claim(memory, key) -> int:
 
 
 @kernel
+def mark_visited(memory, slot: int) -> None:
+    """Stamp ``slot``'s entry with the present episode (sets of several ways only)."""
+    if memory.ways[0] > 1:
+        memory.visited[slot] = memory.clock[0]
+
+
+@kernel
 def may_be_missing(memory, keys, length: int, t: int) -> bool:
     """Whether visit ``t``'s state (of an episode of ``length`` visits keyed ``keys``)
     may be missing from the memory when :func:`fold_episode` reaches it: it is not kept
-    now, or another state of the episode shares its slot (the fold's claims are the only
+    now, or another state of the episode shares its set (the fold's claims are the only
     changes it makes to which states are kept). Only such visits need the network's
     degrees and record estimate."""
     if find(memory, keys[t]) < 0:
         return True
-    capacity = np.uint64(memory.key.shape[0])
-    slot = keys[t] % capacity
+    home = key_set(memory, keys[t])
     for u in range(length):  # noqa: SIM110 (compiled: a loop, not any() of a generator)
-        if keys[u] != keys[t] and keys[u] % capacity == slot:
+        if keys[u] != keys[t] and key_set(memory, keys[u]) == home:
             return True
     return False
 
@@ -255,9 +300,12 @@ def fold_episode(
     ``keep_below`` a state not kept whose return falls below its estimate enters too,
     with that return as its record and those degrees unmoved."""
     g = 0.0
+    memory.clock[0] += 1
     for t in range(length - 1, -1, -1):
         g = rewards[t] + params.gamma * g
         slot = find(memory, keys[t])
+        if slot >= 0:
+            mark_visited(memory, slot)
         best = memory.record[slot] if slot >= 0 else estimates[t]
         outcome = classify_return(g, best, params)
         if slot >= 0:
@@ -266,6 +314,7 @@ def fold_episode(
             continue
         if slot < 0:
             slot = claim(memory, keys[t])
+            mark_visited(memory, slot)
             put_input(memory.state, slot, inputs, t)
             memory.record[slot] = g if outcome == BELOW else record_after(best, g, outcome, params)
             for i in range(counts.shape[0]):

@@ -92,7 +92,7 @@ class KeyedKind:
         hidden = config.record_hidden
         shapes = ((features, hidden), (hidden,), (hidden, 1), (1,)) if features else ((0, 0),) * 4
         return KeyedReplay(
-            new_memory(seeds, capacity, n, width, features),
+            new_memory(seeds, capacity, n, width, features, config.ways),
             np.zeros((seeds, steps), np.uint64),
             np.zeros((seeds, steps, n, width), np.float32),
             np.zeros((seeds, steps)),
