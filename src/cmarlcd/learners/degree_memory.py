@@ -8,7 +8,8 @@ by the table's own rule (:func:`fold_episode`: eqs. 1 and 14-16, Algorithm 2 lin
 13-19), once per visit; the degree network is then fitted to the memory, every kept
 state alike (:func:`sample_memory`). So a tie moves a state's targets by ``delta`` once,
 however often the network is fitted, and a record is a maximum: replaying a visit never
-counts as news.
+counts as news. (With ``expectile_record`` the record is instead a running expectile of
+the state's returns, which one lucky draw does not set: :func:`record_after`.)
 
 A state is found by its **key**: its index for integer states, a 64-bit hash of the
 feature vector's 32-bit words otherwise (:func:`features_key`). The memory is a
