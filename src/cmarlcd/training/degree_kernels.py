@@ -184,22 +184,22 @@ def memory_features_greedy(side, env, team, offset, legal, rng, joint) -> None:
 
 
 @kernel
-def kept_or_table_degrees(side, s: int, i: int, raw) -> None:
-    """``raw`` := agent ``i``'s degrees at state index ``s``: the memory's where it keeps
-    ``s``, else the network's (its row of the loop's copy). Copied: a compiled kernel
-    returns no view of an array it was not given."""
-    memory = side.replay.memory
-    slot = find(memory, np.uint64(s))
+def kept_or_table_degrees(side, slot: int, s: int, i: int, raw) -> None:
+    """``raw`` := agent ``i``'s degrees at state index ``s``: the memory's entry ``slot``
+    where the memory keeps ``s`` (``slot`` >= 0), else the network's (its row of the
+    loop's copy). Copied: a compiled kernel returns no view of an array it was not
+    given."""
     for a in range(side.counts[i]):
-        raw[a] = memory.target[slot, i, a] if slot >= 0 else side.values[s, i, a]
+        raw[a] = side.replay.memory.target[slot, i, a] if slot >= 0 else side.values[s, i, a]
 
 
 @kernel
 def memory_index_act(side, s: int, rng, joint) -> None:
     """Eq. 17 with the memory's degrees where it keeps the state, else the network's."""
     raw = side.scratch[1]
+    slot = find(side.replay.memory, np.uint64(s))
     for i in range(side.counts.shape[0]):
-        kept_or_table_degrees(side, s, i, raw)
+        kept_or_table_degrees(side, slot, s, i, raw)
         joint[i] = sample_degrees(side, raw, side.legal[s, i], side.counts[i], rng)
 
 
@@ -209,8 +209,9 @@ def memory_index_greedy(side, env, team, offset, legal, rng, joint) -> None:
     s = game.state(env, team)
     game.legal(env, legal)
     raw = side.scratch[1]
+    slot = find(side.replay.memory, np.uint64(s))
     for i in range(joint.shape[0]):
-        kept_or_table_degrees(side, s, i, raw)
+        kept_or_table_degrees(side, slot, s, i, raw)
         joint[i] = greedy_degrees(side, raw, legal[offset + i], side.counts[i])
 
 
