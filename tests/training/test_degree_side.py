@@ -170,6 +170,25 @@ def test_the_object_api_acts_from_the_memory_where_it_keeps_the_state() -> None:
     assert not np.allclose(network_before[0], [1.0, 2.0, 1.0])
 
 
+def test_the_object_api_keeps_colliding_states_in_the_ways_of_a_set() -> None:
+    """A memory of 2 slots: states 1 and 3 share a slot direct-mapped (the second
+    replaces the first), and share the one set of 2 ways (both are kept)."""
+
+    def kept(ways: int) -> list[bool]:
+        config = DeepCMARLCDConfig(
+            act_from="memory", unseen_record="first-visit", buffer_size=2, batch_size=1,
+            ways=ways,
+        )  # fmt: skip
+        agent = DegreeAgent([3], config, 10, n_states=5, seed=0)
+        for state in (1, 3):
+            agent.observe(state, (1,), 5.0)
+            agent.end_episode()
+        return [agent.degrees(state)[0].tolist() == [1.0, 2.0, 1.0] for state in (1, 3)]
+
+    assert kept(1) == [False, True]
+    assert kept(2) == [True, True]
+
+
 def test_the_greedy_table_takes_each_kept_state_s_action_from_the_memory() -> None:
     """Index inputs: the executed greedy table is the networks' with each kept state's
     row from its memory degrees over its masks (an illegal best action skipped; lowest
