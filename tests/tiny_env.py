@@ -78,3 +78,36 @@ def make(**kwargs) -> TinyEnv:
 
 
 NOT_A_FACTORY = 3
+
+
+class RandomLengthEnv(TinyEnv):
+    """The tiny game, but each episode lasts 1 to 6 steps, drawn at reset from the seeded
+    stream, and a step pays a random amount: copies played together end at different
+    steps, and a copy's transitions depend on its own seed."""
+
+    def reset(self, seed=None, options=None):
+        if seed is not None or not hasattr(self, "rng"):
+            self.rng = np.random.default_rng(seed)
+        self.length = int(self.rng.integers(1, 7))
+        return super().reset(seed, options)
+
+    def state(self):
+        return np.int64(min(self.t, STEPS - 1))
+
+    def step(self, actions):
+        observations, rewards, terminations, truncations, infos = super().step(actions)
+        bonus = float(self.rng.random())
+        rewards = {a: r + bonus for a, r in rewards.items()}
+        done = self.t >= self.length
+        terminations = {a: done for a in terminations}
+        self.agents = [] if done else list(self.possible_agents)
+        return observations, rewards, terminations, truncations, infos
+
+
+_MADE = [0]
+
+
+def make_disagreeing(**kwargs) -> TinyEnv:
+    """A factory whose copies disagree: every second call makes a game of 3 actions."""
+    _MADE[0] += 1
+    return TinyEnv(actions=2 + _MADE[0] % 2, **kwargs)

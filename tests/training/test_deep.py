@@ -227,3 +227,28 @@ def test_greedy_tables_read_the_masks_met_since_the_last_step(monkeypatch) -> No
 
         run.train(list(range(1, 21)), evaluate)
     assert illegal and not any(illegal)
+
+
+def test_deep_agent_acts_for_many_copies_with_one_forward_pass() -> None:
+    """``greedy_many`` is each state's greedy action; ``act_many`` draws what the states
+    drawn one by one would; each copy's step becomes a transition to that copy's next
+    state, and its episode's end to a terminal one."""
+    agent = DeepAgent([3, 2], SMALL, 10, n_states=6, seed=0)
+    twin = DeepAgent([3, 2], SMALL, 10, n_states=6, seed=0)
+    states, masks = [0, 4, 5], [None, None, [np.array([1, 0, 1]), np.array([1, 1])]]
+    greedy = agent.greedy_many(states, masks)
+    one_by_one = [agent.greedy(s, m) for s, m in zip(states, masks, strict=True)]
+    assert [tuple(row) for row in greedy] == one_by_one
+    drawn = agent.act_many(states, masks, [0, 1, 2])
+    assert drawn == [twin.act(s, m) for s, m in zip(states, masks, strict=True)]
+    for copy, (state, joint) in enumerate(zip(states, drawn, strict=True)):
+        agent.observe(state, joint, float(copy), copy=copy)
+    agent.act_many([1, 2], [None, None], [2, 0])  # copies 2 and 0 go on
+    agent.end_episode(final_state=3, terminated=True, copy=1)
+    ring = agent._view
+    stored = {
+        (int(ring.state[k]), int(ring.next_state[k]), bool(ring.terminal[k]))
+        for k in range(agent.stored)
+    }
+    assert stored == {(5, 1, False), (0, 2, False), (4, 4, True)}  # terminal: no successor
+    assert agent.steps == 3 and agent.episode == 1

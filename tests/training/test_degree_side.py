@@ -189,6 +189,54 @@ def test_the_object_api_keeps_colliding_states_in_the_ways_of_a_set() -> None:
     assert kept(2) == [True, True]
 
 
+def test_the_object_api_acts_from_the_memory_on_feature_states() -> None:
+    """Feature inputs are keyed by a 64-bit hash, half of which do not fit a signed
+    integer: a kept state's greedy action comes from the memory whatever its key."""
+    config = DeepCMARLCDConfig(act_from="memory", unseen_record="first-visit")
+    agent = DegreeAgent([3], config, 10, state_dim=2, seed=0)
+    states = [np.array([k, 1.0], np.float32) for k in range(8)]
+    assert max(int(features_key(s)) for s in states) >= 2**63  # a key above int64's range
+    for state in states:
+        agent.observe(state, (2,), 5.0)
+        agent.end_episode()
+    assert [agent.greedy(s) for s in states] == [(2,)] * len(states)
+
+
+def test_many_states_at_once_act_as_one_at_a_time() -> None:
+    """``greedy_many`` gives each state's greedy action (memory and network states
+    mixed), and ``act_many`` draws what the same states drawn one by one would."""
+    config = DeepCMARLCDConfig(act_from="memory", unseen_record="first-visit")
+    agent = DegreeAgent([3, 2], config, 10, n_states=6, seed=0)
+    agent.observe(4, (2, 0), 5.0)
+    agent.end_episode()
+    states, masks = [0, 4, 5], [None, None, [np.array([1, 1, 0]), np.array([0, 1])]]
+    many = agent.greedy_many(states, masks)
+    one_by_one = [agent.greedy(s, m) for s, m in zip(states, masks, strict=True)]
+    assert [tuple(row) for row in many] == one_by_one
+    assert tuple(many[1]) == (2, 0)  # from the memory
+    twin = DegreeAgent([3, 2], config, 10, n_states=6, seed=0)
+    twin.observe(4, (2, 0), 5.0)
+    twin.end_episode()
+    drawn = agent.act_many(states, masks, [0, 1, 2])
+    assert drawn == [twin.act(s, m) for s, m in zip(states, masks, strict=True)]
+    assert drawn[2][0] != 2 and drawn[2][1] == 1  # masked actions never drawn
+
+
+def test_each_copy_folds_its_own_episode() -> None:
+    """Visits of two interleaved episodes: each copy's episode is folded when it ends,
+    as if played alone (state 1's record from copy 0's visit, state 2's from copy 1's)."""
+    config = DeepCMARLCDConfig(act_from="memory", unseen_record="first-visit")
+    agent = DegreeAgent([3], config, 10, n_states=3, seed=0)
+    agent.observe(1, (0,), 1.0, copy=0)
+    agent.observe(2, (2,), 1.0, copy=1)
+    agent.end_episode(copy=1)
+    assert agent.degrees(2)[0].tolist() == [1.0, 1.0, 2.0]
+    assert agent.degrees(1)[0].tolist() != [2.0, 1.0, 1.0]  # copy 0's episode still open
+    agent.end_episode(copy=0)
+    assert agent.degrees(1)[0].tolist() == [2.0, 1.0, 1.0]
+    assert agent.episode == 2
+
+
 def test_the_greedy_table_takes_each_kept_state_s_action_from_the_memory() -> None:
     """Index inputs: the executed greedy table is the networks' with each kept state's
     row from its memory degrees over its masks (an illegal best action skipped; lowest

@@ -28,6 +28,10 @@ class StepAgent:
     given, else feature vectors of length ``state_dim``. ``masks`` give the legal actions
     of each agent (1 = legal). The model computes on ``device`` (default: this
     process's, :func:`cmarlcd.devices.current`); what the agent hands back is on the host.
+
+    Several copies of an environment may be played at once: :meth:`act_many` acts in
+    each copy's state with one forward pass, and ``copy`` (0 by default) tells
+    ``act``, ``observe`` and ``end_episode`` whose episode a call belongs to.
     """
 
     def __init__(
@@ -68,11 +72,37 @@ class StepAgent:
 
     def _legal(self, masks) -> torch.Tensor:
         """(n_agents, width): each agent's legal actions."""
+        return torch.as_tensor(self._legal_array(masks), device=self.device)
+
+    def _legal_array(self, masks) -> np.ndarray:
+        """(n_agents, width) bool on the host: each agent's legal actions."""
         legal = np.arange(self.width)[None, :] < self.counts[:, None]
         if masks is not None:
             for i, mask in enumerate(masks):
                 legal[i, : self.counts[i]] &= np.asarray(mask, dtype=bool)
-        return torch.as_tensor(legal, device=self.device)
+        return legal
+
+    def _legal_many(self, masks: Sequence) -> np.ndarray:
+        """(N, n_agents, width) bool on the host: the legal actions in each of N states
+        (``masks[k]``: that state's masks, or None)."""
+        return np.stack([self._legal_array(m) for m in masks])
+
+    def act(self, state, masks=None, copy: int = 0) -> tuple[int, ...]:
+        """A joint action to take at ``state`` in ``copy``'s episode (:meth:`act_many`
+        for one state)."""
+        return self.act_many([state], [masks], [copy])[0]
+
+    def greedy(self, state, masks=None) -> tuple[int, ...]:
+        """The greedy legal joint action at ``state``."""
+        return tuple(int(a) for a in self.greedy_many([state], [masks])[0])
+
+    def act_many(self, states: Sequence, masks: Sequence, copies: Sequence[int]) -> list:
+        """Joint actions to take at ``states[k]`` in the episode of ``copies[k]``."""
+        raise NotImplementedError
+
+    def greedy_many(self, states: Sequence, masks: Sequence) -> np.ndarray:
+        """The greedy legal joint action at each of ``states``: (N, n_agents)."""
+        raise NotImplementedError
 
     def _replay_batch(self) -> dict[str, torch.Tensor]:
         """A replay batch, drawn with the agent's replay stream, on its device."""
@@ -108,44 +138,49 @@ class DeepAgent(StepAgent):
             masks=True,
         )  # fmt: skip
         self._view = seed_view(self.ring, 0)
-        self._pending: tuple | None = None
+        self._pending: dict[int, tuple] = {}
 
-    def greedy(self, state, masks=None) -> tuple[int, ...]:
-        """The greedy legal joint action at ``state``."""
-        action = self.model.greedy(self._encode(state), self._legal(masks))[0, 0]
-        return tuple(int(a) for a in action)
+    def greedy_many(self, states: Sequence, masks: Sequence) -> np.ndarray:
+        """The greedy legal joint action at each of ``states``: (N, n_agents)."""
+        legal = torch.as_tensor(self._legal_many(masks), device=self.device)
+        return self.model.greedy(self._encode_many(states), legal)[0].cpu().numpy()
 
-    def act(self, state, masks=None) -> tuple[int, ...]:
-        """ε-greedy per agent (eq. 18, ε of the current episode); completes the pending
-        transition with this state as its successor."""
-        self._complete(state, masks, terminal=False)
+    def act_many(self, states: Sequence, masks: Sequence, copies: Sequence[int]) -> list:
+        """ε-greedy per agent (eq. 18, ε of the current episode) at each state, with one
+        forward pass; first completes each copy's pending transition with its state as
+        the successor. The draws go copy by copy, agent by agent."""
+        for state, mask, copy in zip(states, masks, copies, strict=True):
+            self._complete(copy, state, mask, terminal=False)
         eps = epsilon(self.episode + 1, self.total_episodes, self.config)
-        greedy, legal = self.greedy(state, masks), self._legal(masks).cpu().numpy()
-        joint = []
-        for i, best in enumerate(greedy):
-            if self.act_rng.random() < eps:
-                joint.append(int(self.act_rng.choice(np.flatnonzero(legal[i]))))
-            else:
-                joint.append(best)
-        return tuple(joint)
+        greedy, legal = self.greedy_many(states, masks), self._legal_many(masks)
+        joints = []
+        for best_joint, legal_joint in zip(greedy, legal, strict=True):
+            joint = []
+            for best, row in zip(best_joint, legal_joint, strict=True):
+                if self.act_rng.random() < eps:
+                    joint.append(int(self.act_rng.choice(np.flatnonzero(row))))
+                else:
+                    joint.append(int(best))
+            joints.append(tuple(joint))
+        return joints
 
-    def observe(self, state, joint_action, reward: float) -> None:
-        """Record a step; it becomes a transition when its successor is known."""
-        self._pending = (state, tuple(int(a) for a in joint_action), float(reward))
+    def observe(self, state, joint_action, reward: float, copy: int = 0) -> None:
+        """Record a step of ``copy``'s episode; it becomes a transition when its
+        successor is known."""
+        self._pending[copy] = (state, tuple(int(a) for a in joint_action), float(reward))
 
-    def end_episode(self, final_state=None, terminated: bool = True) -> None:
-        """Close the episode: bootstrap from ``final_state`` unless ``terminated``."""
-        self._complete(final_state, None, terminal=terminated)
+    def end_episode(self, final_state=None, terminated: bool = True, copy: int = 0) -> None:
+        """Close ``copy``'s episode: bootstrap from ``final_state`` unless ``terminated``."""
+        self._complete(copy, final_state, None, terminal=terminated)
         self.episode += 1
 
-    def _complete(self, next_state, next_masks, terminal: bool) -> None:
-        if self._pending is None:
+    def _complete(self, copy: int, next_state, next_masks, terminal: bool) -> None:
+        if copy not in self._pending:
             return
-        state, joint, reward = self._pending
-        self._pending = None
+        state, joint, reward = self._pending.pop(copy)
         if terminal or next_state is None:
             next_state, terminal = state, True
-        legal = self._legal(next_masks).cpu().numpy()
+        legal = self._legal_array(next_masks)
         joint_array = np.array(joint, dtype=np.int64)
         if self.integer_states:
             row = int(self._view.position[0])

@@ -65,7 +65,7 @@ class DegreeAgent(StepAgent):
             size = config.buffer_size
             self.ring = new_ring(1, size, n, self.width, n_states or 1, state_dim or 0)
             self._view = seed_view(self.ring, 0)
-        self._visits: list[tuple[object, tuple[int, ...], float]] = []
+        self._visits: dict[int, list[tuple[object, tuple[int, ...], float]]] = {}
 
     @property
     def stored(self) -> int:
@@ -80,50 +80,56 @@ class DegreeAgent(StepAgent):
         batch = sample_memory(self.memory, [self.replay_rng], self.config.batch_size)
         return {key: torch.from_numpy(a).to(self.device) for key, a in batch.items()}
 
-    def _degrees(self, state, masks) -> tuple[np.ndarray, np.ndarray]:
-        """Each agent's clipped degrees at ``state`` and its legal actions, (n, width):
-        the memory's where it keeps the state and ``act_from`` is ``"memory"``, else
-        the network's."""
+    def _degrees(self, states, masks) -> tuple[list[np.ndarray], np.ndarray]:
+        """Each agent's clipped degrees at each of ``states`` ((n, width) each) and the
+        legal actions ((N, n, width)), with one forward pass: the memory's degrees (as
+        float64) where it keeps the state and ``act_from`` is ``"memory"``, else the
+        network's (float32)."""
         c = self.config
-        x = self._encode(state)
-        legal = self._legal(masks).cpu().numpy()
-        if c.acts_from_memory:
-            key = (
-                np.uint64(int(state))
-                if self.integer_states
-                else features_key(x[0, 0].cpu().numpy())
-            )
-            slot = find(self._memory, key)
-            if slot >= 0:
-                return self._memory.target[slot].astype(np.float64), legal
+        x = self._encode_many(states)
         with torch.no_grad():
-            degrees = self.model.agents(x)[0, 0].clamp(c.c_min, c.c_max)
-        return degrees.cpu().numpy(), legal
+            degrees = list(self.model.agents(x)[0].clamp(c.c_min, c.c_max).cpu().numpy())
+        if c.acts_from_memory:
+            for k, state in enumerate(states):
+                key = (
+                    np.uint64(int(state))
+                    if self.integer_states
+                    else np.uint64(features_key(x[0, k].cpu().numpy()))
+                )
+                slot = find(self._memory, key)
+                if slot >= 0:
+                    degrees[k] = self._memory.target[slot].astype(np.float64)
+        return degrees, self._legal_many(masks)
 
     def degrees(self, state, masks=None) -> np.ndarray:
         """Each agent's clipped degrees ``c_i(state, ·)``, shape (n_agents, width)."""
-        return self._degrees(state, masks)[0]
+        return self._degrees([state], [masks])[0][0]
 
-    def greedy(self, state, masks=None) -> tuple[int, ...]:
-        """Each agent's legal action of largest clipped degree (lowest index on ties)."""
-        degrees, legal = self._degrees(state, masks)
-        return tuple(
-            int(np.argmax(np.where(row, d, -np.inf))) for d, row in zip(degrees, legal, strict=True)
-        )
+    def greedy_many(self, states, masks) -> np.ndarray:
+        """Each agent's legal action of largest clipped degree (lowest index on ties) at
+        each of ``states``: (N, n_agents)."""
+        degrees, legal = self._degrees(states, masks)
+        return np.argmax(np.where(legal, np.stack(degrees), -np.inf), axis=-1)
 
-    def act(self, state, masks=None) -> tuple[int, ...]:
-        """A draw from softmax(c/T) over each agent's legal actions (eq. 17)."""
-        degrees, legal = self._degrees(state, masks)
-        joint = []
-        for d, row in zip(degrees, legal, strict=True):
-            logits = np.where(row, d / self.config.temperature, -np.inf)
-            p = np.exp(logits - logits.max())
-            joint.append(int(self.act_rng.choice(self.width, p=p / p.sum())))
-        return tuple(joint)
+    def act_many(self, states, masks, copies) -> list:
+        """A draw from softmax(c/T) over each agent's legal actions (eq. 17) at each
+        state, with one forward pass; the draws go state by state, agent by agent."""
+        all_degrees, all_legal = self._degrees(states, masks)
+        joints = []
+        for degrees, legal in zip(all_degrees, all_legal, strict=True):
+            joint = []
+            for d, row in zip(degrees, legal, strict=True):
+                logits = np.where(row, d / self.config.temperature, -np.inf)
+                p = np.exp(logits - logits.max())
+                joint.append(int(self.act_rng.choice(self.width, p=p / p.sum())))
+            joints.append(tuple(joint))
+        return joints
 
-    def observe(self, state, joint_action, reward: float) -> None:
-        """Record a visit; the schedule of gradient steps counts environment steps."""
-        self._visits.append((state, tuple(int(a) for a in joint_action), float(reward)))
+    def observe(self, state, joint_action, reward: float, copy: int = 0) -> None:
+        """Record a visit of ``copy``'s episode; the schedule of gradient steps counts
+        environment steps."""
+        visit = (state, tuple(int(a) for a in joint_action), float(reward))
+        self._visits.setdefault(copy, []).append(visit)
         self.steps += 1
         step, copy = scheduled_work(self.steps - 1, self.steps, self.stored, self.config)
         if step:
@@ -131,24 +137,25 @@ class DegreeAgent(StepAgent):
         if copy:
             self.model.sync_target()
 
-    def end_episode(self, final_state=None, terminated: bool = True) -> None:
-        """Fold the episode into the keyed memory (``keyed``), or store every visit with
-        its discounted return (``replayed``). Returns are the episode's rewards from each
-        visit on: nothing is bootstrapped, a cut episode's return is what it collected."""
+    def end_episode(self, final_state=None, terminated: bool = True, copy: int = 0) -> None:
+        """Fold ``copy``'s episode into the keyed memory (``keyed``), or store every
+        visit with its discounted return (``replayed``). Returns are the episode's rewards
+        from each visit on: nothing is bootstrapped, a cut episode's return is what it
+        collected."""
+        visits = self._visits.pop(copy, [])
         if self.config.keyed:
-            self._fold()
+            self._fold(visits)
         else:
-            self._store()
-        self._visits.clear()
+            self._store(visits)
         self.episode += 1
 
-    def _fold(self) -> None:
-        """The episode into the memory (:func:`~cmarlcd.learners.degree_memory.fold_episode`),
-        with the networks' degrees and record estimate at every visit for the states not
-        kept."""
-        if not self._visits:
+    def _fold(self, visits: list) -> None:
+        """An episode's visits into the memory
+        (:func:`~cmarlcd.learners.degree_memory.fold_episode`), with the networks' degrees
+        and record estimate at every visit for the states not kept."""
+        if not visits:
             return
-        states = [state for state, _, _ in self._visits]
+        states = [state for state, _, _ in visits]
         x = self._encode_many(states)
         with torch.no_grad():
             bases = self.model.agents(x)[0].cpu().numpy()
@@ -161,17 +168,17 @@ class DegreeAgent(StepAgent):
         else:
             inputs = x[0].cpu().numpy()
             keys = np.array([features_key(row) for row in inputs], np.uint64)
-        joints = np.array([joint for _, joint, _ in self._visits], np.int64)
-        rewards = np.array([reward for _, _, reward in self._visits])
+        joints = np.array([joint for _, joint, _ in visits], np.int64)
+        rewards = np.array([reward for _, _, reward in visits])
         fold_episode(
             self._memory, keys, inputs, bases, estimates, joints, rewards, self.counts,
             len(states), self._params,
         )  # fmt: skip
 
-    def _store(self) -> None:
-        """Every visit with its discounted return, into the ring."""
+    def _store(self, visits: list) -> None:
+        """Every visit of an episode with its discounted return, into the ring."""
         value = 0.0
-        for state, joint, reward in reversed(self._visits):
+        for state, joint, reward in reversed(visits):
             value = reward + self.config.gamma * value
             actions = np.array(joint, dtype=np.int64)
             if self.integer_states:

@@ -151,7 +151,9 @@ class TabularLearner:
 
     Use: ``joint = act(state, masks)``, ``observe(state, joint, reward)`` after each step,
     ``end_episode(final_state, terminated)`` after each episode; ``greedy(state)`` for
-    execution. With the same seeds this learns exactly what the compiled loop of
+    execution. Several copies of the environment may be played at once: ``copy`` (0 by
+    default) tells whose episode a call belongs to, and each copy's episode is learned
+    from when it ends. With the same seeds this learns exactly what the compiled loop of
     :mod:`cmarlcd.training.tabular` learns (the same functions, called in the same order).
     """
 
@@ -180,8 +182,8 @@ class TabularLearner:
         self._index: dict[Hashable, int] | None = None if n_states else {}
         self.tables = init_tables(config, n_states or 16, self.counts)
         self._seen = np.zeros(self.n_states, dtype=np.bool_)
-        self._episode: list[tuple[int, np.ndarray, float]] = []
-        self._pending: tuple[int, np.ndarray, float] | None = None
+        self._episodes: dict[int, list[tuple[int, np.ndarray, float]]] = {}
+        self._pending: dict[int, tuple[int, np.ndarray, float]] = {}
 
     @property
     def n_agents(self) -> int:
@@ -192,32 +194,42 @@ class TabularLearner:
         """Rows in the tables (grows with hashable states)."""
         return int(self.tables[0].shape[0])
 
-    def act(self, state: Hashable, masks: Sequence[np.ndarray] | None = None) -> tuple[int, ...]:
-        """Sample a joint action from the strategies at ``state``."""
+    def act(
+        self, state: Hashable, masks: Sequence[np.ndarray] | None = None, copy: int = 0
+    ) -> tuple[int, ...]:
+        """Sample a joint action from the strategies at ``state`` (in ``copy``'s episode)."""
         row = self._row(state, masks)
-        self._complete(row, terminal=False)
+        self._complete(copy, row, terminal=False)
         joint = np.zeros(self.n_agents, dtype=np.int64)
         self.config.kernels.act(self.tables, self.params, row, self.counts, self.rng, joint)
         return tuple(joint.tolist())
 
-    def observe(self, state: Hashable, joint_action: Sequence[int], reward: float) -> None:
-        """Record one step: ``joint_action`` at ``state`` was followed by ``reward``."""
+    def observe(
+        self, state: Hashable, joint_action: Sequence[int], reward: float, copy: int = 0
+    ) -> None:
+        """Record one step of ``copy``'s episode: ``joint_action`` at ``state`` was
+        followed by ``reward``."""
         joint = np.asarray(joint_action, dtype=np.int64)
         require(joint.shape == (self.n_agents,), "joint_action", f"needs {self.n_agents} actions")
         require(math.isfinite(reward), "reward", f"must be finite (got {reward})")
         step = (self._row(state, None), joint, float(reward))
-        self._episode.append(step)
-        self._pending = step
+        self._episodes.setdefault(copy, []).append(step)
+        self._pending[copy] = step
 
-    def end_episode(self, final_state: Hashable = None, terminated: bool = True) -> None:
-        """Learn from the recorded episode and start a new one. ``final_state`` (reached
-        by the last step) is bootstrapped from unless ``terminated``."""
-        if self._pending is not None:
+    def end_episode(
+        self, final_state: Hashable = None, terminated: bool = True, copy: int = 0
+    ) -> None:
+        """Learn from ``copy``'s recorded episode and start a new one there.
+        ``final_state`` (reached by the last step) is bootstrapped from unless
+        ``terminated``."""
+        if copy in self._pending:
             known = final_state is not None and not terminated
-            self._complete(self._row(final_state, None) if known else None, terminal=not known)
-        if not self._episode:
+            row = self._row(final_state, None) if known else None
+            self._complete(copy, row, terminal=not known)
+        episode = self._episodes.pop(copy, [])
+        if not episode:
             return
-        rows, joints, rewards = zip(*self._episode, strict=True)
+        rows, joints, rewards = zip(*episode, strict=True)
         self.config.kernels.end_episode(
             self.tables,
             self.params,
@@ -227,14 +239,12 @@ class TabularLearner:
             len(rows),
             self.counts,
         )
-        self._episode = []
 
-    def _complete(self, next_row: int | None, terminal: bool) -> None:
-        """Hand the step waiting for its successor to the learner's ``observe``."""
-        if self._pending is None:
+    def _complete(self, copy: int, next_row: int | None, terminal: bool) -> None:
+        """Hand ``copy``'s step waiting for its successor to the learner's ``observe``."""
+        if copy not in self._pending:
             return
-        row, joint, reward = self._pending
-        self._pending = None
+        row, joint, reward = self._pending.pop(copy)
         if self.config.kernels.observe is no_step_update:
             return  # a learner of whole episodes: nothing to do per step
         successor = row if next_row is None else next_row

@@ -1,0 +1,105 @@
+"""The generic episode loop over copies of an environment played in lockstep."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+import pytest
+
+from cmarlcd.training.episodes import play_copies, play_episodes
+from tests.tiny_env import RandomLengthEnv
+
+
+class Recorder:
+    """A learner that plays a fixed function of the state (its actions do not depend on
+    how copies interleave) and records every call, per copy."""
+
+    def __init__(self, batched: bool) -> None:
+        self.calls: dict[int, list] = {}
+        self.batched_calls = 0
+        if batched:
+            self.act_many = self._act_many
+
+    def _joint(self, state) -> tuple[int, int]:
+        return (int(state) % 2, (int(state) + 1) % 2)
+
+    def act(self, state, masks=None, copy: int = 0):
+        return self._joint(state)
+
+    def _act_many(self, states, masks, copies):
+        self.batched_calls += 1
+        return [self._joint(s) for s in states]
+
+    greedy = act
+
+    def observe(self, state, joint, reward, copy: int = 0) -> None:
+        self.calls.setdefault(copy, []).append(("step", int(state), tuple(joint), reward))
+
+    def end_episode(self, final_state=None, terminated=True, copy: int = 0) -> None:
+        self.calls.setdefault(copy, []).append(("end", terminated))
+
+
+def episodes_of(calls: list) -> list[list]:
+    """A copy's calls split into episodes."""
+    episodes, current = [], []
+    for call in calls:
+        current.append(call)
+        if call[0] == "end":
+            episodes.append(current)
+            current = []
+    assert current == []  # every episode was closed
+    return episodes
+
+
+@pytest.mark.parametrize("batched", [False, True])
+def test_each_copy_plays_what_it_plays_alone(batched: bool) -> None:
+    """Four copies whose episodes end at different steps: each copy's transitions are
+    those of the same environment played alone from the same seed, every episode of the
+    budget is played once, and a batched learner is asked once per step."""
+    seeds, budget = [11, 12, 13, 14], 40
+    learner = Recorder(batched)
+    stats = play_copies([RandomLengthEnv() for _ in seeds], learner, budget, seeds=seeds)
+    per_copy = {k: episodes_of(calls) for k, calls in learner.calls.items()}
+    assert sum(len(e) for e in per_copy.values()) == budget
+    assert len(set(stats.lengths.tolist())) > 1  # the copies end at different steps
+    assert sorted(len(e) - 1 for eps in per_copy.values() for e in eps) == sorted(stats.lengths)
+    for copy, seed in enumerate(seeds):
+        alone = Recorder(batched=False)
+        play_episodes(RandomLengthEnv(), alone, len(per_copy[copy]), seed=seed)
+        assert learner.calls[copy] == alone.calls[0]
+    if batched:
+        assert learner.batched_calls == max(
+            sum(len(e) - 1 for e in eps) for eps in per_copy.values()
+        )
+
+
+def test_statistics_follow_the_episodes_in_the_order_they_started() -> None:
+    """Returns are summed per episode, whichever copy played it."""
+    learner = Recorder(batched=True)
+    stats = play_copies([RandomLengthEnv() for _ in range(3)], learner, 9, seeds=[1, 2, 3])
+    first_of_each = [episodes_of(learner.calls[k])[0] for k in range(3)]
+    for k, episode in enumerate(first_of_each):  # episodes 0, 1, 2 start on copies 0, 1, 2
+        assert stats.returns[k] == pytest.approx(sum(call[3] for call in episode[:-1]))
+        assert stats.lengths[k] == len(episode) - 1
+
+
+def test_more_copies_than_episodes_leaves_the_rest_idle() -> None:
+    learner = Recorder(batched=False)
+    stats = play_copies([RandomLengthEnv() for _ in range(5)], learner, 2, seeds=range(5))
+    assert sorted(learner.calls) == [0, 1] and len(stats.returns) == 2
+
+
+def test_greedy_play_asks_for_every_live_copy_at_once() -> None:
+    class Greedy(Recorder):
+        asked: ClassVar[list[int]] = []
+
+        def greedy_many(self, states, masks):
+            self.asked.append(len(states))
+            return np.array([self._joint(s) for s in states])
+
+    learner = Greedy(batched=False)
+    stats = play_copies([RandomLengthEnv() for _ in range(3)], learner, 6, learn=False)
+    assert learner.calls == {}  # nothing learned
+    assert sum(learner.asked) == stats.lengths.sum()  # one action per step played
+    assert learner.asked[0] == 3  # the three copies together
