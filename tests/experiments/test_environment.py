@@ -96,6 +96,9 @@ def test_a_tabular_learner_on_the_dsn_environment(paths) -> None:  # noqa: F811
         (["--env", TINY, "--runs", "0"], "--runs"),
         (["--env", TINY, "--curve-points", "0"], "--curve-points"),
         (["--env", TINY, "--runs", "1000000000"], "--runs"),  # refused before planning
+        (["--env", TINY, "--envs", "0"], "--envs"),
+        (["--env", TINY, "--envs", "100000"], "--envs"),
+        (["--env", "tests.tiny_env:make_disagreeing", "--envs", "2"], "--envs"),
         (["--env", TINY, "--env-kwargs", '{"state": "none"}'], "--inputs"),  # no state()
         (
             ["--env", TINY, "--env-kwargs", '{"state": "integer"}', "--algorithms", "vdn"],
@@ -141,3 +144,45 @@ def test_settings_read_back_to_themselves() -> None:
         settings = settings_of(spec)
         assert settings.to_config() == json.loads(spec.config_json)
         assert settings.env_kwargs == (("actions", 3),)
+
+
+def test_copies_played_at_once_end_to_end(paths) -> None:  # noqa: F811
+    """``--envs 3``: deep CMARL-CD still finds the optimum, the runs are stored with their
+    copies (apart from one-copy runs), the report says how many, a second call computes
+    nothing."""
+    pytest.importorskip("torch")
+    store, _, where = paths
+    args = (
+        "train", "--env", TINY, "--algorithms", "deep-cmarl-cd", "--episodes", "300",
+        "--runs", "1", "--eval-episodes", "6", "--curve-points", "2", "--envs", "3",
+        "--json", *where, "--set", "deep-cmarl-cd.batch_size=32,deep-cmarl-cd.train_every=3",
+    )  # fmt: skip
+    result = invoke(*args)
+    assert result.exit_code == 0, result.stderr
+    rows = {r["algorithm"]: r for r in json.loads(result.stdout)["rows"]}
+    assert rows["deep-cmarl-cd"]["mean_return"] == 3.0
+    with ResultStore(store) as db:
+        assert {r.metrics["curve"][-1][0] for r in db.records(envs.EXPERIMENT)} == {300}
+        assert {json.loads(r.key.config)["envs"] for r in db.records(envs.EXPERIMENT)} == {3}
+    assert json.loads(invoke(*args).stdout)["runs_computed"] == 0
+    report = invoke("report", *where)
+    assert "3 copies at once" in report.stdout
+
+
+def test_one_copy_plays_the_runs_stored_before_copies_existed(paths) -> None:  # noqa: F811
+    """The same command at the default ``--envs 1`` gives the stored runs of the version
+    before copies were played (tests/data/train-before-copies.json: the same config, so
+    the same seeds, and the same learning curve, number for number)."""
+    pytest.importorskip("torch")
+    from pathlib import Path
+
+    golden = json.loads((Path(__file__).parents[1] / "data/train-before-copies.json").read_text())
+    store, _, where = paths
+    result = invoke(*golden["command"].split()[1:], "--json", *where)
+    assert result.exit_code == 0, result.stderr
+    with ResultStore(store) as db:
+        stored = {r.key.algorithm: r for r in db.records(envs.EXPERIMENT)}
+    assert set(stored) == set(golden["runs"])
+    for algorithm, run in golden["runs"].items():
+        assert json.loads(stored[algorithm].key.config) == run["config"]
+        assert stored[algorithm].metrics["curve"] == run["curve"]

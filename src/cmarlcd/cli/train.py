@@ -89,6 +89,14 @@ def train(
             help="What the learners read: state (the env's state()) or observations (joined)."
         ),
     ] = "state",
+    envs_per_run: Annotated[
+        int,
+        typer.Option(
+            "--envs",
+            help="Copies of the environment each run plays at once (a deep learner acts "
+            "for all with one forward pass).",
+        ),
+    ] = 1,
     seed: SeedOption = 0,
     settings: SetOption = "",
     *,
@@ -111,5 +119,6 @@ def train(
         reward=reward,
         inputs=inputs,
         seed=seed,
+        envs=envs_per_run,
     )
     print_results(run, lambda console: run_training(sweep, run, console))

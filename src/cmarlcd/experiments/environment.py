@@ -1,8 +1,10 @@
 """Beyond the paper: any learner on any PettingZoo ``ParallelEnv`` with discrete actions.
 
 A run makes the environment from ``MODULE:FACTORY`` (with keyword arguments), learns for
-``episodes`` episodes through the generic loop (:func:`cmarlcd.training.episodes.play_episodes`,
-one Python call per step: an environment of the user's is no compiled kernel), and
+``episodes`` episodes through the generic loop (:func:`cmarlcd.training.episodes.play_copies`,
+one Python call per step: an environment of the user's is no compiled kernel) over
+``envs`` copies of it played in lockstep (a deep learner acts for all of them with one
+forward pass and feeds one replay; each copy's reset seed derived from the run's), and
 evaluates the greedy joint policy for ``eval_episodes`` episodes on an environment of its
 own at ``curve_points`` evenly spaced budgets: a learning curve. The team's reward is the
 agents' rewards summed or averaged (``reward``, a named choice); the learners read the
@@ -19,7 +21,7 @@ from __future__ import annotations
 import importlib
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any, Self
 
 import gymnasium
@@ -32,9 +34,9 @@ from cmarlcd.learners.deep_config import DeepLearnerConfig
 from cmarlcd.limits import check_at_most, check_episodes, check_run_count, check_seed
 from cmarlcd.progress import report_progress
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import Experiment, RunSpec, Settings, identity
+from cmarlcd.runs import Experiment, RunSpec, Settings, added_setting, identity
 from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
-from cmarlcd.training.episodes import play_episodes
+from cmarlcd.training.episodes import play_copies
 
 EXPERIMENT = "train"
 #: The uniform random policy, run beside the learners as the baseline.
@@ -50,6 +52,8 @@ INPUTS = ("state", "observations")
 #: [choice] Points of the learning curve, each a greedy evaluation of ``eval_episodes``.
 CURVE_POINTS = 10
 MAX_CURVE_POINTS = 100
+#: The most copies of the environment a run plays at once.
+MAX_ENVS = 1024
 
 EnvKwargs = tuple[tuple[str, Any], ...]
 
@@ -181,19 +185,20 @@ class RandomPolicy:
     def __init__(self, counts: np.ndarray, seed: np.random.SeedSequence) -> None:
         self.counts, self.rng = counts, np.random.default_rng(seed)
 
-    def act(self, state, masks=None) -> tuple[int, ...]:
+    def act(self, state, masks=None, copy: int = 0) -> tuple[int, ...]:
         joint = []
         for i, count in enumerate(self.counts):
             legal = np.arange(count) if masks is None else np.flatnonzero(masks[i])
             joint.append(int(self.rng.choice(legal)))
         return tuple(joint)
 
-    greedy = act
+    def greedy(self, state, masks=None) -> tuple[int, ...]:
+        return self.act(state, masks)
 
-    def observe(self, state, joint_action, reward: float) -> None:
+    def observe(self, state, joint_action, reward: float, copy: int = 0) -> None:
         """Nothing to learn."""
 
-    def end_episode(self, final_state=None, terminated: bool = True) -> None:
+    def end_episode(self, final_state=None, terminated: bool = True, copy: int = 0) -> None:
         """Nothing to learn."""
 
 
@@ -235,13 +240,15 @@ class EnvRun(Settings):
     curve_points: int = CURVE_POINTS
     reward: str = "sum"
     inputs: str = "state"
+    envs: int = added_setting(1, "0.6.0")
+    """Copies of the environment played at once (1: one at a time, as before)."""
 
     @property
     def algorithm(self) -> str:
         return RANDOM if self.learner is None else self.learner.name
 
     def to_config(self) -> dict[str, Any]:
-        config = {k: v for k, v in asdict(self).items() if k not in ("learner", "env_kwargs")}
+        config = {k: v for k, v in identity(self).items() if k not in ("learner", "env_kwargs")}
         config["env_kwargs"] = dict(self.env_kwargs)
         config["algorithm"] = self.algorithm
         if self.learner is not None:
@@ -272,27 +279,62 @@ def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
     """One run: learn, and evaluate greedily at every budget of the curve."""
     start = time.perf_counter()
     env_seed, learner_seed, eval_seed = seed.spawn(3)
-    env = _wrapped(make_env(settings.env, settings.env_kwargs), settings.inputs)
-    evaluation = _wrapped(make_env(settings.env, settings.env_kwargs), settings.inputs)
-    env.reset(seed=_int_seed(env_seed))
-    shape = state_shape(env, settings.inputs)
-    counts = np.array([env.action_space(a).n for a in env.possible_agents], np.int64)
+    envs = make_copies(settings.env, settings.env_kwargs, settings.inputs, settings.envs)
+    evaluations = [_wrapped(make_env(settings.env, settings.env_kwargs), settings.inputs)
+                   for _ in range(settings.envs)]  # fmt: skip
+    shape, counts = check_copies(envs, settings.inputs, copy_seeds(env_seed, settings.envs))
     learner = new_learner(settings.learner, counts, shape, settings.episodes, learner_seed)
     reward = REWARDS[settings.reward]
     curve, trained = [], 0
     for budget in settings.budgets():
-        first = _int_seed(env_seed) if trained == 0 else None
-        play_episodes(env, learner, budget - trained, global_reward=reward, seed=first)
+        first = copy_seeds(env_seed, settings.envs) if trained == 0 else None
+        play_copies(envs, learner, budget - trained, global_reward=reward, seeds=first)
         report_progress(budget - trained)
         trained = budget
         point = np.random.SeedSequence(eval_seed.entropy, spawn_key=(*eval_seed.spawn_key, budget))
-        stats = play_episodes(
-            evaluation, learner, settings.eval_episodes, learn=False,
-            seed=_int_seed(point), global_reward=reward,
+        stats = play_copies(
+            evaluations, learner, settings.eval_episodes, learn=False,
+            seeds=copy_seeds(point, settings.envs), global_reward=reward,
         )  # fmt: skip
         report_progress(settings.eval_episodes)
         curve.append([budget, float(stats.returns.mean()), float(stats.lengths.mean())])
     return {"curve": curve, "seconds": time.perf_counter() - start}
+
+
+def make_copies(path: str, kwargs: EnvKwargs, inputs: str, count: int) -> list[Any]:
+    """``count`` copies of the environment, each made by its factory."""
+    return [_wrapped(make_env(path, kwargs), inputs) for _ in range(count)]
+
+
+def copy_seeds(seed: np.random.SeedSequence, count: int) -> list[int]:
+    """The first reset seeds of ``count`` copies: ``seed``'s own for copy 0 (so that one
+    copy plays as a run always has), and for copy ``k`` its ``k``-th child key."""
+    key, entropy = seed.spawn_key, seed.entropy
+    children = (np.random.SeedSequence(entropy, spawn_key=(*key, k)) for k in range(1, count))
+    return [_int_seed(seed), *(_int_seed(child) for child in children)]
+
+
+def check_copies(envs: list[Any], inputs: str, seeds: list[int]) -> tuple[StateShape, np.ndarray]:
+    """Reset each copy with its seed; the learners' input shape and action counts, the
+    same in every copy (one clear error where two copies disagree)."""
+    shapes, counts = [], []
+    for env, seed in zip(envs, seeds, strict=True):
+        env.reset(seed=seed)
+        shapes.append(state_shape(env, inputs))
+        counts.append([env.action_space(a).n for a in env.possible_agents])
+    for k in range(1, len(envs)):
+        require(
+            shapes[k] == shapes[0] and counts[k] == counts[0],
+            "envs",
+            f"copies of the environment disagree: copy 0 has {_describe(shapes[0], counts[0])}, "
+            f"copy {k} {_describe(shapes[k], counts[k])}",
+        )
+    return shapes[0], np.array(counts[0], np.int64)
+
+
+def _describe(shape: StateShape, counts: list[int]) -> str:
+    inputs = f"{shape.n_states} states" if shape.n_states else f"{shape.dim} input features"
+    return f"{inputs} and actions {counts}"
 
 
 def _wrapped(env: Any, inputs: str) -> Any:
@@ -318,6 +360,7 @@ class EnvSweep:
     reward: str = "sum"
     inputs: str = "state"
     seed: int = 0
+    envs: int = 1
 
     def __post_init__(self) -> None:
         require(
@@ -343,12 +386,16 @@ class EnvSweep:
         names = [c.name for c in self.learners]
         require(len(set(names)) == len(names), "algorithms", f"each at most once (got {names})")
         check_run_count((len(self.learners) + 1) * self.runs)
-        env = _wrapped(make_env(self.env, self.env_kwargs), self.inputs)  # checked before
-        try:  # anything runs, and every learner told whether it can read it
-            env.reset(seed=0)
+        require(self.envs >= 1, "envs", f"must be >= 1 (got {self.envs})")
+        check_at_most(self.envs, MAX_ENVS, "envs")
+        # checked before anything runs, and every learner told whether it can read it
+        copies = make_copies(self.env, self.env_kwargs, self.inputs, min(self.envs, 2))
+        try:
+            shape, _ = check_copies(copies, self.inputs, list(range(len(copies))))
+        except ConfigError:
+            raise
         except Exception as error:  # the user's environment: its failure is theirs to read
-            raise ConfigError("env", f"{self.env}: reset(seed=0) failed: {error}") from None
-        shape = state_shape(env, self.inputs)
+            raise ConfigError("env", f"{self.env}: reset failed: {error}") from None
         for config in self.learners:
             if isinstance(config, DeepLearnerConfig):
                 check_deep_inputs(shape)
@@ -358,7 +405,7 @@ class EnvSweep:
     def settings(self, learner: LearnerConfig | None) -> EnvRun:
         return EnvRun(
             self.env, self.env_kwargs, learner, self.episodes, self.eval_episodes,
-            self.curve_points, self.reward, self.inputs,
+            self.curve_points, self.reward, self.inputs, self.envs,
         )  # fmt: skip
 
     def specs(self) -> list[RunSpec]:

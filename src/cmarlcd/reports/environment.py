@@ -103,7 +103,11 @@ def protocol_key(record: RunRecord) -> tuple:
     s = settings_of(record)
     kwargs = canonical_json(dict(s.env_kwargs))
     return (s.env, kwargs, s.episodes, s.eval_episodes, s.curve_points, s.reward, s.inputs,
-            record.key.root_seed)  # fmt: skip
+            s.envs, record.key.root_seed)  # fmt: skip
+
+
+def _copies(count: int) -> str:
+    return "one copy of the environment at a time" if count == 1 else f"{count} copies at once"
 
 
 def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
@@ -116,7 +120,7 @@ def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
     protocol = (
         f"L = {first.episodes:,} episodes, greedy return over {first.eval_episodes:,} "
         f"episodes at {len(first.budgets())} points, team reward = {first.reward} of the "
-        f"agents', inputs: {first.inputs}, seed {seed}"
+        f"agents', inputs: {first.inputs}, {_copies(first.envs)}, seed {seed}"
     )
     rows = final_returns(records)
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
