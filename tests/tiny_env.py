@@ -23,12 +23,15 @@ class TinyEnv(ParallelEnv):
         actions: int = 2,
         state: str = "vector",
         labels: list | None = None,
+        offset: float = 0.0,
     ) -> None:
         """``state``: "vector" (a Box), "integer" (the step, no state space) or "none"
         (PettingZoo's default ``state()``, which raises); ``labels`` is ignored (a list
-        argument, as some factories take)."""
+        argument, as some factories take); ``offset`` is added to each agent's reward at
+        every step."""
         self.possible_agents = ["a", "b"]
         self.continuous, self.actions, self.kind = continuous, actions, state
+        self.offset = offset
         self.state_space = gymnasium.spaces.Box(0.0, 1.0, (STEPS,), np.float32)
         if state == "integer":
             del self.state_space
@@ -63,7 +66,7 @@ class TinyEnv(ParallelEnv):
         both = all(int(actions[a]) == 1 for a in self.agents)
         self.t += 1
         done = self.t >= STEPS
-        rewards = {a: 0.5 * both for a in self.agents}
+        rewards = {a: 0.5 * both + self.offset for a in self.agents}
         observations = {a: self._vector() for a in self.agents}
         terminations = {a: done for a in self.agents}
         truncations = {a: False for a in self.agents}

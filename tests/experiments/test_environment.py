@@ -186,3 +186,19 @@ def test_one_copy_plays_the_runs_stored_before_copies_existed(paths) -> None:  #
     for algorithm, run in golden["runs"].items():
         assert json.loads(stored[algorithm].key.config) == run["config"]
         assert stored[algorithm].metrics["curve"] == run["curve"]
+
+
+def test_a_deep_cmarl_cd_that_kept_nothing_is_named_in_the_report(paths) -> None:  # noqa: F811
+    """Every reward negative: under ``estimate`` the memory stays empty and the report
+    says so; under ``estimate-once-kept`` it learns, and nothing is said."""
+    pytest.importorskip("torch")
+    _, _, where = paths
+    base = ("train", "--env", TINY, "--env-kwargs", '{"offset": -1}', "--algorithms",
+            "deep-cmarl-cd", "--episodes", "20", "--runs", "2", "--eval-episodes", "2",
+            "--curve-points", "1", *where)  # fmt: skip
+    result = invoke(*base)
+    assert result.exit_code == 0, result.stderr
+    assert "2 of 2 runs kept nothing to learn from" in result.stdout
+    fixed = invoke(*base, "--set", "deep-cmarl-cd.unseen_record=estimate-once-kept")
+    assert fixed.exit_code == 0, fixed.stderr
+    assert "kept nothing" not in fixed.stdout

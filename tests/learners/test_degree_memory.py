@@ -151,6 +151,25 @@ def test_a_state_not_kept_is_compared_with_the_estimate_and_starts_from_the_netw
     assert record == 9.0 and target[0].tolist() == [2.0, 1.0, 1.0]
 
 
+def test_into_an_empty_memory_every_state_is_a_first_visit_once_kept_asked() -> None:
+    """``estimate_once_kept``: returns of -3 and -4 (γ 0.5: -3 + 0.5 (-2) = -4 at state 5,
+    -2 at state 6) all fall below an estimate of 0, yet folded into an empty memory both
+    states are records (reset). The next episode finds the memory keeping states, so its
+    new state 7 is compared with the estimate: -1 is below 0, not kept. Under plain
+    ``estimate_unseen`` the first episode keeps nothing."""
+    params = PARAMS._replace(estimate_unseen=True, estimate_once_kept=True)
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    fold(memory, [5, 6], [[1, 0], [2, 1]], [-3.0, -2.0], estimates=[0.0, 0.0], params=params)
+    assert entry(memory, 5)[0] == -4.0 and entry(memory, 6)[0] == -2.0
+    assert entry(memory, 5)[1][0].tolist() == [1.0, 2.0, 1.0]  # a reset: the record's rule
+    fold(memory, [7], [[0, 0]], [-1.0], estimates=[0.0], params=params)
+    assert find(memory, np.uint64(7)) < 0 and memory.size[0] == 2
+    plain = memory_view(new_memory(1, 10, 2, 3), 0)
+    fold(plain, [5, 6], [[1, 0], [2, 1]], [-3.0, -2.0], estimates=[0.0, 0.0],
+         params=params._replace(estimate_once_kept=False))  # fmt: skip
+    assert plain.size[0] == 0
+
+
 def test_a_state_below_its_estimate_is_kept_unmoved_when_asked_and_the_rule_goes_on() -> None:
     """``keep_below``: a first return of 3 below the estimate 4 enters with record 3 and
     the network's degrees, clipped and not stepped; a later 3.2 ties it (within 0.5: the

@@ -296,3 +296,24 @@ def test_acting_from_the_memory_on_state_indices_in_the_compiled_loop() -> None:
         state = int(memory.state[slot])
         masked = np.where(batch.group.legal[0, state], memory.target[slot], -np.inf)
         assert tables[state].tolist() == masked.argmax(axis=-1).tolist()
+
+
+def test_where_every_return_is_negative_only_the_once_kept_estimate_learns() -> None:
+    """Rewards of -1 at every step: the record network starts near 0, above every return,
+    so under ``estimate`` no visit is ever kept and the network never takes a step; under
+    ``estimate-once-kept`` the first episode enters the empty memory whole and the
+    networks are fitted from then on."""
+
+    def play(unseen: str) -> DegreeAgent:
+        config = replace(SMALL, unseen_record=unseen)
+        agent = DegreeAgent([2, 2], config, 50, state_dim=3, seed=0)
+        rng = np.random.default_rng(0)
+        for _ in range(20):
+            for _ in range(5):
+                state = rng.random(3).astype(np.float32)
+                agent.observe(state, agent.act(state), -1.0)
+            agent.end_episode()
+        return agent
+
+    assert play("estimate").stored == 0
+    assert play("estimate-once-kept").stored >= 5

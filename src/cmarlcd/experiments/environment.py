@@ -298,7 +298,10 @@ def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
         )  # fmt: skip
         report_progress(settings.eval_episodes)
         curve.append([budget, float(stats.returns.mean()), float(stats.lengths.mean())])
-    return {"curve": curve, "seconds": time.perf_counter() - start}
+    result = {"curve": curve, "seconds": time.perf_counter() - start}
+    if hasattr(learner, "stored"):  # what a deep learner learned from: replay or memory
+        result["stored"] = int(learner.stored)
+    return result
 
 
 def make_copies(path: str, kwargs: EnvKwargs, inputs: str, count: int) -> list[Any]:

@@ -43,7 +43,7 @@ from cmarlcd.runs import added_setting
 #: The ways Algorithm 2's updates reach the degree network (``DeepCMARLCDConfig.update``).
 UPDATES = ("keyed", "replayed")
 #: What a state not in the keyed memory is compared with (``unseen_record``).
-UNSEEN_RECORDS = ("first-visit", "estimate", "estimate-kept")
+UNSEEN_RECORDS = ("first-visit", "estimate", "estimate-kept", "estimate-once-kept")
 #: Where the degrees it acts with come from (``act_from``).
 ACT_FROM = ("network", "memory")
 #: What the keyed memory's per-state record is (``record``).
@@ -73,9 +73,15 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     and resets the state's degrees, whatever its return); ``"estimate-kept"``, compared
     with the estimate, and a return below it still enters the memory, with that return as
     its record and the network's degrees unmoved, so that the table's rule goes on from
-    there (its next visits tie or beat that record). Level on the DSN's one-hot
-    states; where states rarely recur (simple_spread) ``first-visit`` fits the network to
-    its own exploration (the deep CMARL-CD page of the documentation)."""
+    there (its next visits tie or beat that record); ``"estimate-once-kept"``, the
+    estimate once the memory keeps a state, and ``-inf`` for every state of an episode
+    folded into an empty memory. Under ``"estimate"`` the record network, fitted only to
+    what the memory keeps, starts near 0: where every return is negative (simple_spread)
+    no visit beats it, nothing is ever kept, and the networks never learn; the first
+    episode, taken whole by the table's rule, gives ``"estimate-once-kept"`` records to
+    fit. Level on the DSN's one-hot states; where states rarely recur (simple_spread)
+    ``first-visit`` fits the network to its own exploration (the deep CMARL-CD page of the
+    documentation)."""
     act_from: str = added_setting("network", "0.6.0")
     """[choice] (``keyed``) Where the degrees it acts with (eq. 17) and executes greedily
     come from: ``"network"``, the degree network everywhere; ``"memory"``, the keyed

@@ -66,6 +66,9 @@ class KeyedParams(NamedTuple):
     """By how much a return must pass the expectile record to be a new one."""
     record_step: float = 0.0
     """How far a visit moves the expectile record towards its return."""
+    estimate_once_kept: bool = False
+    """Whether the estimate is read only once the memory keeps a state: an episode folded
+    into an empty memory compares every state with ``-inf`` (the table's rule)."""
 
 
 def keyed_params(config) -> KeyedParams:
@@ -84,6 +87,7 @@ def keyed_params(config) -> KeyedParams:
         config.expectile,
         config.margin,
         config.record_step,
+        config.unseen_record == "estimate-once-kept",
     )
 
 
@@ -299,15 +303,19 @@ def fold_episode(
     network's degrees at the visit, ``bases[t]`` (n_agents, width), clipped to
     ``[c_min, c_max]``; with
     ``keep_below`` a state not kept whose return falls below its estimate enters too,
-    with that return as its record and those degrees unmoved."""
+    with that return as its record and those degrees unmoved. With
+    ``estimate_once_kept`` an episode folded into an empty memory reads no estimate:
+    each of its states is compared with ``-inf``, as the table's first visit is."""
     g = 0.0
     memory.clock[0] += 1
+    unseen_floor = params.estimate_once_kept and memory.size[0] == 0
     for t in range(length - 1, -1, -1):
         g = rewards[t] + params.gamma * g
         slot = find(memory, keys[t])
         if slot >= 0:
             mark_visited(memory, slot)
-        best = memory.record[slot] if slot >= 0 else estimates[t]
+        estimate = -np.inf if unseen_floor else estimates[t]
+        best = memory.record[slot] if slot >= 0 else estimate
         outcome = classify_return(g, best, params)
         if slot >= 0:
             memory.record[slot] = record_after(best, g, outcome, params)

@@ -110,6 +110,25 @@ def _copies(count: int) -> str:
     return "one copy of the environment at a time" if count == 1 else f"{count} copies at once"
 
 
+def learned_nothing(records: Sequence[RunRecord]) -> list[str]:
+    """A line for each deep CMARL-CD whose memory kept nothing in some runs (``stored``
+    0): their networks never took a gradient step, and their curve is that of their
+    initial weights."""
+    lines = []
+    for (label, _), group in _by_learner(records).items():
+        empty = [
+            r for r in group if r.key.algorithm == "deep-cmarl-cd" and r.metrics.get("stored") == 0
+        ]
+        if empty:
+            lines.append(
+                f"{label}: {len(empty)} of {len(group)} runs kept nothing to learn from (an "
+                "empty memory: every return fell below the record network's first estimate), "
+                "so their networks never learned; deep CMARL-CD's "
+                "unseen_record=estimate-once-kept takes a first episode whole"
+            )
+    return lines
+
+
 def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
     """The learning curves and final returns of one study."""
     from cmarlcd.reports import figures as figs
@@ -155,5 +174,7 @@ def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
         figures={"curves": str(drawn)},
     )
     section.add(table, TextBlock("Mean over runs; ± the spread over runs (population std)."))
+    for warning in learned_nothing(records):
+        section.add(TextBlock(warning))
     section.add(FigureBlock(drawn, "greedy return against learning episodes"))
     return section
