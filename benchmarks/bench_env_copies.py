@@ -5,7 +5,9 @@ actions (one copy, no learner: the rate a learner cannot beat on one core), then
 learner with its default settings learning through :func:`cmarlcd.training.episodes.play_copies`
 at each ``--envs`` count (environment steps per second, gradient steps included), with
 the ratio of each to the bare rate and the share of the time spent in the
-environment's ``step``, in the learner's acting and in its learning.
+environment's ``step``, in the learner's acting and in its gradient steps (``td_step``
+or ``learn``). The shares overlap: VDN and QMIX take their gradient steps inside
+``act``, when a pending transition is completed, so their acting share includes them.
 
 Usage: python benchmarks/bench_env_copies.py [--env MODULE:FACTORY] [--env-kwargs JSON]
            [--learner vdn] [--episodes 200] [--envs 1 4 16 64]

@@ -138,12 +138,16 @@ def test_a_config_error_survives_a_worker() -> None:
     assert (error.parameter, error.message) == ("inputs", "no state()")
 
 
-def test_settings_read_back_to_themselves() -> None:
-    sweep = envs.EnvSweep(TINY, (), 10, 1, 5, env_kwargs=(("actions", 3),))
+@pytest.mark.parametrize("copies", [1, 4])
+def test_settings_read_back_to_themselves(copies: int) -> None:
+    """Runs of one copy are stored without ``envs`` (as every run made before it
+    existed), runs of several with it."""
+    sweep = envs.EnvSweep(TINY, (), 10, 1, 5, env_kwargs=(("actions", 3),), envs=copies)
     for spec in sweep.specs():
         settings = settings_of(spec)
         assert settings.to_config() == json.loads(spec.config_json)
-        assert settings.env_kwargs == (("actions", 3),)
+        assert settings.env_kwargs == (("actions", 3),) and settings.envs == copies
+        assert ("envs" in json.loads(spec.config_json)) == (copies > 1)
 
 
 def test_copies_played_at_once_end_to_end(paths) -> None:  # noqa: F811

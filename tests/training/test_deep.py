@@ -252,3 +252,8 @@ def test_deep_agent_acts_for_many_copies_with_one_forward_pass() -> None:
     }
     assert stored == {(5, 1, False), (0, 2, False), (4, 4, True)}  # terminal: no successor
     assert agent.steps == 3 and agent.episode == 1
+    from dataclasses import replace
+
+    greedy_only = DeepAgent([3, 2], replace(SMALL, eps_start=0.0), 10, n_states=6, seed=0)
+    chosen = greedy_only.act_many(states, masks, [0, 1, 2])  # ε = 0: the greedy actions
+    assert chosen == [tuple(row) for row in greedy_only.greedy_many(states, masks)]

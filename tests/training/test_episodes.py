@@ -103,3 +103,25 @@ def test_greedy_play_asks_for_every_live_copy_at_once() -> None:
     assert learner.calls == {}  # nothing learned
     assert sum(learner.asked) == stats.lengths.sum()  # one action per step played
     assert learner.asked[0] == 3  # the three copies together
+
+
+class SometimesOverAtReset(RandomLengthEnv):
+    """Episodes of length 1 end at their reset instead: no agent is left to act."""
+
+    def reset(self, seed=None, options=None):
+        result = super().reset(seed, options)
+        if self.length == 1:
+            self.agents = []
+        return result
+
+
+@pytest.mark.parametrize("copies", [1, 3])
+def test_an_episode_over_at_its_reset_is_closed_at_once_as_terminated(copies: int) -> None:
+    learner = Recorder(batched=False)
+    envs = [SometimesOverAtReset() for _ in range(copies)]
+    stats = play_copies(envs, learner, 30, seeds=range(copies))
+    empty = stats.lengths == 0
+    assert empty.any() and (~empty).any()  # both kinds among the 30
+    assert stats.terminated[empty].all()
+    ends = [call for calls in learner.calls.values() for call in calls if call[0] == "end"]
+    assert len(ends) == 30  # each episode closed once, the empty ones too

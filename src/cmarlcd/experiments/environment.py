@@ -280,8 +280,8 @@ def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
     start = time.perf_counter()
     env_seed, learner_seed, eval_seed = seed.spawn(3)
     envs = make_copies(settings.env, settings.env_kwargs, settings.inputs, settings.envs)
-    evaluations = [_wrapped(make_env(settings.env, settings.env_kwargs), settings.inputs)
-                   for _ in range(settings.envs)]  # fmt: skip
+    evaluating = min(settings.envs, settings.eval_episodes)  # copies an evaluation can use
+    evaluations = make_copies(settings.env, settings.env_kwargs, settings.inputs, evaluating)
     shape, counts = check_copies(envs, settings.inputs, copy_seeds(env_seed, settings.envs))
     learner = new_learner(settings.learner, counts, shape, settings.episodes, learner_seed)
     reward = REWARDS[settings.reward]
@@ -294,7 +294,7 @@ def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
         point = np.random.SeedSequence(eval_seed.entropy, spawn_key=(*eval_seed.spawn_key, budget))
         stats = play_copies(
             evaluations, learner, settings.eval_episodes, learn=False,
-            seeds=copy_seeds(point, settings.envs), global_reward=reward,
+            seeds=copy_seeds(point, evaluating), global_reward=reward,
         )  # fmt: skip
         report_progress(settings.eval_episodes)
         curve.append([budget, float(stats.returns.mean()), float(stats.lengths.mean())])
@@ -330,14 +330,14 @@ def check_copies(envs: list[Any], inputs: str, seeds: list[int]) -> tuple[StateS
             shapes[k] == shapes[0] and counts[k] == counts[0],
             "envs",
             f"copies of the environment disagree: copy 0 has {_describe(shapes[0], counts[0])}, "
-            f"copy {k} {_describe(shapes[k], counts[k])}",
+            f"copy {k} has {_describe(shapes[k], counts[k])}",
         )
     return shapes[0], np.array(counts[0], np.int64)
 
 
 def _describe(shape: StateShape, counts: list[int]) -> str:
     inputs = f"{shape.n_states} states" if shape.n_states else f"{shape.dim} input features"
-    return f"{inputs} and actions {counts}"
+    return f"{inputs} and action counts {counts}"
 
 
 def _wrapped(env: Any, inputs: str) -> Any:

@@ -74,7 +74,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     with the estimate, and a return below it still enters the memory, with that return as
     its record and the network's degrees unmoved, so that the table's rule goes on from
     there (its next visits tie or beat that record); ``"estimate-once-kept"``, the
-    estimate once the memory keeps a state, and ``-inf`` for every state of an episode
+    estimate once the memory keeps any state, and ``-inf`` for every state of an episode
     folded into an empty memory. Under ``"estimate"`` the record network, fitted only to
     what the memory keeps, starts near 0: where every return is negative (simple_spread)
     no visit beats it, nothing is ever kept, and the networks never learn; the first

@@ -131,10 +131,10 @@ class DegreeAgent(StepAgent):
         visit = (state, tuple(int(a) for a in joint_action), float(reward))
         self._visits.setdefault(copy, []).append(visit)
         self.steps += 1
-        step, copy = scheduled_work(self.steps - 1, self.steps, self.stored, self.config)
+        step, sync = scheduled_work(self.steps - 1, self.steps, self.stored, self.config)
         if step:
             self.model.learn(self._replay_batch())
-        if copy:
+        if sync:
             self.model.sync_target()
 
     def end_episode(self, final_state=None, terminated: bool = True, copy: int = 0) -> None:

@@ -67,8 +67,8 @@ class KeyedParams(NamedTuple):
     record_step: float = 0.0
     """How far a visit moves the expectile record towards its return."""
     estimate_once_kept: bool = False
-    """Whether the estimate is read only once the memory keeps a state: an episode folded
-    into an empty memory compares every state with ``-inf`` (the table's rule)."""
+    """Whether the estimate is read only once the memory keeps any state: an episode
+    folded into an empty memory compares every state with ``-inf`` (the table's rule)."""
 
 
 def keyed_params(config) -> KeyedParams:

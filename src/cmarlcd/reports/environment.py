@@ -122,9 +122,10 @@ def learned_nothing(records: Sequence[RunRecord]) -> list[str]:
         if empty:
             lines.append(
                 f"{label}: {len(empty)} of {len(group)} runs kept nothing to learn from (an "
-                "empty memory: every return fell below the record network's first estimate), "
-                "so their networks never learned; deep CMARL-CD's "
-                "unseen_record=estimate-once-kept takes a first episode whole"
+                "empty memory: every return fell below the record network's untrained "
+                "estimate), so their networks never learned and their curve is that of "
+                "their initial weights (unseen_record=estimate-once-kept or first-visit keep "
+                "the first episodes)"
             )
     return lines
 

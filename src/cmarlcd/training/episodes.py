@@ -96,7 +96,8 @@ def play_copies(
     )
     several = len(copies.envs) > 1
     for copy in range(len(copies.envs)):
-        _start(copies, copy, None if seeds is None else seeds[copy], learner, learn, several)
+        first = None if seeds is None else seeds[copy]
+        _start(copies, copy, first, stats, learner, learn, several)
     while copies.episode_of:
         live = sorted(copies.episode_of)
         states = [copies.envs[k].state() for k in live]
@@ -114,7 +115,7 @@ def play_copies(
             stats.terminated[episode] = any(terminations.values())
             if not env.agents:
                 _end(copies, copy, learner, learn, several, bool(stats.terminated[episode]))
-                _start(copies, copy, None, learner, learn, several)
+                _start(copies, copy, None, stats, learner, learn, several)
     return stats
 
 
@@ -124,9 +125,11 @@ def _whose(copy: int, several: bool) -> dict[str, int]:
     return {"copy": copy} if several else {}
 
 
-def _start(copies: _Copies, copy: int, seed, learner, learn: bool, several: bool) -> None:
-    """Start ``copy``'s next episode; one that ends at its reset is closed at once."""
+def _start(copies: _Copies, copy: int, seed, stats, learner, learn: bool, several: bool) -> None:
+    """Start ``copy``'s next episode; one that ends at its reset (no agent left) is
+    closed at once, as terminated."""
     while copies.start(copy, seed) and not copies.envs[copy].agents:
+        stats.terminated[copies.episode_of[copy]] = True
         _end(copies, copy, learner, learn, several, terminated=True)
         seed = None
 
