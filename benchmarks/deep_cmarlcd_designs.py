@@ -21,8 +21,11 @@ the table's tolerance. They differ in what the degree network is regressed to:
   entry in a keyed memory (the network's degrees only for a state not in it), and the
   network regressed to the memory, every kept state alike. With one-hot states the
   memory is the table and the network its distillation.
-* ``keyed-estimate``: the package's default, ``keyed`` with ``unseen_record="estimate"``:
-  a state not in the memory is compared with a record network's estimate, not ``-inf``.
+* ``keyed-estimate``: ``keyed`` with ``unseen_record="estimate"``: a state not in the
+  memory is compared with a record network's estimate, not ``-inf``.
+* ``keyed-once-kept``: ``keyed`` with ``unseen_record="estimate-once-kept"``: the same
+  once the memory keeps any state; an episode folded into an empty memory is taken by
+  the table's rule.
 
 For each design and checkpoint it prints, over every state the stream has visited, the
 share where both learners' greedy joint actions agree (a design that learns what the
@@ -172,6 +175,7 @@ class Frozen(ExactRecordAgent):
 DESIGNS = {
     "keyed": (DegreeAgent, DeepCMARLCDConfig(unseen_record="first-visit")),
     "keyed-estimate": (DegreeAgent, DeepCMARLCDConfig(unseen_record="estimate")),
+    "keyed-once-kept": (DegreeAgent, DeepCMARLCDConfig(unseen_record="estimate-once-kept")),
     "replayed": (DegreeAgent, REPLAYED_DEEP_CMARLCD),
     # the prototype learns once a batch's worth of targets is stored, as it always did,
     # on the schedule it was measured with (a step per 50 environment steps)
