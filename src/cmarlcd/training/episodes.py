@@ -48,26 +48,47 @@ def play_episodes(
     )
 
 
-class _Copies:
-    """The copies of :func:`play_copies`: which episode each plays, and its last infos."""
+class _Lockstep:
+    """One :func:`play_copies` call: the copies, which episode each plays, their last
+    infos, the statistics, and the learner they are played for."""
 
-    def __init__(self, envs: Sequence[Any], episodes: int) -> None:
-        self.envs, self.episodes = list(envs), episodes
+    def __init__(self, envs: Sequence[Any], learner: Any, episodes: int, learn: bool) -> None:
+        self.envs, self.learner, self.episodes, self.learn = list(envs), learner, episodes, learn
+        self.several = len(self.envs) > 1
         self.started = 0
         self.episode_of: dict[int, int] = {}  # live copy -> the episode it plays
         self.infos: list[Any] = [None] * len(self.envs)
         self.agents: list[list[str]] = [[] for _ in self.envs]
+        self.stats = EpisodeStats(
+            np.zeros(episodes), np.zeros(episodes, dtype=np.int64), np.zeros(episodes, np.bool_)
+        )
 
-    def start(self, copy: int, seed: int | None) -> bool:
-        """Start the budget's next episode on ``copy``, if one is left."""
-        if self.started >= self.episodes:
-            return False
-        env = self.envs[copy]
-        _, self.infos[copy] = env.reset(seed=seed)
-        self.agents[copy] = list(env.possible_agents)
-        self.episode_of[copy] = self.started
-        self.started += 1
-        return True
+    def whose(self, copy: int) -> dict[str, int]:
+        """The ``copy`` keyword, given only when several copies play (so that a learner
+        of one environment at a time needs no such argument)."""
+        return {"copy": copy} if self.several else {}
+
+    def start(self, copy: int, seed: int | None) -> None:
+        """Start the budget's next episode on ``copy``, if one is left; one that ends at
+        its reset (no agent left) is closed at once, as terminated."""
+        while self.started < self.episodes:
+            env = self.envs[copy]
+            _, self.infos[copy] = env.reset(seed=seed)
+            self.agents[copy] = list(env.possible_agents)
+            self.episode_of[copy] = self.started
+            self.started += 1
+            if env.agents:
+                return
+            self.stats.terminated[self.episode_of[copy]] = True
+            self.end(copy, terminated=True)
+            seed = None
+
+    def end(self, copy: int, terminated: bool) -> None:
+        """Close ``copy``'s episode (the learner learns from it when ``learn``)."""
+        del self.episode_of[copy]
+        if self.learn:
+            final = self.envs[copy].state()
+            self.learner.end_episode(final_state=final, terminated=terminated, **self.whose(copy))
 
     def masks(self, copy: int) -> list | None:
         """The agents' action masks in ``copy``'s infos, or None."""
@@ -75,6 +96,38 @@ class _Copies:
         if "action_mask" not in infos[agents[0]]:
             return None
         return [infos[a]["action_mask"] for a in agents]
+
+    def joint_actions(self, states: list, masks: list, live: list[int]) -> list:
+        """Every live copy's joint action: with one call where the learner acts for many
+        states at once, else copy by copy."""
+        learner = self.learner
+        if self.several and self.learn and hasattr(learner, "act_many"):
+            return learner.act_many(states, masks, live)
+        if self.several and not self.learn and hasattr(learner, "greedy_many"):
+            return [tuple(int(a) for a in joint) for joint in learner.greedy_many(states, masks)]
+        if self.learn:
+            return [
+                learner.act(s, m, **self.whose(k))
+                for s, m, k in zip(states, masks, live, strict=True)
+            ]
+        return [learner.greedy(s, m) for s, m in zip(states, masks, strict=True)]
+
+    def step(self, copy: int, state, joint, global_reward) -> None:
+        """Play ``joint`` in ``copy``: the learner observes it, the statistics count it,
+        and an episode that ends is closed and the copy's next one started."""
+        env, episode, stats = self.envs[copy], self.episode_of[copy], self.stats
+        _, rewards, terminations, _, self.infos[copy] = env.step(
+            dict(zip(self.agents[copy], joint, strict=True))
+        )
+        reward = global_reward(rewards)
+        if self.learn:
+            self.learner.observe(state, joint, reward, **self.whose(copy))
+        stats.returns[episode] += reward
+        stats.lengths[episode] += 1
+        stats.terminated[episode] = any(terminations.values())
+        if not env.agents:
+            self.end(copy, bool(stats.terminated[episode]))
+            self.start(copy, None)
 
 
 def play_copies(
@@ -90,68 +143,13 @@ def play_copies(
     lockstep: sampled actions and learning when ``learn``, greedy actions otherwise.
     ``seeds[k]`` seeds copy ``k``'s first reset; its later episodes continue its own
     stream. The statistics are in the order the episodes started."""
-    copies = _Copies(envs, episodes)
-    stats = EpisodeStats(
-        np.zeros(episodes), np.zeros(episodes, dtype=np.int64), np.zeros(episodes, dtype=np.bool_)
-    )
-    several = len(copies.envs) > 1
-    for copy in range(len(copies.envs)):
-        first = None if seeds is None else seeds[copy]
-        _start(copies, copy, first, stats, learner, learn, several)
-    while copies.episode_of:
-        live = sorted(copies.episode_of)
-        states = [copies.envs[k].state() for k in live]
-        masks = [copies.masks(k) for k in live]
-        joints = _joint_actions(learner, states, masks, live, learn, several)
+    play = _Lockstep(envs, learner, episodes, learn)
+    for copy in range(len(play.envs)):
+        play.start(copy, None if seeds is None else seeds[copy])
+    while play.episode_of:
+        live = sorted(play.episode_of)
+        states = [play.envs[k].state() for k in live]
+        joints = play.joint_actions(states, [play.masks(k) for k in live], live)
         for copy, state, joint in zip(live, states, joints, strict=True):
-            env, episode = copies.envs[copy], copies.episode_of[copy]
-            actions = dict(zip(copies.agents[copy], joint, strict=True))
-            _, rewards, terminations, _, copies.infos[copy] = env.step(actions)
-            reward = global_reward(rewards)
-            if learn:
-                learner.observe(state, joint, reward, **_whose(copy, several))
-            stats.returns[episode] += reward
-            stats.lengths[episode] += 1
-            stats.terminated[episode] = any(terminations.values())
-            if not env.agents:
-                _end(copies, copy, learner, learn, several, bool(stats.terminated[episode]))
-                _start(copies, copy, None, stats, learner, learn, several)
-    return stats
-
-
-def _whose(copy: int, several: bool) -> dict[str, int]:
-    """The ``copy`` keyword, given only when several copies play (so that a learner of
-    one environment at a time needs no such argument)."""
-    return {"copy": copy} if several else {}
-
-
-def _start(copies: _Copies, copy: int, seed, stats, learner, learn: bool, several: bool) -> None:
-    """Start ``copy``'s next episode; one that ends at its reset (no agent left) is
-    closed at once, as terminated."""
-    while copies.start(copy, seed) and not copies.envs[copy].agents:
-        stats.terminated[copies.episode_of[copy]] = True
-        _end(copies, copy, learner, learn, several, terminated=True)
-        seed = None
-
-
-def _end(copies: _Copies, copy: int, learner, learn: bool, several: bool, terminated: bool):
-    """Close ``copy``'s episode (the learner learns from it when ``learn``)."""
-    del copies.episode_of[copy]
-    if learn:
-        final = copies.envs[copy].state()
-        learner.end_episode(final_state=final, terminated=terminated, **_whose(copy, several))
-
-
-def _joint_actions(learner, states, masks, live, learn: bool, several: bool) -> list:
-    """Every live copy's joint action: with one call where the learner acts for many
-    states at once, else copy by copy."""
-    if several and learn and hasattr(learner, "act_many"):
-        return learner.act_many(states, masks, live)
-    if several and not learn and hasattr(learner, "greedy_many"):
-        return [tuple(int(a) for a in joint) for joint in learner.greedy_many(states, masks)]
-    if learn:
-        return [
-            learner.act(s, m, **_whose(k, several))
-            for s, m, k in zip(states, masks, live, strict=True)
-        ]
-    return [learner.greedy(s, m) for s, m in zip(states, masks, strict=True)]
+            play.step(copy, state, joint, global_reward)
+    return play.stats
