@@ -60,19 +60,12 @@ class StepAgent:
         """Entries in the replay ring."""
         return int(self.ring.size[0])  # type: ignore[attr-defined]
 
-    def _encode(self, state) -> torch.Tensor:
-        return self._encode_many([state])
-
     def _encode_many(self, states) -> torch.Tensor:
         """States as the model's input: (1, N) integers or (1, N, state_dim) features."""
         if self.integer_states:
             return torch.tensor([[int(x) for x in states]], device=self.device)
         rows = [np.asarray(x, dtype=np.float32).ravel() for x in states]
         return torch.as_tensor(np.stack(rows)[None], device=self.device)
-
-    def _legal(self, masks) -> torch.Tensor:
-        """(n_agents, width): each agent's legal actions."""
-        return torch.as_tensor(self._legal_array(masks), device=self.device)
 
     def _legal_array(self, masks) -> np.ndarray:
         """(n_agents, width) bool on the host: each agent's legal actions."""
