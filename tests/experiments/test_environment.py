@@ -34,6 +34,31 @@ def test_team_rewards_and_joined_observations() -> None:
     joined = envs.JoinedObservations(TinyEnv())
     joined.reset(seed=0)
     assert joined.state().tolist() == [1, 0, 0, 1, 0, 0]  # a's observation, then b's
+    own = envs.OwnObservations(TinyEnv())
+    own.reset(seed=0)
+    own.step({"a": 0, "b": 1})
+    assert own.state().tolist() == [0, 1, 0] + [0, 1, 0] * 2  # state(), then a's, b's
+    stateless = envs.OwnObservations(TinyEnv(state="none"))
+    stateless.reset(seed=0)
+    assert stateless.state().tolist() == [1, 0, 0] * 2 * 2  # joined stands in for state()
+    assert envs.state_shape(own, "own-observations") == envs.StateShape(None, 9, 3)
+
+
+def test_each_agent_reads_its_own_observation_end_to_end(paths) -> None:  # noqa: F811
+    """``--inputs own-observations``: VDN and QMIX learn the tiny game's optimum from
+    their own observations, and the report names the inputs."""
+    pytest.importorskip("torch")
+    _, _, where = paths
+    result = invoke(
+        "train", "--env", TINY, "--algorithms", "vdn,qmix", "--episodes", "300", "--runs", "1",
+        "--eval-episodes", "4", "--curve-points", "1", "--inputs", "own-observations", "--json",
+        *where, "--set", "vdn.batch_size=32,vdn.train_every=3,"
+        "qmix.batch_size=32,qmix.train_every=3",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.stderr
+    rows = {r["algorithm"]: r for r in json.loads(result.stdout)["rows"]}
+    assert rows["vdn"]["mean_return"] == 3.0 and rows["qmix"]["mean_return"] == 3.0
+    assert "inputs: own-observations" in invoke("report", *where).stdout
 
 
 def test_the_learners_end_to_end(paths) -> None:  # noqa: F811
@@ -100,6 +125,7 @@ def test_a_tabular_learner_on_the_dsn_environment(paths) -> None:  # noqa: F811
         (["--env", TINY, "--envs", "100000"], "--envs"),
         (["--env", "tests.tiny_env:make_disagreeing", "--envs", "2"], "--envs"),
         (["--env", TINY, "--env-kwargs", '{"state": "none"}'], "--inputs"),  # no state()
+        (["--env", TINY, "--inputs", "own-observations"], "--inputs"),  # not for tables
         (
             ["--env", TINY, "--env-kwargs", '{"state": "integer"}', "--algorithms", "vdn"],
             "--algorithms",

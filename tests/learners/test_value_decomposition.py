@@ -255,3 +255,40 @@ def test_qmix_mixes_a_hand_chosen_input() -> None:
     assert torch.allclose(mixer(q, one_hot), expected)  # the dense path too
     higher = mixer(q + torch.tensor([0.1, 0.0]), states)
     assert (higher > expected).all()  # monotone in each agent's value
+
+
+@pytest.mark.parametrize("mixer", ["vdn", "qmix"])
+def test_agents_read_their_own_observation_and_the_mixer_the_state(mixer: str) -> None:
+    """Inputs laid out as [s (4), o_1 (3), o_2 (3)]: agent i's Q is its MLP of o_i alone
+    (computed here by hand from its weights); changing s or the other agent's observation
+    leaves it; QMIX's Q_tot moves with s and is what the mixer makes of s alone."""
+    model = ValueDecomposition([2, 2], 10, DeepConfig(mixer=mixer, hidden=5), seeds(1), own_dim=3)
+    state = torch.randn(1, 6, 10)
+    q = model.agents(state)  # (1, 6, 2, 2)
+    w1, b1, w2, b2 = (t.detach().numpy() for t in model.agents.feature_weights())
+    x = state.numpy()[0]
+    for i, own in enumerate((x[:, 4:7], x[:, 7:10])):
+        expected = np.maximum(own @ w1[i] + b1[i], 0.0) @ w2[i] + b2[i]
+        np.testing.assert_allclose(q[0, :, i].detach().numpy(), expected, rtol=1e-5, atol=1e-6)
+    other = state.clone()
+    other[..., :4] += 1.0  # another s
+    other[..., 7:] += 1.0  # another o_2
+    assert torch.equal(model.agents(other)[..., 0, :], q[..., 0, :])
+    if mixer == "qmix":
+        chosen = torch.randn(1, 6, 2)
+        by_state = model.mixer(chosen, state[..., :4])
+        assert torch.equal(model.mixer(chosen, model._mixer_state(state)), by_state)
+        assert not torch.allclose(model.mixer(chosen, other[..., :4]), by_state)
+    actions = torch.zeros(1, 6, 2, dtype=torch.int64)
+    batch = {"state": state, "actions": actions, "reward": torch.zeros(1, 6),
+             "next_state": state, "terminal": torch.zeros(1, 6, dtype=torch.bool)}  # fmt: skip
+    assert math.isfinite(model.td_step(batch))
+
+
+def test_own_observations_need_a_feature_state_that_holds_them() -> None:
+    from cmarlcd.learners.deep_agent import DeepAgent
+
+    with pytest.raises(ConfigError, match="own_dim"):
+        DeepAgent([2, 2], DeepConfig(), 10, state_dim=5, own_dim=3)
+    with pytest.raises(ConfigError, match="own_dim"):
+        DeepAgent([2, 2], DeepConfig(), 10, n_states=5, own_dim=1)

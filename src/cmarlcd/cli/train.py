@@ -86,7 +86,8 @@ def train(
     inputs: Annotated[
         str,
         typer.Option(
-            help="What the learners read: state (the env's state()) or observations (joined)."
+            help="What the learners read: state (the env's state()), observations (joined), or "
+            "own-observations (VDN, QMIX: each agent its own, the mixer the state)."
         ),
     ] = "state",
     envs_per_run: Annotated[

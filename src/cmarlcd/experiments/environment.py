@@ -8,7 +8,8 @@ forward pass and feeds one replay; each copy's reset seed derived from the run's
 evaluates the greedy joint policy for ``eval_episodes`` episodes on an environment of its
 own at ``curve_points`` evenly spaced budgets: a learning curve. The team's reward is the
 agents' rewards summed or averaged (``reward``, a named choice); the learners read the
-environment's ``state()`` or the agents' observations joined (``inputs``, a named
+environment's ``state()``, the agents' observations joined, or, for VDN and QMIX, each
+agent its own observation while the mixer reads the state (``inputs``, a named
 choice). A uniform random policy is run beside them as the baseline (``"random"``).
 
 The deep learners read a ``Discrete`` state one-hot and anything else as a flat feature
@@ -46,9 +47,13 @@ REWARDS: dict[str, Callable[[Mapping[str, float]], float]] = {
     "sum": lambda rewards: float(sum(rewards.values())),
     "mean": lambda rewards: float(np.mean(list(rewards.values()))),
 }
-#: [choice] What the learners read: the environment's ``state()`` (default), or every
-#: agent's observation joined in agent order (for environments without a state).
-INPUTS = ("state", "observations")
+#: [choice] What the learners read: the environment's ``state()`` (default); every
+#: agent's observation joined in agent order (for environments without a state); or
+#: ``own-observations``: each agent's network its own observation and QMIX's mixer the
+#: state (decentralised execution, as VDN and QMIX were published; VDN and QMIX only).
+INPUTS = ("state", "observations", "own-observations")
+#: The learners that can read ``own-observations``.
+OWN_OBSERVATION_LEARNERS = ("vdn", "qmix")
 #: [choice] Points of the learning curve, each a greedy evaluation of ``eval_episodes``.
 CURVE_POINTS = 10
 MAX_CURVE_POINTS = 100
@@ -127,17 +132,48 @@ class JoinedObservations:
         return (observations, *rest)
 
     def state(self) -> np.ndarray:
-        return np.concatenate(
-            [np.asarray(self._last[a], dtype=np.float32).ravel() for a in self.possible_agents]
-        )
+        return np.concatenate(self._observations())
+
+    def _observations(self) -> list[np.ndarray]:
+        return [np.asarray(self._last[a], dtype=np.float32).ravel() for a in self.possible_agents]
+
+
+class OwnObservations(JoinedObservations):
+    """An environment whose ``state()`` is ``[s, o_1, ..., o_n]``: the environment's own
+    ``state()`` (or, without one, the observations joined), then each agent's last
+    observation, flattened and zero-padded to ``own_dim`` features
+    (``inputs="own-observations"``)."""
+
+    def __init__(self, env: Any) -> None:
+        super().__init__(env)
+        self.own_dim = 0
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        result = super().reset(seed=seed, options=options)
+        self.own_dim = max(o.size for o in self._observations())
+        return result
+
+    def state(self) -> np.ndarray:
+        observations = self._observations()
+        try:
+            shared = np.asarray(self.env.state(), dtype=np.float32).ravel()
+        except (NotImplementedError, AttributeError):
+            shared = np.concatenate(observations)
+        own = np.zeros((len(observations), self.own_dim), np.float32)
+        for i, observation in enumerate(observations):
+            own[i, : observation.size] = observation
+        return np.concatenate([shared, own.ravel()])
 
 
 @dataclass(frozen=True)
 class StateShape:
-    """What a learner reads: ``n_states`` discrete states, or ``dim`` features."""
+    """What a learner reads: ``n_states`` discrete states, or ``dim`` features (of which
+    the last ``n_agents * own_dim`` are the agents' own observations, where they read
+    them)."""
 
     n_states: int | None
     dim: int | None
+    own_dim: int | None = None
 
 
 def state_shape(env: Any, inputs: str) -> StateShape:
@@ -152,7 +188,7 @@ def state_shape(env: Any, inputs: str) -> StateShape:
             if isinstance(state, int | np.integer):
                 return StateShape(None, None)  # discrete, count unknown: tables grow
             return StateShape(None, int(np.asarray(state, dtype=np.float32).size))
-        return StateShape(None, int(env.state().size))
+        return StateShape(None, int(env.state().size), getattr(env, "own_dim", None))
     except (NotImplementedError, AttributeError):
         raise ConfigError(
             "inputs", "the environment has no state(): use --inputs observations"
@@ -215,6 +251,8 @@ def new_learner(
 
         kind = DegreeAgent if isinstance(config, DeepCMARLCDConfig) else DeepAgent
         inputs = {"n_states": shape.n_states} if shape.n_states else {"state_dim": shape.dim}
+        if shape.own_dim:
+            inputs["own_dim"] = shape.own_dim
         return kind(counts, config, total, **inputs, seed=seed)
     from cmarlcd.learners.tabular import TabularLearner
 
@@ -341,7 +379,8 @@ def _describe(shape: StateShape, counts: list[int]) -> str:
 
 
 def _wrapped(env: Any, inputs: str) -> Any:
-    return JoinedObservations(env) if inputs == "observations" else env
+    wrappers = {"observations": JoinedObservations, "own-observations": OwnObservations}
+    return wrappers[inputs](env) if inputs in wrappers else env
 
 
 def _int_seed(seed: np.random.SeedSequence) -> int:
@@ -400,6 +439,12 @@ class EnvSweep:
         except Exception as error:  # the user's environment: its failure is theirs to read
             raise ConfigError("env", f"{self.env}: reset failed: {error}") from None
         for config in self.learners:
+            require(
+                self.inputs != "own-observations" or config.name in OWN_OBSERVATION_LEARNERS,
+                "inputs",
+                f"own-observations is for {' and '.join(OWN_OBSERVATION_LEARNERS)}; "
+                f"{config.name} reads the state or the observations joined",
+            )
             if isinstance(config, DeepLearnerConfig):
                 check_deep_inputs(shape)
             else:

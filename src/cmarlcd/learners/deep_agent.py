@@ -108,6 +108,10 @@ class DeepAgent(StepAgent):
     :func:`cmarlcd.training.episodes.play_episodes`: ``act`` (ε-greedy, eq. 18), ``observe``,
     ``end_episode``, ``greedy``; states and masks as :class:`StepAgent` reads them
     (illegal actions are never chosen nor bootstrapped from).
+
+    ``own_dim``: feature states laid out as ``[s, o_1, ..., o_n]``, each agent's own
+    observation ``o_i`` of ``own_dim`` features last: agent ``i`` acts on ``o_i`` alone and
+    QMIX's mixer reads ``s`` (decentralised execution; :class:`ValueDecomposition`).
     """
 
     def __init__(
@@ -120,11 +124,18 @@ class DeepAgent(StepAgent):
         state_dim: int | None = None,
         seed: int | np.random.SeedSequence | None = None,
         device: str | None = None,
+        own_dim: int | None = None,
     ) -> None:
         super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device)
+        if own_dim is not None:
+            require(
+                state_dim is not None and 0 < own_dim * len(self.counts) <= state_dim,
+                "own_dim",
+                "own observations are the last n_agents * own_dim of a feature state",
+            )
         self.config = config
         self.model = ValueDecomposition(
-            self.counts, self.in_dim, config, [self.init_seed], self.device
+            self.counts, self.in_dim, config, [self.init_seed], self.device, own_dim
         )
         self.ring = new_ring(
             1, config.buffer_size, len(self.counts), self.width, n_states or 1, state_dim or 0,

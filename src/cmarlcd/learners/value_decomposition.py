@@ -13,11 +13,17 @@ Pieces, each in one place:
   inputs (integer states), :meth:`GroupLinear.table` gives the layer's output for every
   state, so a network is evaluated once per distinct state and then looked up.
 * :class:`AgentNetworks` -- per-agent MLPs, no parameter sharing ([choice]): state ->
-  hidden (ReLU) -> Q-values over the agent's actions.
+  hidden (ReLU) -> Q-values over the agent's actions; or, for decentralised execution,
+  each agent's own observation -> hidden -> Q (``own_dim``, below).
 * :class:`VDNMixer` (``Q_tot = Σ_i Q_i``) and :class:`QMixer` (hypernetworks on the state,
   non-negative weights via ``abs``, an ELU hidden layer, a state-dependent bias).
 * :class:`ValueDecomposition` -- online and target networks, Adam, the one-step TD loss
   with the target network's greedy legal action, target copies, greedy action tables.
+
+Decentralised inputs (``own_dim``): a feature vector may be laid out as the mixer's state
+followed by every agent's own observation, ``[s, o_1, ..., o_n]`` with each ``o_i`` of
+``own_dim`` features; agent ``i``'s network then reads ``o_i`` alone and QMIX's mixer reads
+``s``, as in the VDN and QMIX papers (centralised training, decentralised execution).
 
 Integer states (the DSN's 43) take a fast path that gives the same values as the one-hot
 product: the agents' Q-values are a table over the states, and QMIX's first mixing layer,
@@ -96,7 +102,10 @@ def _same(x: torch.Tensor) -> torch.Tensor:
 class AgentNetworks(nn.Module):
     """Per-agent MLPs for B seeds: state -> Linear -> ReLU -> Linear -> Q over actions.
 
-    Rows are padded to the largest action count; padded actions are masked by callers.
+    With ``own_dim``, agent ``i`` reads only its own observation, the ``i``-th of the
+    last ``n_agents * own_dim`` features of the input (the layout ``[s, o_1, ..., o_n]``
+    of the module's docstring). Rows are padded to the largest action count; padded
+    actions are masked by callers.
     """
 
     def __init__(
@@ -107,19 +116,27 @@ class AgentNetworks(nn.Module):
         hidden: int,
         n_actions: int,
         generators: Sequence[Sequence[torch.Generator]],
+        own_dim: int | None = None,
     ) -> None:
         super().__init__()
-        self.seeds, self.n_agents = seeds, n_agents
+        self.seeds, self.n_agents, self.own_dim = seeds, n_agents, own_dim
         flat = [gens[i] for gens in generators for i in range(n_agents)]
-        self.first = GroupLinear(in_dim, hidden, flat)
+        self.first = GroupLinear(in_dim if own_dim is None else own_dim, hidden, flat)
         self.second = GroupLinear(hidden, n_actions, flat)
 
     def forward(self, state: torch.Tensor) -> torch.Tensor:
         """``state``: (B, N) int64 or (B, N, in_dim) -> Q (B, N, n_agents, n_actions)."""
         if state.dtype == torch.int64:
             return rows(self.tables(), state)
-        per_agent = state.repeat_interleave(self.n_agents, dim=0)  # (B*n, N, in)
-        return self._by_seed(self.second(torch.relu(self.first(per_agent))))
+        return self._by_seed(self.second(torch.relu(self.first(self._inputs(state)))))
+
+    def _inputs(self, state: torch.Tensor) -> torch.Tensor:
+        """(B, N, in_dim) -> each agent's input, (B*n, N, in) grouped seed-major."""
+        if self.own_dim is None:
+            return state.repeat_interleave(self.n_agents, dim=0)
+        b, count, n = state.shape[0], state.shape[1], self.n_agents
+        own = state[..., state.shape[2] - n * self.own_dim :].reshape(b, count, n, self.own_dim)
+        return own.transpose(1, 2).reshape(b * n, count, self.own_dim)
 
     def tables(self) -> torch.Tensor:
         """Q of every integer (one-hot) state: (B, in_dim, n_agents, n_actions)."""
@@ -252,6 +269,9 @@ class ValueDecomposition(StackedModel):
         in_dim: state features, or the number of states for integer (one-hot) states.
         seeds: one :class:`numpy.random.SeedSequence` per seed (parameter initialisation).
         device: where it computes (``cpu``, ``cuda:N``; :mod:`cmarlcd.devices`).
+        own_dim: features of each agent's own observation, for inputs laid out as
+            ``[s, o_1, ..., o_n]`` (the agents read their own, the mixer ``s``); None:
+            every network reads the whole input.
     """
 
     def __init__(
@@ -261,12 +281,16 @@ class ValueDecomposition(StackedModel):
         config: DeepConfig,
         seeds: Sequence[np.random.SeedSequence],
         device: str = "cpu",
+        own_dim: int | None = None,
     ) -> None:
         super().__init__(action_counts, config, seeds, device)
         gens, width = self.generators, self.width
-        self.agents = AgentNetworks(self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens)
+        self.agents = AgentNetworks(
+            self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens, own_dim
+        )
+        self.mixer_dim = in_dim - (0 if own_dim is None else self.n_agents * own_dim)
         self.mixer: nn.Module = (
-            QMixer(self.n_seeds, self.n_agents, in_dim, config.mixer_hidden, gens)
+            QMixer(self.n_seeds, self.n_agents, self.mixer_dim, config.mixer_hidden, gens)
             if config.mixer == "qmix"
             else VDNMixer()
         )
@@ -317,12 +341,19 @@ class ValueDecomposition(StackedModel):
         legal); every tensor on the model's device.
         """
         chosen = self._chosen_q(batch["state"], batch["actions"])
-        q_tot = self.mixer(chosen, batch["state"])
+        q_tot = self.mixer(chosen, self._mixer_state(batch["state"]))
         with torch.no_grad():
             next_tot = self._next_values(batch["next_state"], batch.get("next_legal"))
             alive = (~batch["terminal"]).to(q_tot.dtype)
             target = batch["reward"] + self.config.gamma * alive * next_tot
         return ((q_tot - target) ** 2).mean(dim=1).sum()
+
+    def _mixer_state(self, state: torch.Tensor) -> torch.Tensor:
+        """What the mixer reads of the input: all of it, or its state ``s`` where the
+        agents read their own observations."""
+        if state.dtype == torch.int64 or state.shape[-1] == self.mixer_dim:
+            return state
+        return state[..., : self.mixer_dim]
 
     def _chosen_q(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Each agent's online Q of its action in ``actions`` (B, N, n)."""
@@ -339,7 +370,7 @@ class ValueDecomposition(StackedModel):
         it is a (B, S) table, computed once per target copy and looked up."""
         if state.dtype != torch.int64 or legal is not None:
             best = self._masked(self.target_agents(state), legal).max(dim=-1).values
-            return self.target_mixer(best, state)
+            return self.target_mixer(best, self._mixer_state(state))
         if self._next_value_table is None:
             masked = self._masked(self.target_agents.tables(), self.state_legal)
             best = masked.max(dim=-1).values
