@@ -1,0 +1,73 @@
+"""The outside anchor's script (benchmarks/anchors/): it needs its own environment to
+train, so CI checks only that it imports without BenchMARL, shows ``--help``, refuses bad
+budgets in one line, and computes its intervals right."""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).parents[1] / "benchmarks/anchors/benchmarl_simple_spread.py"
+
+
+def anchor():
+    spec = importlib.util.spec_from_file_location("anchor", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(SCRIPT), *args], capture_output=True, text=True, check=False
+    )
+
+
+def test_help_without_benchmarl_installed() -> None:
+    done = run("--help")
+    assert done.returncode == 0, done.stderr
+    assert "--frames" in done.stdout and "--seeds" in done.stdout
+
+
+@pytest.mark.parametrize(
+    "args", [["--frames", "1.01M"], ["--eval-every", "5000"], ["--frames", "lots"]]
+)
+def test_bad_budgets_are_one_line(args: list[str], tmp_path: Path) -> None:
+    done = run(*args, "--out", str(tmp_path))
+    assert done.returncode == 2
+    assert done.stderr.startswith("error: ") and done.stderr.count("\n") == 1
+    assert not (tmp_path / "runs").exists()
+
+
+def test_budgets_and_intervals() -> None:
+    module = anchor()
+    assert module.budget("1.02M") == 1_020_000 and module.budget("102k") == 102_000
+    mean, half = module.interval([1.0, 2.0, 3.0])  # sd 1, t(2 df) = 4.303
+    assert mean == 2.0 and half == pytest.approx(4.303 / 3**0.5)
+    assert module.interval([5.0]) == (5.0, 0.0)
+
+
+def test_the_equivalent_command_makes_the_runs_of_the_cmarl_cd_side() -> None:
+    """``cmarl-cd train`` given the printed command builds the very settings (so the
+    seeds) the script runs."""
+    import shlex
+
+    from cmarlcd import registry
+    from cmarlcd.cli.options import apply_settings
+    from cmarlcd.cli.train import parse_env_kwargs
+
+    module = anchor()
+    words = shlex.split(module.equivalent_command(1_020_000, 102_000, 50))
+    option = {words[k]: words[k + 1] for k in range(2, len(words) - 1, 2)}
+    configs = tuple(registry.require_learner(n) for n in ("vdn", "qmix"))
+    learners = dict(zip(("vdn", "qmix"), apply_settings(option["--set"], configs), strict=True))
+    for name, learner in learners.items():
+        ours = module.ours_settings(name, 1_020_000, 102_000, 50)
+        assert ours.learner == learner
+        assert ours.env_kwargs == parse_env_kwargs(option["--env-kwargs"])
+        assert (ours.episodes, ours.curve_points, ours.eval_episodes) == (40_800, 10, 50)
+        assert (ours.reward, ours.inputs, ours.envs) == ("mean", "own-observations", 10)
