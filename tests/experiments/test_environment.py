@@ -44,6 +44,18 @@ def test_team_rewards_and_joined_observations() -> None:
     assert envs.state_shape(own, "own-observations") == envs.StateShape(None, 9, 3)
 
 
+def test_only_vdn_and_qmix_read_their_own_observations() -> None:
+    pytest.importorskip("torch")
+    from cmarlcd import ConfigError, registry
+
+    shape = envs.StateShape(None, 9, 3)
+    seed = np.random.SeedSequence(0)
+    counts = np.array([2, 2])
+    assert envs.new_learner(registry.require_learner("qmix"), counts, shape, 10, seed)
+    with pytest.raises(ConfigError, match="own-observations is for vdn and qmix"):
+        envs.new_learner(registry.require_learner("deep-cmarl-cd"), counts, shape, 10, seed)
+
+
 def test_each_agent_reads_its_own_observation_end_to_end(paths) -> None:  # noqa: F811
     """``--inputs own-observations``: VDN and QMIX learn the tiny game's optimum from
     their own observations, and the report names the inputs."""

@@ -252,6 +252,12 @@ def new_learner(
         kind = DegreeAgent if isinstance(config, DeepCMARLCDConfig) else DeepAgent
         inputs = {"n_states": shape.n_states} if shape.n_states else {"state_dim": shape.dim}
         if shape.own_dim:
+            require(
+                config.name in OWN_OBSERVATION_LEARNERS,
+                "inputs",
+                f"own-observations is for {' and '.join(OWN_OBSERVATION_LEARNERS)}, "
+                f"not {config.name}",
+            )
             inputs["own_dim"] = shape.own_dim
         return kind(counts, config, total, **inputs, seed=seed)
     from cmarlcd.learners.tabular import TabularLearner
