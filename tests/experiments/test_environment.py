@@ -212,15 +212,15 @@ def test_copies_played_at_once_end_to_end(paths) -> None:  # noqa: F811
 
 
 def test_one_copy_plays_the_runs_stored_before_copies_existed(paths) -> None:  # noqa: F811
-    """The same command at the default ``--envs 1`` gives the stored runs of the version
-    before copies were played (tests/data/train-before-copies.json: the same config, so
-    the same seeds, and the same learning curve, number for number)."""
+    """The same command at ``--envs 1`` gives the stored runs of the version before
+    copies were played (tests/data/train-before-copies.json: the same config, so the
+    same seeds, and the same learning curve, number for number)."""
     pytest.importorskip("torch")
     from pathlib import Path
 
     golden = json.loads((Path(__file__).parents[1] / "data/train-before-copies.json").read_text())
     store, _, where = paths
-    result = invoke(*golden["command"].split()[1:], "--json", *where)
+    result = invoke(*golden["command"].split()[1:], "--envs", "1", "--json", *where)
     assert result.exit_code == 0, result.stderr
     with ResultStore(store) as db:
         stored = {r.key.algorithm: r for r in db.records(envs.EXPERIMENT)}

@@ -95,9 +95,9 @@ def train(
         typer.Option(
             "--envs",
             help="Copies of the environment each run plays at once (a deep learner acts "
-            "for all with one forward pass).",
+            "for all with one forward pass; 1: one at a time, as before 0.6.0).",
         ),
-    ] = 1,
+    ] = envs.DEFAULT_ENVS,
     seed: SeedOption = 0,
     settings: SetOption = "",
     *,
