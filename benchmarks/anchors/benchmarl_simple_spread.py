@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 SIDES = ("benchmarl", "cmarl-cd")
+SIDE_NAMES = {"benchmarl": "BenchMARL 1.5.2", "cmarl-cd": "cmarl-cd"}
 ALGORITHMS = ("vdn", "qmix")
 STEPS_PER_EPISODE = 25
 COLLECTED_PER_BATCH = 6_000
@@ -444,7 +445,9 @@ def figure(summary: dict, path: Path) -> None:
             mean = [p[1] for p in c["curve"]]
             low = [p[1] - p[2] for p in c["curve"]]
             high = [p[1] + p[2] for p in c["curve"]]
-            ax.plot(x, mean, color=colour, label=f"{side} ({len(c['seeds'])} seeds)")
+            seeds = len(c["seeds"])
+            label = f"{SIDE_NAMES[side]} ({seeds} seed{'s' if seeds > 1 else ''})"
+            ax.plot(x, mean, color=colour, label=label)
             ax.fill_between(x, low, high, color=colour, alpha=0.2)
         ax.set_title(f"{algorithm.upper()} on simple_spread")
         ax.set_xlabel("frames (millions)")
