@@ -9,6 +9,7 @@ import pytest
 
 from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments import settings_of
+from cmarlcd.experiments.env_inputs import StateShape
 from cmarlcd.sweeps.store import ResultStore
 from tests.test_cli import assert_rejected_cleanly, invoke, paths  # noqa: F401
 from tests.tiny_env import TinyEnv
@@ -28,27 +29,16 @@ def test_the_random_policy_earns_what_chance_gives() -> None:
     assert set(stats.lengths) == {3}
 
 
-def test_team_rewards_and_joined_observations() -> None:
+def test_team_rewards() -> None:
     assert envs.REWARDS["sum"]({"a": 0.5, "b": 0.5}) == 1.0
     assert envs.REWARDS["mean"]({"a": 0.5, "b": 1.5}) == 1.0
-    joined = envs.JoinedObservations(TinyEnv())
-    joined.reset(seed=0)
-    assert joined.state().tolist() == [1, 0, 0, 1, 0, 0]  # a's observation, then b's
-    own = envs.OwnObservations(TinyEnv())
-    own.reset(seed=0)
-    own.step({"a": 0, "b": 1})
-    assert own.state().tolist() == [0, 1, 0] + [0, 1, 0] * 2  # state(), then a's, b's
-    stateless = envs.OwnObservations(TinyEnv(state="none"))
-    stateless.reset(seed=0)
-    assert stateless.state().tolist() == [1, 0, 0] * 2 * 2  # joined stands in for state()
-    assert envs.state_shape(own, "own-observations") == envs.StateShape(None, 9, 3)
 
 
 def test_only_vdn_and_qmix_read_their_own_observations() -> None:
     pytest.importorskip("torch")
     from cmarlcd import ConfigError, registry
 
-    shape = envs.StateShape(None, 9, 3)
+    shape = StateShape(None, 9, 3)
     seed = np.random.SeedSequence(0)
     counts = np.array([2, 2])
     assert envs.new_learner(registry.require_learner("qmix"), counts, shape, 10, seed)
