@@ -71,3 +71,17 @@ def test_the_equivalent_command_makes_the_runs_of_the_cmarl_cd_side() -> None:
         assert ours.env_kwargs == parse_env_kwargs(option["--env-kwargs"])
         assert (ours.episodes, ours.curve_points, ours.eval_episodes) == (40_800, 10, 50)
         assert (ours.reward, ours.inputs, ours.envs) == ("mean", "own-observations", 10)
+
+
+def test_runs_of_another_budget_are_not_mixed_in(tmp_path: Path) -> None:
+    """A study resumed on an ``--out`` that holds runs of another budget stops in one
+    line before it trains anything."""
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    curve = [[102_000 * k, -20.0] for k in range(1, 11)]
+    stored = {"side": "cmarl-cd", "algorithm": "vdn", "seed": 0, "curve": curve}
+    (runs / "cmarl-cd-vdn-seed0.json").write_text(__import__("json").dumps(stored))
+    done = run("--frames", "2.04M", "--eval-every", "204k", "--out", str(tmp_path))
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+    assert "another budget" in done.stderr
+    assert "runs already" not in done.stdout

@@ -34,6 +34,8 @@ SIDE_NAMES = {"benchmarl": "BenchMARL 1.5.2", "cmarl-cd": "cmarl-cd"}
 ALGORITHMS = ("vdn", "qmix")
 STEPS_PER_EPISODE = 25
 COLLECTED_PER_BATCH = 6_000
+MAX_POINTS = 100
+"""The most evaluations a curve has (``cmarl-cd train``'s limit)."""
 """BenchMARL collects this many frames, then trains (its default)."""
 
 #: The hyper-parameters both sides share: BenchMARL's off-policy defaults, except where
@@ -96,6 +98,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         data = {"side": side, "algorithm": algorithm, "seed": int(seed), **result}
         write(run_path(out, side, algorithm, int(seed)), data)
         return 0
+    other = [p.name for p in stored_runs(out) if not same_budget(p, frames, eval_every)]
+    if other:
+        print(
+            f"error: {out / 'runs'} holds runs of another budget ({other[0]}, …): give "
+            f"another --out",
+            file=sys.stderr,
+        )
+        return 2
     print("shared hyper-parameters:", json.dumps(SHARED, indent=1))
     if args.check_task:
         print(check_task())
@@ -160,8 +170,20 @@ def check(frames: int, eval_every: int, seeds: int) -> None:
         )
     if eval_every % STEPS_PER_EPISODE:
         raise ValueError(f"--eval-every must be whole episodes of {STEPS_PER_EPISODE} frames")
+    if frames // eval_every > MAX_POINTS:
+        raise ValueError(f"at most {MAX_POINTS} evaluations (--frames / --eval-every)")
     if seeds < 1:
         raise ValueError(f"--seeds must be >= 1 (got {seeds})")
+
+
+def stored_runs(out: Path) -> list[Path]:
+    return sorted((out / "runs").glob("*.json"))
+
+
+def same_budget(path: Path, frames: int, eval_every: int) -> bool:
+    """Whether a stored run evaluated at the frame counts of this budget."""
+    curve = json.loads(path.read_text())["curve"]
+    return [p[0] for p in curve] == list(range(eval_every, frames + 1, eval_every))
 
 
 def run_path(out: Path, side: str, algorithm: str, seed: int) -> Path:
@@ -170,7 +192,7 @@ def run_path(out: Path, side: str, algorithm: str, seed: int) -> Path:
 
 def write(path: Path, data: dict) -> None:
     """Written whole or not at all."""
-    partial = path.with_suffix(".part")
+    partial = path.with_suffix(f".{os.getpid()}.part")
     partial.write_text(json.dumps(data, indent=1))
     os.replace(partial, path)
 
@@ -385,7 +407,7 @@ def interval(values: list[float]) -> tuple[float, float]:
 def summarise(out: Path, frames: int) -> dict:
     """Per side and algorithm: the curve's mean and interval at each frame count, and
     frames per second (collection, training, all)."""
-    runs = [json.loads(p.read_text()) for p in sorted((out / "runs").glob("*.json"))]
+    runs = [json.loads(p.read_text()) for p in stored_runs(out)]
     cells: dict[str, dict] = {}
     for side in SIDES:
         for algorithm in ALGORITHMS:

@@ -63,7 +63,8 @@ MAX_ENVS = 1024
 #: (the benchmarks page), VDN learns at 0.36x the bare environment's random-action rate
 #: with one copy, 0.69x with 4, 0.78x with 16 and 0.80x with 64, and at equal
 #: environment steps 16 copies learn what one does; 16 is where the gain levels off.
-#: ``EnvRun.envs`` keeps 1 as its identity's base, so runs stored with one copy resume.
+#: ``EnvRun.envs`` keeps 1 as its identity's base, so runs stored with one copy resume
+#: under ``--envs 1`` (a command without it now makes runs of 16 copies, new ones).
 DEFAULT_ENVS = 16
 
 EnvKwargs = tuple[tuple[str, Any], ...]

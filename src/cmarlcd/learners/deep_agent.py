@@ -129,9 +129,10 @@ class DeepAgent(StepAgent):
         super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device)
         if own_dim is not None:
             require(
-                state_dim is not None and 0 < own_dim * len(self.counts) <= state_dim,
+                state_dim is not None and 0 < own_dim * len(self.counts) < state_dim,
                 "own_dim",
-                "own observations are the last n_agents * own_dim of a feature state",
+                "own observations are the last n_agents * own_dim of a feature state, "
+                "after the state the mixer reads",
             )
         self.config = config
         self.model = ValueDecomposition(
