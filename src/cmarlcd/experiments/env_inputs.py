@@ -131,6 +131,17 @@ def check_deep_inputs(shape: StateShape) -> None:
     )
 
 
+def check_reads_own_observations(learner: str, inputs: str) -> None:
+    """One clear error where ``inputs`` is ``own-observations`` and ``learner`` cannot
+    read them."""
+    require(
+        inputs != "own-observations" or learner in OWN_OBSERVATION_LEARNERS,
+        "inputs",
+        f"own-observations is for {' and '.join(OWN_OBSERVATION_LEARNERS)}; "
+        f"{learner} reads the state or the observations joined",
+    )
+
+
 def wrapped(env: Any, inputs: str) -> Any:
     wrappers = {"observations": JoinedObservations, "own-observations": OwnObservations}
     return wrappers[inputs](env) if inputs in wrappers else env

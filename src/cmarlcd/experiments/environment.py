@@ -32,9 +32,9 @@ from cmarlcd import registry
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.experiments.env_inputs import (
     INPUTS,
-    OWN_OBSERVATION_LEARNERS,
     StateShape,
     check_deep_inputs,
+    check_reads_own_observations,
     state_shape,
     wrapped,
 )
@@ -151,12 +151,7 @@ def new_learner(
         kind = DegreeAgent if isinstance(config, DeepCMARLCDConfig) else DeepAgent
         inputs = {"n_states": shape.n_states} if shape.n_states else {"state_dim": shape.dim}
         if shape.own_dim:
-            require(
-                config.name in OWN_OBSERVATION_LEARNERS,
-                "inputs",
-                f"own-observations is for {' and '.join(OWN_OBSERVATION_LEARNERS)}, "
-                f"not {config.name}",
-            )
+            check_reads_own_observations(config.name, "own-observations")
             inputs["own_dim"] = shape.own_dim
         return kind(counts, config, total, **inputs, seed=seed)
     from cmarlcd.learners.tabular import TabularLearner
@@ -339,12 +334,7 @@ class EnvSweep:
         except Exception as error:  # the user's environment: its failure is theirs to read
             raise ConfigError("env", f"{self.env}: reset failed: {error}") from None
         for config in self.learners:
-            require(
-                self.inputs != "own-observations" or config.name in OWN_OBSERVATION_LEARNERS,
-                "inputs",
-                f"own-observations is for {' and '.join(OWN_OBSERVATION_LEARNERS)}; "
-                f"{config.name} reads the state or the observations joined",
-            )
+            check_reads_own_observations(config.name, self.inputs)
             if isinstance(config, DeepLearnerConfig):
                 check_deep_inputs(shape)
             else:
