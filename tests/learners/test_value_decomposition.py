@@ -108,6 +108,7 @@ def test_batched_seeds_have_independent_parameters() -> None:
         ({"gamma": -0.1}, "gamma"),
         ({"buffer_size": 10, "batch_size": 20}, "batch_size"),
         ({"lr": 0.0}, "lr"),
+        ({"step": "manual"}, "step"),
     ],
 )
 def test_bad_deep_config(kwargs: dict, parameter: str) -> None:
@@ -164,11 +165,24 @@ def set_q_tables(agents, q: list) -> None:
         agents.second.bias.zero_()
 
 
-def td_model() -> ValueDecomposition:
-    model = ValueDecomposition([2, 2], 3, DeepConfig(hidden=3, gamma=0.5), seeds(1))
+def td_model(step: str = "autograd") -> ValueDecomposition:
+    """The oracle's model, its update switched off (learning rate 0 for the fused step,
+    whose Adam is its own; no optimiser step for autograd) so the gradients stay."""
+    config = DeepConfig(hidden=3, gamma=0.5, step=step)
+    model = ValueDecomposition([2, 2], 3, config, seeds(1))
     set_q_tables(model.agents, ONLINE)
     set_q_tables(model.target_agents, TARGET)
+    model.optimizer.step = lambda: None
+    if model.fused is not None:
+        model.fused.adam = (0.0, *model.fused.adam[1:])
     return model
+
+
+def second_layer_grad(model: ValueDecomposition) -> torch.Tensor:
+    """The gradient of the agents' second-layer weights of the last step, either way."""
+    if model.fused is not None:
+        return torch.from_numpy(model.fused.agent_grads[2])
+    return model.agents.second.weight.grad
 
 
 def td_batch(next_legal: bool) -> dict:
@@ -188,22 +202,22 @@ def td_batch(next_legal: bool) -> dict:
     return batch
 
 
+@pytest.mark.parametrize("step", ["autograd", "fused"])
 @pytest.mark.parametrize("masks", ["in the batch", "per state"])
-def test_one_td_step_against_a_hand_computed_batch(masks: str) -> None:
+def test_one_td_step_against_a_hand_computed_batch(masks: str, step: str) -> None:
     """Targets r + γ Σ_i max_{a legal} Q_i^target(s', a), r alone at a terminal state:
       1. Q_tot = 2 + 0.5 = 2.5; target 1 + 0.5 (7 + 8) = 8.5          -> error -6
       2. Q_tot = 3 + 1 = 4;     target 2 (terminal)                  -> error  2
       3. Q_tot = 4 + 0 = 4;     target 0 + 0.5 (3 + 6) = 4.5 (9 is illegal) -> error -0.5
     loss = (36 + 4 + 0.25) / 3; dloss/dQ_i(s, a) = 2 · error / 3 at each played (s, a)."""
-    model = td_model()
+    model = td_model(step)
     if masks == "per state":
         legal = torch.ones(3, 2, 2, dtype=torch.bool)
         legal[2, 0, 1] = False
         model.set_state_legal(legal)
-    model.optimizer.step = lambda: None  # keep the gradients to look at them
     loss = model.td_step(td_batch(next_legal=masks == "in the batch"))
     assert loss == pytest.approx(40.25 / 3)
-    grad = model.agents.second.weight.grad  # (agent, hidden = state, action)
+    grad = second_layer_grad(model)  # (agent, hidden = state, action)
     assert grad[0, 0, 1] == pytest.approx(2 * -6 / 3) and grad[1, 0, 0] == pytest.approx(-4)
     assert grad[0, 1, 1] == pytest.approx(2 * 2 / 3) and grad[1, 1, 1] == pytest.approx(4 / 3)
     assert grad[0, 2, 0] == pytest.approx(2 * -0.5 / 3) and grad[1, 2, 0] == pytest.approx(-1 / 3)
@@ -214,10 +228,10 @@ def test_one_td_step_against_a_hand_computed_batch(masks: str) -> None:
     assert all(p.grad is None for p in model.target_agents.parameters())
 
 
-def test_a_target_copy_makes_the_target_the_online_network() -> None:
-    model = td_model()
+@pytest.mark.parametrize("step", ["autograd", "fused"])
+def test_a_target_copy_makes_the_target_the_online_network(step: str) -> None:
+    model = td_model(step)
     model.sync_target()
-    model.optimizer.step = lambda: None
     # now s' = 1 bootstraps from the online values: 1 + 0.5 (3 + 2) = 3.5, and so on
     loss = model.td_step(td_batch(next_legal=True))
     errors = [2.5 - 3.5, 4 - 2, 4 - 0.5 * (4 + 0)]

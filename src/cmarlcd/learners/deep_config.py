@@ -11,8 +11,13 @@ from dataclasses import dataclass
 
 from cmarlcd.errors import check_discount, require
 from cmarlcd.learners.policy import annealed_epsilon
+from cmarlcd.runs import added_setting
 
 MIXERS = ("vdn", "qmix")
+#: How a deep learner takes its gradient step ([choice]): ``autograd``, PyTorch's autograd
+#: and Adam (any device); ``fused``, hand-derived gradients and Adam in compiled CPU
+#: kernels (:mod:`cmarlcd.learners.fused_step`), equal to autograd's to float32 rounding.
+STEPS = ("autograd", "fused")
 #: How the mixers are named in tables and figures.
 DISPLAY_NAMES = {"vdn": "VDN", "qmix": "QMIX"}
 
@@ -84,6 +89,9 @@ class DeepConfig(DeepLearnerConfig):
     """Fraction of the L learning episodes over which ε is annealed (eq. 18: 0.8)."""
     eps_after: float = 0.01
     """ε for the remaining episodes (eq. 18: 0.01)."""
+    step: str = added_setting("autograd", "0.6.0")
+    """[choice] How the gradient step is computed (:data:`STEPS`): ``autograd`` or
+    ``fused`` (CPU only; other float rounding, so other trajectories than autograd's)."""
 
     @property
     def name(self) -> str:  # type: ignore[override]
@@ -106,6 +114,8 @@ class DeepConfig(DeepLearnerConfig):
     def __post_init__(self) -> None:
         known = ", ".join(MIXERS)
         require(self.mixer in MIXERS, "mixer", f"must be one of {known} (got {self.mixer!r})")
+        steps = ", ".join(STEPS)
+        require(self.step in STEPS, "step", f"must be one of {steps} (got {self.step!r})")
         for name in (
             "hidden",
             "mixer_hidden",

@@ -1,0 +1,117 @@
+"""The fused CPU step of VDN and QMIX (``DeepConfig.step = "fused"``): the TD loss, its
+gradients and Adam in compiled kernels (:mod:`cmarlcd.learners.fused_kernels`) that read
+and write the model's own parameters in place, so the model, its targets and everything
+that copies its weights see the update as they see PyTorch's.
+
+It replaces :meth:`ValueDecomposition.td_step`'s autograd and optimiser, not the model:
+greedy actions, target copies and the side's weight copies still go through PyTorch. It
+keeps its own Adam moments, so a model takes every step one way or the other.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from cmarlcd.errors import require
+from cmarlcd.learners import fused_kernels
+
+
+def _arrays(module: torch.nn.Module) -> tuple[np.ndarray, ...]:
+    """The module's parameters as NumPy arrays sharing their memory, in registration
+    order."""
+    return tuple(p.detach().numpy() for p in module.parameters())
+
+
+class FusedStep:
+    """The TD step of one :class:`ValueDecomposition` model, fused (see the module)."""
+
+    def __init__(self, model) -> None:
+        require(
+            model.device.type == "cpu",
+            "step",
+            f"the fused step runs on the CPU, not {model.device}; use step=autograd there",
+        )
+        self.model = model
+        self.qmix = model.config.mixer == "qmix"
+        self.agents, self.target_agents = _arrays(model.agents), _arrays(model.target_agents)
+        if self.qmix:
+            self.mixer, self.target_mixer = _arrays(model.mixer), _arrays(model.target_mixer)
+        else:  # VDN has no parameters: empty arrays of the kernels' types
+            self.mixer = self.target_mixer = _no_mixer(model.n_seeds)
+        self.agent_grads = tuple(np.zeros_like(p) for p in self.agents)
+        self.mixer_grads = tuple(np.zeros_like(p) for p in self.mixer)
+        params = [*self.agents, *(self.mixer if self.qmix else ())]
+        grads = [*self.agent_grads, *(self.mixer_grads if self.qmix else ())]
+        self.flat = (
+            tuple(p.reshape(-1) for p in params),
+            tuple(g.reshape(-1) for g in grads),
+            tuple(np.zeros(p.size, np.float32) for p in params),
+            tuple(np.zeros(p.size, np.float32) for p in params),
+        )
+        group = model.optimizer.param_groups[0]
+        beta1, beta2 = group["betas"]
+        self.adam = (float(group["lr"]), float(beta1), float(beta2), float(group["eps"]))
+        self.steps = 0
+
+    def __call__(self, batch: dict[str, torch.Tensor]) -> float:
+        """One step on a replay batch (the keys of :meth:`ValueDecomposition.td_loss`);
+        the mean loss per seed."""
+        self.steps += 1
+        loss = fused_kernels.td_step(
+            (self.agents, self.target_agents, self.mixer, self.target_mixer),
+            (self.agent_grads, self.mixer_grads),
+            self._batch(batch),
+            self._legal(batch),
+            self.model.valid.numpy(),
+            self._shape(batch),
+            (*self.flat, (self.steps, *self.adam)),
+        )
+        return loss / self.model.n_seeds
+
+    def _batch(self, batch: dict[str, torch.Tensor]) -> tuple:
+        state, next_state = batch["state"].numpy(), batch["next_state"].numpy()
+        seeds, count = state.shape[:2]
+        if state.dtype == np.int64:
+            none = np.empty((seeds, count, 0), np.float32)
+            features, next_features, states, next_states = none, none, state, next_state
+        else:
+            none = np.zeros((seeds, count), np.int64)
+            features, next_features, states, next_states = state, next_state, none, none
+        return (
+            np.ascontiguousarray(features, np.float32),
+            np.ascontiguousarray(next_features, np.float32),
+            states,
+            next_states,
+            batch["actions"].numpy(),
+            np.ascontiguousarray(batch["reward"].numpy(), np.float32),
+            batch["terminal"].numpy(),
+        )
+
+    def _legal(self, batch: dict[str, torch.Tensor]) -> tuple:
+        seeds, n, width = self.model.n_seeds, self.model.n_agents, self.model.width
+        own = batch.get("next_legal")
+        if own is not None:
+            return True, own.numpy(), np.empty((0, 0, n, width), np.bool_)
+        none = np.empty((0, 0, 0, width), np.bool_)
+        legal = self.model.state_legal
+        if legal is None or batch["state"].dtype != torch.int64:
+            return False, none, np.empty((0, 0, n, width), np.bool_)
+        legal = legal.numpy()
+        if legal.ndim == 3:
+            legal = np.broadcast_to(legal, (seeds, *legal.shape))
+        return False, none, np.ascontiguousarray(legal)
+
+    def _shape(self, batch: dict[str, torch.Tensor]) -> tuple:
+        model = self.model
+        index = batch["state"].dtype == torch.int64
+        own = model.agents.own_dim or 0
+        units = model.mixer.hidden if self.qmix else 0
+        return self.qmix, index, float(model.config.gamma), own, model.mixer_dim, units
+
+
+def _no_mixer(seeds: int) -> tuple[np.ndarray, ...]:
+    """Ten empty arrays shaped as QMIX's parameters (3-d weights, 2-d biases)."""
+    return tuple(
+        np.zeros((seeds, 0, 0) if k % 2 == 0 else (seeds, 0), np.float32) for k in range(10)
+    )

@@ -1,0 +1,174 @@
+"""The fused CPU step of VDN and QMIX against PyTorch's autograd, the reference: the same
+loss, gradients, Adam moments and updated weights to float32 rounding, for every input
+kind, with terminal transitions, masks and QMIX's hypernetworks; and a hand-computed
+mixer."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from cmarlcd import ConfigError  # noqa: E402
+from cmarlcd.learners import fused_kernels  # noqa: E402
+from cmarlcd.learners.deep_config import DeepConfig  # noqa: E402
+from cmarlcd.learners.value_decomposition import ValueDecomposition  # noqa: E402
+
+COUNTS = [3, 4, 2]  # unequal action counts: padded actions are masked
+SEEDS, BATCH = 2, 11
+
+#: (name, integer states, features of each agent's own observation, masks in the batch,
+#: per-state masks): every way a batch reaches the step.
+INPUTS = {
+    "features, masks in the batch": (False, None, True, False),
+    "features, every action legal": (False, None, False, False),
+    "own observations": (False, 3, True, False),
+    "integer states": (True, None, False, False),
+    "integer states, per-state masks": (True, None, False, True),
+    "integer states, masks in the batch": (True, None, True, False),
+}
+
+
+def pair(mixer: str, inputs: str) -> tuple[ValueDecomposition, ValueDecomposition, callable]:
+    """The same model twice, autograd's and the fused step's (same seeds, so the same
+    weights), with target networks moved away from the online ones, and a maker of
+    random batches of the input kind."""
+    index, own, batch_masks, state_masks = INPUTS[inputs]
+    in_dim = 6 if index else (4 + len(COUNTS) * own if own else 5)
+    config = DeepConfig(mixer=mixer, hidden=7, mixer_hidden=5, batch_size=BATCH, gamma=0.8)
+    sequences = [np.random.SeedSequence(k) for k in range(SEEDS)]
+    models = []
+    for step in ("autograd", "fused"):
+        model = ValueDecomposition(
+            COUNTS, in_dim, DeepConfig(**{**config.__dict__, "step": step}), sequences, own_dim=own
+        )
+        noise = torch.Generator().manual_seed(5)
+        with torch.no_grad():
+            for p in [*model.target_agents.parameters(), *model.target_mixer.parameters()]:
+                p.add_(0.3 * torch.randn(p.shape, generator=noise))
+        models.append(model)
+    rng = np.random.default_rng(7)
+    n, width = len(COUNTS), max(COUNTS)
+    if state_masks:
+        legal = torch.as_tensor(rng.random((in_dim, n, width)) < 0.6)
+        legal[..., 0] = True
+        for model in models:
+            model.set_state_legal(legal)
+
+    def batch() -> dict:
+        size = (SEEDS, BATCH)
+        if index:
+            state = torch.as_tensor(rng.integers(0, in_dim, (2, *size)))
+        else:
+            state = torch.as_tensor(rng.normal(size=(2, *size, in_dim)).astype(np.float32))
+        actions = np.stack([rng.integers(0, c, size) for c in COUNTS], axis=-1)
+        out = {
+            "state": state[0],
+            "next_state": state[1],
+            "actions": torch.as_tensor(actions),
+            "reward": torch.as_tensor(rng.normal(size=size).astype(np.float32)),
+            "terminal": torch.as_tensor(rng.random(size) < 0.3),
+        }
+        if batch_masks:
+            legal = rng.random((*size, n, width)) < 0.6
+            legal[..., 0] = True
+            out["next_legal"] = torch.as_tensor(legal)
+        return out
+
+    return models[0], models[1], batch
+
+
+def parameters(model: ValueDecomposition) -> list[torch.Tensor]:
+    return [*model.agents.parameters(), *model.mixer.parameters()]
+
+
+@pytest.mark.parametrize("inputs", list(INPUTS))
+@pytest.mark.parametrize("mixer", ["vdn", "qmix"])
+def test_fused_gradients_equal_autograd(mixer: str, inputs: str) -> None:
+    """One step from the same weights on the same batch: the same loss and, parameter by
+    parameter, the same gradient to float32 rounding (relative to its largest entry)."""
+    auto, fused, batch = pair(mixer, inputs)
+    sample = batch()
+    assert sample["terminal"].any()
+    auto.optimizer.zero_grad()
+    loss = auto.td_loss(sample)
+    loss.backward()
+    assert fused.td_step(sample) == pytest.approx(float(loss.detach()) / SEEDS, rel=1e-5)
+    grads = [*fused.fused.agent_grads, *(fused.fused.mixer_grads if mixer == "qmix" else ())]
+    assert len(grads) == len(parameters(auto)) == (14 if mixer == "qmix" else 4)
+    for p, grad in zip(parameters(auto), grads, strict=True):
+        scale = float(p.grad.abs().max())
+        assert scale > 0
+        np.testing.assert_allclose(grad, p.grad.numpy(), rtol=0, atol=1e-5 * scale)
+
+
+@pytest.mark.parametrize("inputs", ["features, masks in the batch", "integer states"])
+@pytest.mark.parametrize("mixer", ["vdn", "qmix"])
+def test_fused_adam_and_weights_follow_autograd_over_steps(mixer: str, inputs: str) -> None:
+    """Four steps with a target copy between: Adam's moments and the weights stay equal to
+    PyTorch's fused Adam's to float32 rounding (the moments check the update's scale,
+    which Adam's first step alone, ±lr, does not)."""
+    auto, fused, batch = pair(mixer, inputs)
+    for step in range(4):
+        sample = batch()
+        assert auto.td_step(sample) == pytest.approx(fused.td_step(sample), rel=1e-4)
+        if step == 1:
+            auto.sync_target(), fused.sync_target()
+    first, second = fused.fused.flat[2], fused.fused.flat[3]
+    for k, p in enumerate(parameters(auto)):
+        state = auto.optimizer.state[p]
+        for ours, theirs in ((first[k], state["exp_avg"]), (second[k], state["exp_avg_sq"])):
+            theirs = theirs.numpy().ravel()
+            scale = float(np.abs(theirs).max())
+            np.testing.assert_allclose(ours, theirs, rtol=1e-3, atol=1e-4 * scale)
+    for a, b in zip(parameters(auto), parameters(fused), strict=True):
+        np.testing.assert_allclose(b.detach().numpy(), a.detach().numpy(), atol=2e-6)
+
+
+def test_fused_and_autograd_illegal_actions_never_bootstrap() -> None:
+    """A next state whose best value is illegal: the fused step's target, like
+    autograd's, takes the best legal one (the losses agree only if both mask it)."""
+    auto, fused, batch = pair("vdn", "features, masks in the batch")
+    sample = batch()
+    sample["next_legal"][..., 1:] = False  # only action 0 is legal anywhere
+    assert fused.td_step(sample) == pytest.approx(auto.td_step(sample), rel=1e-5)
+
+
+def test_fused_qmix_mixes_a_hand_chosen_input() -> None:
+    """The mixer of the QMIX test in test_value_decomposition, in the fused kernel: two
+    agents, q = (1, -2), |W1| = [[1, 2], [0.5, 1]], b1 = [0.5, -1], |w2| = [3, 2]:
+    1.5 + 2 (e^-1 - 1) plus V(0) = 2.25, V(1) = 2.75, for one-hot and dense states."""
+    f32 = np.float32
+    w1 = [1.0, -2.0, 0.5, 1.0]
+    tables = {
+        "hw1": [w1, w1],
+        "hb1": [[0.5, -1.0], [0.5, -1.0]],
+        "hw2": [[-3.0, 2.0], [-3.0, 2.0]],
+        "v1": [[1.0, -1.0], [0.0, 0.5]],
+    }
+    mixer = []
+    for rows in tables.values():
+        mixer += [np.array([rows], f32), np.zeros((1, len(rows[0])), f32)]
+    mixer += [np.array([[[2.0], [5.0]]], f32), np.array([[0.25]], f32)]
+    c = np.array([[1.0, 1.0], [-2.0, -2.0]], f32)  # (agent, transition)
+    mixed = 1.5 + 2 * (math.exp(-1) - 1)
+    scratch = tuple(np.zeros(shape, f32) for shape in [(4, 2), (2, 2), (2, 2), (2, 2), (2, 2)])
+    for index in (True, False):
+        q_tot = np.zeros(2, f32)
+        states = np.array([0, 1])
+        one_hot = np.eye(2, dtype=f32)  # (feature, transition): states 0 and 1
+        fused_kernels.qmix_forward(tuple(mixer), 0, c, one_hot, states, index, scratch, q_tot)
+        np.testing.assert_allclose(q_tot, [mixed + 2.25, mixed + 2.75], rtol=1e-6)
+
+
+def test_fused_step_runs_on_the_cpu_only() -> None:
+    config = DeepConfig(step="fused")
+    model = ValueDecomposition([2], 3, config, [np.random.SeedSequence(0)])
+    model.device = torch.device("meta")  # stands for a card: the check reads the device
+    from cmarlcd.learners.fused_step import FusedStep
+
+    with pytest.raises(ConfigError, match="CPU"):
+        FusedStep(model)
