@@ -172,3 +172,88 @@ def test_fused_step_runs_on_the_cpu_only() -> None:
 
     with pytest.raises(ConfigError, match="CPU"):
         FusedStep(model)
+
+
+# ------------------------------------------------------------ deep CMARL-CD
+
+
+def degree_pair(index: bool, unseen: str):
+    """Deep CMARL-CD's model twice (autograd's and the fused step's) and a maker of keyed
+    batches: kept states, the memory's degrees there and its records."""
+    from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+    from cmarlcd.learners.degree_model import DegreeModel
+
+    in_dim = 6 if index else 5
+    sequences = [np.random.SeedSequence(k) for k in range(SEEDS)]
+    models = [
+        DegreeModel(
+            COUNTS,
+            in_dim,
+            DeepCMARLCDConfig(
+                hidden=7, record_hidden=5, batch_size=BATCH, unseen_record=unseen, step=step
+            ),
+            sequences,
+        )
+        for step in ("autograd", "fused")
+    ]
+    rng = np.random.default_rng(3)
+
+    def batch() -> dict:
+        size = (SEEDS, BATCH)
+        if index:
+            state = torch.as_tensor(rng.integers(0, in_dim, size))
+        else:
+            state = torch.as_tensor(rng.normal(size=(*size, in_dim)).astype(np.float32))
+        target = rng.uniform(0.5, 3.0, (*size, len(COUNTS), max(COUNTS))).astype(np.float32)
+        record = rng.normal(5.0, 3.0, size).astype(np.float32)
+        return {
+            "state": state,
+            "target": torch.as_tensor(target),
+            "record": torch.as_tensor(record),
+        }
+
+    return models[0], models[1], batch
+
+
+@pytest.mark.parametrize("unseen", ["estimate", "first-visit"])
+@pytest.mark.parametrize("index", [False, True], ids=["features", "integer states"])
+def test_fused_degree_step_equals_autograd(index: bool, unseen: str) -> None:
+    """The keyed update: the degree networks regressed onto the memory's degrees over each
+    agent's real actions and (``estimate``) the record network onto the records. One step:
+    the same loss and gradients; three more: the same weights, with each network's own
+    learning rate; without an estimate the record network is never stepped."""
+    auto, fused, batch = degree_pair(index, unseen)
+    sample = batch()
+    auto.optimizer.zero_grad()
+    loss = auto.loss(sample)
+    loss.backward()
+    assert fused.learn(sample) == pytest.approx(float(loss.detach()) / SEEDS, rel=1e-5)
+    pairs = list(zip(auto.agents.parameters(), fused.fused.agent_grads, strict=True))
+    if unseen == "estimate":
+        pairs += list(zip(auto.record.parameters(), fused.fused.record_grads, strict=True))
+    for p, grad in pairs:
+        scale = float(p.grad.abs().max())
+        assert scale > 0
+        np.testing.assert_allclose(grad, p.grad.numpy(), rtol=0, atol=1e-5 * scale)
+    auto.optimizer.step()
+    for _ in range(3):
+        sample = batch()
+        assert auto.learn(sample) == pytest.approx(fused.learn(sample), rel=1e-4)
+    for a, b in zip(auto.parameters(), fused.parameters(), strict=True):
+        np.testing.assert_allclose(b.detach().numpy(), a.detach().numpy(), atol=1e-4)
+    if unseen == "first-visit":
+        untouched = [
+            torch.equal(a, b)
+            for a, b in zip(auto.record.parameters(), fused.record.parameters(), strict=True)
+        ]
+        assert all(untouched)
+
+
+@pytest.mark.parametrize("settings", [{"update": "replayed"}, {"share": True}, {"step": "manual"}])
+def test_fused_degree_step_is_refused_where_it_does_not_apply(settings: dict) -> None:
+    from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+
+    fused = {"step": "fused"} | settings
+    with pytest.raises(ConfigError) as info:
+        DeepCMARLCDConfig(**fused)
+    assert info.value.parameter == "step"

@@ -174,7 +174,7 @@ def td_model(step: str = "autograd") -> ValueDecomposition:
     set_q_tables(model.target_agents, TARGET)
     model.optimizer.step = lambda: None
     if model.fused is not None:
-        model.fused.adam = (0.0, *model.fused.adam[1:])
+        model.fused.rates[:] = 0.0
     return model
 
 

@@ -36,7 +36,7 @@ from typing import ClassVar
 import numpy as np
 
 from cmarlcd.errors import check_discount, require
-from cmarlcd.learners.deep_config import DeepLearnerConfig
+from cmarlcd.learners.deep_config import STEPS, DeepLearnerConfig
 from cmarlcd.learners.degree_rules import check_degree_settings
 from cmarlcd.runs import added_setting
 
@@ -123,6 +123,11 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     slot of its set, or the one visited least recently), so that fewer states are lost
     to collisions while the memory has room: ``n`` states in ``m`` direct-mapped slots
     keep about ``m (1 - exp(-n/m))`` of them."""
+    step: str = added_setting("autograd", "0.6.0")
+    """[choice] How the gradient step is computed (``deep_config.STEPS``): ``autograd`` or
+    ``fused`` (compiled CPU kernels, :mod:`cmarlcd.learners.fused_degree_kernels`; for
+    ``update="keyed"`` with one network per agent; other float rounding, so other
+    trajectories than autograd's)."""
     batch_size: int = 400
     """States (``keyed``, drawn from the memory) or visits (``replayed``) per gradient
     step; learning starts once a state is kept (``keyed``) or this many visits are
@@ -206,6 +211,14 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             "record",
             "'expectile' is a record kept in the keyed memory (update='keyed'); "
             "with update='replayed' the record network's expectile is the setting",
+        )
+        steps = ", ".join(STEPS)
+        require(self.step in STEPS, "step", f"must be one of {steps} (got {self.step!r})")
+        require(
+            self.step == "autograd" or (self.keyed and not self.share),
+            "step",
+            "'fused' is the keyed update with one network per agent (update='keyed', "
+            "share=false); the others take step=autograd",
         )
         step = self.record_step
         in_range = bool(np.isfinite(step)) and 0 < step <= 1

@@ -17,6 +17,7 @@ import torch
 from torch import nn
 
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+from cmarlcd.learners.fused_step import FusedDegreeStep
 from cmarlcd.learners.value_decomposition import (
     AgentNetworks,
     GroupLinear,
@@ -136,6 +137,7 @@ class DegreeModel(StackedModel):
             ],
             fused=True,
         )
+        self.fused = FusedDegreeStep(self) if config.step == "fused" else None
 
     def targets(
         self, degrees: torch.Tensor, actions: torch.Tensor, returns: torch.Tensor,
@@ -155,7 +157,10 @@ class DegreeModel(StackedModel):
         return moved.clamp(c.c_min, c.c_max), new_record | tie
 
     def learn(self, batch: dict[str, torch.Tensor]) -> float:
-        """One Adam step on :meth:`loss`; returns the mean loss per seed."""
+        """One Adam step on :meth:`loss` (by autograd, or the fused step of
+        ``config.step``); returns the mean loss per seed."""
+        if self.fused is not None:
+            return self.fused(batch)
         return self.optimise(self.loss(batch))
 
     def loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:

@@ -97,28 +97,53 @@ def agent_backward_features(w2, x, hidden, actions, grad_c, grad_q, grad_hidden,
 
 
 @fused
-def agent_backward_tables(w2, hidden, states, actions, grad_c, grad_q, grad_hidden, grads) -> None:
-    """Gradients of one agent network on one-hot inputs: ``grad_q`` (A, S) gathers each
-    state's ``∂L/∂Q``; the first layer's rows are the states."""
-    gw1, gb1, gw2, gb2 = grads
-    grad_q[:] = 0.0
-    for t in range(states.shape[0]):
-        grad_q[actions[t], states[t]] += grad_c[t]
-    dense_backward(hidden, grad_q, gw2, gb2)
-    for h in range(hidden.shape[0]):  # ∂L/∂h = W2 ∂L/∂Q, through ReLU
+def hidden_gradient(w2, hidden, grad_q, grad_hidden) -> None:
+    """``grad_hidden`` (H, M) := ``W2 grad_q`` through the ReLU of ``hidden`` (H, M)."""
+    for h in range(hidden.shape[0]):
         row, out = hidden[h], grad_hidden[h]
         out[:] = 0.0
         for a in range(grad_q.shape[0]):
             w, d = w2[h, a], grad_q[a]
-            for s in range(row.shape[0]):
-                out[s] += w * d[s]
-        total = np.float32(0.0)
-        for s in range(row.shape[0]):
-            if not row[s] > 0.0:
-                out[s] = 0.0
+            for m in range(row.shape[0]):
+                out[m] += w * d[m]
+        for m in range(row.shape[0]):
+            if not row[m] > 0.0:
+                out[m] = 0.0
+
+
+@fused
+def network_backward_features(w2, x, hidden, grad_q, grad_hidden, grads) -> None:
+    """Gradients of one network on feature inputs ``x`` (F, N) from ``grad_q`` (A, N),
+    the loss's gradient with respect to every output."""
+    gw1, gb1, gw2, gb2 = grads
+    dense_backward(hidden, grad_q, gw2, gb2)
+    hidden_gradient(w2, hidden, grad_q, grad_hidden)
+    dense_backward(x, grad_hidden, gw1, gb1)
+
+
+@fused
+def network_backward_tables(w2, hidden, grad_q, grad_hidden, grads) -> None:
+    """Gradients of one network on one-hot inputs from ``grad_q`` (A, S), each state's
+    gradient with respect to every output: the first layer's rows are the states."""
+    gw1, gb1, gw2, gb2 = grads
+    dense_backward(hidden, grad_q, gw2, gb2)
+    hidden_gradient(w2, hidden, grad_q, grad_hidden)
+    for h in range(hidden.shape[0]):
+        out, total = grad_hidden[h], np.float32(0.0)
+        for s in range(out.shape[0]):
             gw1[s, h] += out[s]
             total += out[s]
         gb1[h] += total
+
+
+@fused
+def agent_backward_tables(w2, hidden, states, actions, grad_c, grad_q, grad_hidden, grads) -> None:
+    """Gradients of one agent network on one-hot inputs: ``grad_q`` (A, S) gathers each
+    state's ``∂L/∂Q`` of the transitions' actions."""
+    grad_q[:] = 0.0
+    for t in range(states.shape[0]):
+        grad_q[actions[t], states[t]] += grad_c[t]
+    network_backward_tables(w2, hidden, grad_q, grad_hidden, grads)
 
 
 # ------------------------------------------------------------------ mixers

@@ -195,10 +195,10 @@ def transpose_into(x, out) -> None:
 
 
 @fused
-def adam(param, grad, first, second, lo: int, hi: int, settings) -> None:
+def adam(param, grad, first, second, lo: int, hi: int, lr: float, settings) -> None:
     """One Adam step on ``param[lo:hi]`` (flat), as PyTorch's (no weight decay, no
-    amsgrad); ``settings``: (step, lr, beta1, beta2, eps)."""
-    step, lr, beta1, beta2, eps = settings
+    amsgrad); ``settings``: (step, beta1, beta2, eps)."""
+    step, beta1, beta2, eps = settings
     step_size = np.float32(lr / (1.0 - beta1**step))
     root = np.float32(np.sqrt(1.0 - beta2**step))
     b1, b2, epsilon = np.float32(beta1), np.float32(beta2), np.float32(eps)
@@ -215,11 +215,13 @@ def adam(param, grad, first, second, lo: int, hi: int, settings) -> None:
 def update_seed(optimiser, b: int, seeds: int) -> None:
     """Adam on seed ``b``'s rows of every parameter (a seed's parameters are a contiguous
     block of each flat array: seeds are the arrays' leading groups), while its gradients
-    are still in cache."""
-    params, grads, first, second, settings = optimiser
+    are still in cache. ``optimiser``: the flat parameters, their gradients, Adam's two
+    moments, each parameter's learning rate and (step, beta1, beta2, eps)."""
+    params, grads, first, second, rates, settings = optimiser
     for k in range(len(params)):
         size = params[k].shape[0] // seeds
-        adam(params[k], grads[k], first[k], second[k], b * size, (b + 1) * size, settings)
+        lo, hi = b * size, (b + 1) * size
+        adam(params[k], grads[k], first[k], second[k], lo, hi, rates[k], settings)
 
 
 @fused

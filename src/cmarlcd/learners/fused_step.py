@@ -1,9 +1,11 @@
-"""The fused CPU step of VDN and QMIX (``DeepConfig.step = "fused"``): the TD loss, its
-gradients and Adam in compiled kernels (:mod:`cmarlcd.learners.fused_kernels`) that read
-and write the model's own parameters in place, so the model, its targets and everything
-that copies its weights see the update as they see PyTorch's.
+"""The fused CPU steps of VDN and QMIX (``DeepConfig.step = "fused"``) and of deep
+CMARL-CD's keyed update (``DeepCMARLCDConfig.step``): the loss, its gradients and Adam in
+compiled kernels (:mod:`cmarlcd.learners.fused_kernels`,
+:mod:`cmarlcd.learners.fused_degree_kernels`) that read and write the model's own
+parameters in place, so the model, its targets and everything that copies its weights
+see the update as they see PyTorch's.
 
-It replaces :meth:`ValueDecomposition.td_step`'s autograd and optimiser, not the model:
+It replaces the model's autograd and optimiser step, not the model:
 greedy actions, target copies and the side's weight copies still go through PyTorch. It
 keeps its own Adam moments, so a model takes every step one way or the other.
 """
@@ -14,7 +16,7 @@ import numpy as np
 import torch
 
 from cmarlcd.errors import require
-from cmarlcd.learners import fused_kernels
+from cmarlcd.learners import fused_degree_kernels, fused_kernels
 
 
 def _arrays(module: torch.nn.Module) -> tuple[np.ndarray, ...]:
@@ -27,11 +29,7 @@ class FusedStep:
     """The TD step of one :class:`ValueDecomposition` model, fused (see the module)."""
 
     def __init__(self, model) -> None:
-        require(
-            model.device.type == "cpu",
-            "step",
-            f"the fused step runs on the CPU, not {model.device}; use step=autograd there",
-        )
+        _on_the_cpu(model)
         self.model = model
         self.qmix = model.config.mixer == "qmix"
         self.agents, self.target_agents = _arrays(model.agents), _arrays(model.target_agents)
@@ -43,15 +41,9 @@ class FusedStep:
         self.mixer_grads = tuple(np.zeros_like(p) for p in self.mixer)
         params = [*self.agents, *(self.mixer if self.qmix else ())]
         grads = [*self.agent_grads, *(self.mixer_grads if self.qmix else ())]
-        self.flat = (
-            tuple(p.reshape(-1) for p in params),
-            tuple(g.reshape(-1) for g in grads),
-            tuple(np.zeros(p.size, np.float32) for p in params),
-            tuple(np.zeros(p.size, np.float32) for p in params),
-        )
-        group = model.optimizer.param_groups[0]
-        beta1, beta2 = group["betas"]
-        self.adam = (float(group["lr"]), float(beta1), float(beta2), float(group["eps"]))
+        self.flat = _flat(params, grads)
+        self.rates = np.full(len(params), model.optimizer.param_groups[0]["lr"], np.float64)
+        self.adam = adam_settings(model.optimizer)
         self.steps = 0
 
     def __call__(self, batch: dict[str, torch.Tensor]) -> float:
@@ -65,7 +57,7 @@ class FusedStep:
             self._legal(batch),
             self.model.valid.numpy(),
             self._shape(batch),
-            (*self.flat, (self.steps, *self.adam)),
+            (*self.flat, self.rates, (self.steps, *self.adam)),
         )
         return loss / self.model.n_seeds
 
@@ -108,6 +100,79 @@ class FusedStep:
         own = model.agents.own_dim or 0
         units = model.mixer.hidden if self.qmix else 0
         return self.qmix, index, float(model.config.gamma), own, model.mixer_dim, units
+
+
+class FusedDegreeStep:
+    """The keyed update of one :class:`cmarlcd.learners.degree_model.DegreeModel`, fused
+    (:mod:`cmarlcd.learners.fused_degree_kernels`): the degree networks regressed onto
+    the keyed memory's degrees and, where unseen states are compared with an estimate,
+    the record network onto its records; Adam with each network's learning rate."""
+
+    def __init__(self, model) -> None:
+        _on_the_cpu(model)
+        self.model = model
+        self.estimates = model.config.estimates_unseen
+        self.agents, self.record = _arrays(model.agents), _arrays(model.record)
+        self.agent_grads = tuple(np.zeros_like(p) for p in self.agents)
+        self.record_grads = tuple(np.zeros_like(p) for p in self.record)
+        # a network that gets no gradient is not stepped (PyTorch's Adam skips it)
+        params = [*self.agents, *(self.record if self.estimates else ())]
+        grads = [*self.agent_grads, *(self.record_grads if self.estimates else ())]
+        self.flat = _flat(params, grads)
+        rates = [model.config.lr] * 4 + [model.config.record_lr] * (len(params) - 4)
+        self.rates = np.array(rates, np.float64)
+        self.adam = adam_settings(model.optimizer)
+        self.steps = 0
+
+    def __call__(self, batch: dict[str, torch.Tensor]) -> float:
+        """One step on a batch of kept states (:meth:`DegreeModel.keyed_loss`'s keys); the
+        mean loss per seed."""
+        self.steps += 1
+        state = batch["state"].numpy()
+        index = state.dtype == np.int64
+        seeds, count = state.shape[:2]
+        features = np.empty((seeds, count, 0), np.float32) if index else state
+        states = state if index else np.zeros((seeds, count), np.int64)
+        n_states = self.agents[0].shape[1] if index else 0
+        loss = fused_degree_kernels.keyed_step(
+            (self.agents, self.record),
+            (self.agent_grads, self.record_grads),
+            (
+                np.ascontiguousarray(features, np.float32),
+                states,
+                np.ascontiguousarray(batch["target"].numpy(), np.float32),
+                np.ascontiguousarray(batch["record"].numpy(), np.float32),
+            ),
+            self.model.valid.numpy(),
+            (index, n_states, self.estimates),
+            (*self.flat, self.rates, (self.steps, *self.adam)),
+        )
+        return loss / self.model.n_seeds
+
+
+def _on_the_cpu(model) -> None:
+    require(
+        model.device.type == "cpu",
+        "step",
+        f"the fused step runs on the CPU, not {model.device}; use step=autograd there",
+    )
+
+
+def _flat(params: list[np.ndarray], grads: list[np.ndarray]) -> tuple:
+    """Flat views of the parameters and gradients, and Adam's two moments (zeros)."""
+    return (
+        tuple(p.reshape(-1) for p in params),
+        tuple(g.reshape(-1) for g in grads),
+        tuple(np.zeros(p.size, np.float32) for p in params),
+        tuple(np.zeros(p.size, np.float32) for p in params),
+    )
+
+
+def adam_settings(optimizer: torch.optim.Optimizer) -> tuple[float, float, float]:
+    """(beta1, beta2, eps) of a PyTorch Adam (every group's are the defaults here)."""
+    group = optimizer.param_groups[0]
+    beta1, beta2 = group["betas"]
+    return float(beta1), float(beta2), float(group["eps"])
 
 
 def _no_mixer(seeds: int) -> tuple[np.ndarray, ...]:
