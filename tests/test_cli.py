@@ -901,3 +901,41 @@ def test_compare_rejects_bad_input(paths, args, option) -> None:
     store, figures, where = paths
     result = invoke("compare", *args, *where)
     assert_rejected_cleanly(result, option, store, figures)
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        pytest.param(
+            ["dsn", "--algorithms", "vdn,deep-cmarl-cd", "--episodes", "100", "--runs", "1",
+             "--eval-episodes", "20", "--set", "vdn.step=fused,deep-cmarl-cd.step=fused"],
+            id="dsn",
+        ),
+        pytest.param(
+            ["tournament", "--algorithms", "vdn,qmix", "--rounds", "1", "--learn-episodes",
+             "40", "--eval-episodes", "10", "--set", "vdn.step=fused,qmix.step=fused"],
+            id="tournament", marks=pytest.mark.slow,
+        ),
+    ],
+)  # fmt: skip
+def test_the_fused_step_from_the_command_line(tmp_path, command: list[str]) -> None:
+    """The deep learners with ``step=fused`` (the DSN's one-hot states; the battlefield's
+    features, slow), as a user runs them: exit 0; the same seeds give the same stored
+    numbers twice; the runs are others than autograd's (the setting is in their
+    identity)."""
+    pytest.importorskip("torch")
+    from tests.helpers import stored
+
+    def run(name: str, args: list[str]) -> dict:
+        store = tmp_path / f"{name}.sqlite"
+        args = [*args, "--workers", "1", "--no-progress", "--store", str(store)]
+        args += ["--figures", str(tmp_path / "figures")]
+        done = subprocess.run(
+            [sys.executable, "-m", "cmarlcd", *args], capture_output=True, text=True, timeout=900
+        )
+        assert done.returncode == 0, done.stderr[-3000:]
+        return stored(store)
+
+    first, second = run("first", command), run("second", command)
+    assert first and first == second
+    assert not set(first) & set(run("autograd", command[:-2]))
