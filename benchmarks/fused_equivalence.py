@@ -1,0 +1,134 @@
+"""Study: are the fused step's runs equivalent to autograd's? Two one-sided tests per cell.
+
+The fused gradient step (``step=fused``) changes float rounding, so its runs follow other
+trajectories than autograd's; this study computes both with the same seeds into one
+store (``cmarl-cd`` commands in subprocesses: resumable, an interrupted study goes on
+where it stopped) and tests each cell for equivalence within margins declared here,
+before any run (:data:`MARGINS`), by Schuirmann's TOST at α = 0.05
+(:mod:`cmarlcd.experiments.equivalence`):
+
+* ``dsn``: the VDN and QMIX rows of Tables 3-7: each run's success rate and mean steps at
+  each learning budget L;
+* ``tournament``: VDN and QMIX on the battlefield, each pairing's per-match win rate of
+  its first learner (the share of the evaluation episodes it wins).
+
+Usage:
+    python benchmarks/fused_equivalence.py dsn --runs 50 --episodes 100k
+    python benchmarks/fused_equivalence.py tournament --runs 50 --learn-episodes 20k
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sqlite3
+import subprocess
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+from cmarlcd.experiments.equivalence import ALPHA, tost
+
+#: Margins declared before the runs: how far the fused runs' mean may lie from autograd's
+#: and still count as the same result (the units the reports print: points of a rate,
+#: steps). [choice] ±2 points of DSN success, ±1 step of its mean steps (the tables print
+#: steps to two decimals, and runs differ by several), ±3 points of a match's win rate.
+MARGINS = {"success_rate": 2.0, "mean_steps": 1.0, "win_rate": 3.0}
+FUSED = "vdn.step=fused,qmix.step=fused"
+
+
+def command(part: str, args: argparse.Namespace, store: Path, fused: bool) -> list[str]:
+    """The ``cmarl-cd`` command of one side of the study."""
+    if part == "dsn":
+        line = ["dsn", "--algorithms", "vdn,qmix", "--runs", str(args.runs)]
+        line += ["--episodes", args.episodes, "--eval-episodes", args.eval_episodes]
+    else:
+        line = ["tournament", "--algorithms", "vdn,qmix", "--rounds", str(args.runs)]
+        line += ["--learn-episodes", args.learn_episodes, "--eval-episodes", args.eval_episodes]
+    line += ["--store", str(store), "--figures", str(store.parent / "figures")]
+    line += ["--workers", str(args.workers)]
+    return [*line, "--set", FUSED] if fused else line
+
+
+def step_of(config: dict) -> str:
+    """Which step a stored run took: ``fused`` where its learners' settings say so."""
+    learners = config.get("learners") or [config.get("learner", {})]
+    steps = {learner.get("step", "autograd") for learner in learners}
+    return "fused" if "fused" in steps else "autograd"
+
+
+def samples(part: str, store: Path) -> dict[tuple[str, str], dict[str, list[float]]]:
+    """(cell, metric) -> step -> one value per run."""
+    out: dict = defaultdict(lambda: defaultdict(list))
+    query = "SELECT experiment, algorithm, config, metrics FROM runs"
+    with sqlite3.connect(f"file:{store}?mode=ro", uri=True) as conn:
+        rows = conn.execute(query).fetchall()
+    for experiment, algorithm, config_text, metrics_text in rows:
+        if experiment != part:
+            continue
+        config, metrics = json.loads(config_text), json.loads(metrics_text)
+        step = step_of(config)
+        if part == "dsn":
+            for budget, values in metrics["checkpoints"].items():
+                cell = f"{algorithm} L={int(budget):,}"
+                out[(cell, "success_rate")][step].append(100 * values["success_rate"])
+                out[(cell, "mean_steps")][step].append(values["mean_steps"])
+        else:
+            first = config["algorithms"][0]
+            side = json.loads(metrics["sides"].replace("'", '"')).index(first)
+            wins = json.loads(metrics["wins"])[side]
+            out[(algorithm, "win_rate")][step].append(100 * wins / metrics["episodes"])
+    return out
+
+
+def report(part: str, store: Path) -> list[dict]:
+    """The TOST of every cell, printed and returned."""
+    results = []
+    print(f"{part}: TOST at alpha = {ALPHA} (a {100 * (1 - 2 * ALPHA):.0f} % interval)")
+    for (cell, metric), by_step in sorted(samples(part, store).items()):
+        if len(by_step.get("autograd", [])) < 2 or len(by_step.get("fused", [])) < 2:
+            continue
+        result = tost(by_step["autograd"], by_step["fused"], MARGINS[metric])
+        verdict = "equivalent" if result.equivalent else "NOT shown equivalent"
+        print(
+            f"  {cell:18} {metric:12} autograd {result.reference_mean:8.2f} "
+            f"fused {result.candidate_mean:8.2f}  difference {result.difference:+6.2f} "
+            f"[{result.low:+6.2f}, {result.high:+6.2f}] within ±{result.margin:g}: "
+            f"{verdict} (p = {result.p_value:.3g}; {result.reference_runs} and "
+            f"{result.candidate_runs} runs)"
+        )
+        results.append({"cell": cell, "metric": metric, **result.to_dict()})
+    return results
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("part", choices=("dsn", "tournament"))
+    parser.add_argument("--runs", type=int, default=50, help="runs (DSN) or rounds per cell")
+    parser.add_argument("--episodes", default="100k", help="DSN learning budgets L")
+    parser.add_argument("--learn-episodes", default="20k", help="tournament learning episodes")
+    parser.add_argument("--eval-episodes", default="10k")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--out", type=Path, default=Path("results/equivalence"))
+    parser.add_argument("--report-only", action="store_true", help="test what is stored")
+    args = parser.parse_args(argv)
+    if args.runs < 2:
+        parser.error("--runs: at least 2 runs a side")
+    store = args.out / f"{args.part}.sqlite"
+    store.parent.mkdir(parents=True, exist_ok=True)
+    if not args.report_only:
+        for fused in (False, True):
+            line = command(args.part, args, store, fused)
+            print("run: cmarl-cd " + " ".join(line), flush=True)
+            done = subprocess.run([sys.executable, "-m", "cmarlcd", *line])
+            if done.returncode:
+                return done.returncode
+    results = report(args.part, store)
+    (args.out / f"{args.part}.json").write_text(
+        json.dumps({"margins": MARGINS, "alpha": ALPHA, "cells": results}, indent=1)
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
