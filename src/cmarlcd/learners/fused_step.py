@@ -62,17 +62,11 @@ class FusedStep:
         return loss / self.model.n_seeds
 
     def _batch(self, batch: dict[str, torch.Tensor]) -> tuple:
-        state, next_state = batch["state"].numpy(), batch["next_state"].numpy()
-        seeds, count = state.shape[:2]
-        if state.dtype == np.int64:
-            none = np.empty((seeds, count, 0), np.float32)
-            features, next_features, states, next_states = none, none, state, next_state
-        else:
-            none = np.zeros((seeds, count), np.int64)
-            features, next_features, states, next_states = state, next_state, none, none
+        features, states = split_states(batch["state"])
+        next_features, next_states = split_states(batch["next_state"])
         return (
-            np.ascontiguousarray(features, np.float32),
-            np.ascontiguousarray(next_features, np.float32),
+            features,
+            next_features,
             states,
             next_states,
             batch["actions"].numpy(),
@@ -128,17 +122,14 @@ class FusedDegreeStep:
         """One step on a batch of kept states (:meth:`DegreeModel.keyed_loss`'s keys); the
         mean loss per seed."""
         self.steps += 1
-        state = batch["state"].numpy()
-        index = state.dtype == np.int64
-        seeds, count = state.shape[:2]
-        features = np.empty((seeds, count, 0), np.float32) if index else state
-        states = state if index else np.zeros((seeds, count), np.int64)
+        index = batch["state"].dtype == torch.int64
+        features, states = split_states(batch["state"])
         n_states = self.agents[0].shape[1] if index else 0
         loss = fused_degree_kernels.keyed_step(
             (self.agents, self.record),
             (self.agent_grads, self.record_grads),
             (
-                np.ascontiguousarray(features, np.float32),
+                features,
                 states,
                 np.ascontiguousarray(batch["target"].numpy(), np.float32),
                 np.ascontiguousarray(batch["record"].numpy(), np.float32),
@@ -148,6 +139,16 @@ class FusedDegreeStep:
             (*self.flat, self.rates, (self.steps, *self.adam)),
         )
         return loss / self.model.n_seeds
+
+
+def split_states(state: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+    """(features (B, N, F) float32, integer states (B, N)) of a batch's states: the kind
+    it is not of is an empty (features) or zero (states) stand-in of the kernels' types."""
+    array = state.numpy()
+    seeds, count = array.shape[:2]
+    if array.dtype == np.int64:
+        return np.empty((seeds, count, 0), np.float32), array
+    return np.ascontiguousarray(array, np.float32), np.zeros((seeds, count), np.int64)
 
 
 def _on_the_cpu(model) -> None:
