@@ -13,7 +13,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from cmarlcd import ConfigError  # noqa: E402
-from cmarlcd.learners import fused_kernels  # noqa: E402
+from cmarlcd.learners import fused_mixers  # noqa: E402
 from cmarlcd.learners.deep_config import DeepConfig  # noqa: E402
 from cmarlcd.learners.value_decomposition import ValueDecomposition  # noqa: E402
 
@@ -156,11 +156,12 @@ def test_fused_qmix_mixes_a_hand_chosen_input() -> None:
     c = np.array([[1.0, 1.0], [-2.0, -2.0]], f32)  # (agent, transition)
     mixed = 1.5 + 2 * (math.exp(-1) - 1)
     scratch = tuple(np.zeros(shape, f32) for shape in [(4, 2), (2, 2), (2, 2), (2, 2), (2, 2)])
+    work = fused_mixers.state_scratch(2, 2, 2, 2)
     for index in (True, False):
         q_tot = np.zeros(2, f32)
         states = np.array([0, 1])
         one_hot = np.eye(2, dtype=f32)  # (feature, transition): states 0 and 1
-        fused_kernels.qmix_forward(tuple(mixer), 0, c, one_hot, states, index, scratch, q_tot)
+        fused_mixers.mix(True, tuple(mixer), 0, c, one_hot, states, index, scratch, work, q_tot)
         np.testing.assert_allclose(q_tot, [mixed + 2.25, mixed + 2.75], rtol=1e-6)
 
 
@@ -257,3 +258,16 @@ def test_fused_degree_step_is_refused_where_it_does_not_apply(settings: dict) ->
     with pytest.raises(ConfigError) as info:
         DeepCMARLCDConfig(**fused)
     assert info.value.parameter == "step"
+
+
+def test_the_kernels_expm1_is_correctly_rounded() -> None:
+    """QMIX's ELU in the kernels: exp(p) - 1 for p <= 0 within half a float32 ulp (plus
+    the float64 series' own error) of NumPy's float64 expm1, from -10⁻⁴⁰ to -100, with
+    -1 below -87 and 0 at 0; positive inputs pass through."""
+    negative = -np.logspace(-40, 2, 20_001).astype(np.float32)
+    inputs = np.concatenate([negative, np.float32([0.0, -0.0, -87.0, -88.0, -1e30, 1.5])])
+    exact = np.where(inputs > 0, inputs, np.expm1(inputs.astype(np.float64)))
+    got = fused_mixers.elu_of(inputs)
+    ulp = np.spacing(np.abs(exact).astype(np.float32)).astype(np.float64)
+    assert np.max(np.abs(got - exact) / ulp) <= 0.5 + 1e-3
+    assert got[-3] == -1.0 and got[-6] == 0.0 and got[-1] == np.float32(1.5)

@@ -17,9 +17,10 @@ import numpy as np
 
 from cmarlcd.learners.fused_kernels import (
     agent_features,
-    agent_tables,
+    net_tables,
+    net_tables_backward,
     network_backward_features,
-    network_backward_tables,
+    transposed,
 )
 from cmarlcd.learners.fused_layers import fused, transpose_into, update_seed, zero_seed
 
@@ -30,12 +31,12 @@ def regress(net, grads, g: int, x, states, index: bool, target, valid, scratch) 
     (A,) outputs: its squared error summed over the outputs and averaged over the
     transitions, with its gradients accumulated into ``grads``' group ``g``."""
     w1, b1, w2, b2 = net
-    hidden, out, grad_hidden, grad_out, table_grad = scratch
+    hidden, out, grad_hidden, grad_out, w2t, grad_w2t = scratch
     parts = (grads[0][g], grads[1][g], grads[2][g], grads[3][g])
     count, width = target.shape
     if index:
-        agent_tables(w1[g], b1[g], w2[g], b2[g], hidden, out)
-        table_grad[:] = 0.0
+        net_tables(w1[g], b1[g], transposed(w2[g], w2t), b2[g], hidden, out)
+        grad_out[:] = 0.0
     else:
         agent_features(w1[g], b1[g], w2[g], b2[g], x, hidden, out)
     loss = 0.0
@@ -46,30 +47,36 @@ def regress(net, grads, g: int, x, states, index: bool, target, valid, scratch) 
                 grad_out[a] = 0.0
             continue
         for t in range(count):
-            value = out[a, states[t]] if index else out[a, t]
+            value = out[states[t], a] if index else out[a, t]
             error = value - target[t, a]
             loss += error * error / count
             if index:
-                table_grad[a, states[t]] += scale * error
+                grad_out[states[t], a] += scale * error
             else:
                 grad_out[a, t] = scale * error
     if index:
-        network_backward_tables(w2[g], hidden, table_grad, grad_hidden, parts)
+        net_tables_backward(w2t, hidden, grad_out, grad_hidden, grad_w2t, parts)
     else:
         network_backward_features(w2[g], x, hidden, grad_out, grad_hidden, parts)
     return loss
 
 
 @fused
-def scratch_for(units: int, width: int, columns: int, count: int, table: int) -> tuple:
-    """A network's work arrays: hidden, outputs, their gradients (feature-major over the
-    ``columns``: the batch, or the states) and a per-state gradient table."""
+def scratch_for(units: int, width: int, index: bool, size: int) -> tuple:
+    """A network's work arrays: hidden units, outputs and their gradients, over ``size``
+    transitions feature-major (H, N), (A, N), or over ``size`` states state-major (S, H),
+    (S, A); and W2 transposed with its gradient (A, H), for the states' tables."""
+    if index:
+        hidden, out = np.empty((size, units), np.float32), np.empty((size, width), np.float32)
+    else:
+        hidden, out = np.empty((units, size), np.float32), np.empty((width, size), np.float32)
     return (
-        np.empty((units, columns), np.float32),
-        np.empty((width, columns), np.float32),
-        np.empty((units, columns), np.float32),
-        np.empty((width, count), np.float32),
-        np.zeros((width, table), np.float32),
+        hidden,
+        out,
+        np.empty_like(hidden),
+        np.empty_like(out),
+        np.empty((width, units), np.float32),
+        np.empty((width, units), np.float32),
     )
 
 
@@ -90,11 +97,10 @@ def keyed_step(nets, grads, batch, valid, shape, optimiser) -> float:
     features, states, target, records = batch
     index, n_states, estimates = shape
     seeds, count, n, width = target.shape
-    columns = n_states if index else count
+    size = n_states if index else count
     inputs = 0 if index else features.shape[2]
-    table = n_states if index else 0
-    agent_scratch = scratch_for(agents[0].shape[2], width, columns, count, table)
-    record_scratch = scratch_for(record[0].shape[2], 1, columns, count, table)
+    agent_scratch = scratch_for(agents[0].shape[2], width, index, size)
+    record_scratch = scratch_for(record[0].shape[2], 1, index, size)
     x = np.empty((inputs, count), np.float32)
     record_target = np.empty((count, 1), np.float32)
     record_valid = np.ones(1, np.bool_)

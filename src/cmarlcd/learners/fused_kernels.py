@@ -38,13 +38,12 @@ from cmarlcd.learners.fused_layers import (
     dense_backward,
     dense_forward,
     fused,
-    layer_backward,
-    layer_forward,
     relu_inplace,
     transpose_into,
     update_seed,
     zero_seed,
 )
+from cmarlcd.learners.fused_mixers import mix, mix_backward, state_scratch
 
 # ------------------------------------------------------------------ agent networks
 
@@ -59,41 +58,82 @@ def agent_features(w1, b1, w2, b2, x, hidden, q) -> None:
 
 
 @fused
-def agent_tables(w1, b1, w2, b2, hidden, q) -> None:
-    """One agent network at every one-hot state, feature-major: ``hidden`` := ReLU(W1ᵀ +
-    b1) (H, S), ``q`` := its Q-values (A, S)."""
+def net_tables(w1, b1, w2t, b2, hidden, q) -> None:
+    """One network at every one-hot state, state-major: ``hidden`` := ReLU(W1 + b1)
+    (S, H), ``q`` := its outputs (S, A); ``w2t`` (A, H) is W2 transposed, so that every
+    inner loop runs over the H hidden units of a contiguous row. (Two-dimensional indices,
+    not row views: a view made in a loop costs two atomic reference counts.)"""
+    units = hidden.shape[1]
     for s in range(w1.shape[0]):
-        for h in range(w1.shape[1]):
-            z = w1[s, h] + b1[h]
-            hidden[h, s] = z if z > 0.0 else 0.0
-    dense_forward(w2, b2, hidden, q)
+        for h in range(units):
+            v = w1[s, h] + b1[h]
+            hidden[s, h] = v if v > 0.0 else 0.0
+        for a in range(w2t.shape[0]):
+            total = b2[a]
+            for h in range(units):
+                total += hidden[s, h] * w2t[a, h]
+            q[s, a] = total
+
+
+@fused
+def net_tables_backward(w2t, hidden, grad_q, grad_hidden, grad_w2t, grads) -> None:
+    """Gradients of :func:`net_tables` from ``grad_q`` (S, A), each state's gradient with
+    respect to every output (zeros are skipped: a batch reaches few state-action pairs).
+    ``grad_w2t`` (A, H) is scratch."""
+    gw1, gb1, gw2, gb2 = grads
+    units = hidden.shape[1]
+    grad_w2t[:] = 0.0
+    for s in range(hidden.shape[0]):
+        for h in range(units):
+            grad_hidden[s, h] = 0.0
+        for a in range(w2t.shape[0]):
+            d = grad_q[s, a]
+            if d != 0.0:
+                gb2[a] += d
+                for h in range(units):
+                    grad_hidden[s, h] += d * w2t[a, h]
+                    grad_w2t[a, h] += d * hidden[s, h]
+        for h in range(units):
+            v = grad_hidden[s, h] if hidden[s, h] > 0.0 else np.float32(0.0)
+            gw1[s, h] += v
+            gb1[h] += v
+    for a in range(w2t.shape[0]):
+        for h in range(units):
+            gw2[h, a] += grad_w2t[a, h]
+
+
+@fused
+def transposed(w, out):
+    """``out`` := ``w`` (H, A) transposed (A, H); returns ``out``."""
+    for h in range(w.shape[0]):
+        for a in range(w.shape[1]):
+            out[a, h] = w[h, a]
+    return out
+
+
+@fused
+def chosen(q, act, out) -> None:
+    """``out[t]`` := ``q[act[t], t]`` for ``q`` (A, N): a pass per action (a select the
+    compiler vectorises, where a gather is not)."""
+    out[:] = q[0]
+    for a in range(1, q.shape[0]):
+        row = q[a]
+        for t in range(out.shape[0]):
+            if act[t] == a:
+                out[t] = row[t]
 
 
 @fused
 def best_legal(q, legal, valid, out) -> None:
-    """``out[t]`` := max over legal and valid actions ``a`` of ``q[a, t]`` (-inf if none)."""
-    for t in range(out.shape[0]):
-        best = -np.inf
-        for a in range(q.shape[0]):
-            if legal[t, a] and valid[a] and q[a, t] > best:
-                best = q[a, t]
-        out[t] = best
-
-
-@fused
-def agent_backward_features(w2, x, hidden, actions, grad_c, grad_q, grad_hidden, grads) -> None:
-    """Gradients of one agent network on feature inputs, from ``grad_c`` (N,), the loss's
-    gradient with respect to the Q-value of each transition's action."""
-    gw1, gb1, gw2, gb2 = grads
-    grad_q[:] = 0.0
-    for t in range(actions.shape[0]):
-        grad_q[actions[t], t] = grad_c[t]
-    dense_backward(hidden, grad_q, gw2, gb2)
-    for h in range(hidden.shape[0]):  # ∂L/∂h = W2[:, a_t] ∂L/∂c, through ReLU
-        row, out = hidden[h], grad_hidden[h]
-        for t in range(actions.shape[0]):
-            out[t] = w2[h, actions[t]] * grad_c[t] if row[t] > 0.0 else 0.0
-    dense_backward(x, grad_hidden, gw1, gb1)
+    """``out[t]`` := max over legal (``legal`` (A, N)) and valid actions ``a`` of
+    ``q[a, t]`` (-inf if none)."""
+    out[:] = -np.inf
+    for a in range(q.shape[0]):
+        if valid[a]:
+            row, allowed = q[a], legal[a]
+            for t in range(out.shape[0]):
+                if allowed[t] and row[t] > out[t]:
+                    out[t] = row[t]
 
 
 @fused
@@ -122,111 +162,25 @@ def network_backward_features(w2, x, hidden, grad_q, grad_hidden, grads) -> None
 
 
 @fused
-def network_backward_tables(w2, hidden, grad_q, grad_hidden, grads) -> None:
-    """Gradients of one network on one-hot inputs from ``grad_q`` (A, S), each state's
-    gradient with respect to every output: the first layer's rows are the states."""
-    gw1, gb1, gw2, gb2 = grads
-    dense_backward(hidden, grad_q, gw2, gb2)
-    hidden_gradient(w2, hidden, grad_q, grad_hidden)
-    for h in range(hidden.shape[0]):
-        out, total = grad_hidden[h], np.float32(0.0)
-        for s in range(out.shape[0]):
-            gw1[s, h] += out[s]
-            total += out[s]
-        gb1[h] += total
+def agent_backward_features(w2, x, hidden, act, grad_c, grad_q, grad_hidden, grads) -> None:
+    """Gradients of one agent network on feature inputs, from ``grad_c`` (N,), the loss's
+    gradient with respect to the Q-value of each transition's action ``act`` (N,)."""
+    for a in range(grad_q.shape[0]):
+        row = grad_q[a]
+        for t in range(act.shape[0]):
+            row[t] = grad_c[t] if act[t] == a else np.float32(0.0)
+    network_backward_features(w2, x, hidden, grad_q, grad_hidden, grads)
 
 
 @fused
-def agent_backward_tables(w2, hidden, states, actions, grad_c, grad_q, grad_hidden, grads) -> None:
-    """Gradients of one agent network on one-hot inputs: ``grad_q`` (A, S) gathers each
+def agent_backward_tables(w2t, hidden, states, act, grad_c, scratch, grads) -> None:
+    """Gradients of one agent network on one-hot inputs: ``grad_q`` (S, A) gathers each
     state's ``∂L/∂Q`` of the transitions' actions."""
+    grad_q, grad_hidden, grad_w2t = scratch
     grad_q[:] = 0.0
     for t in range(states.shape[0]):
-        grad_q[actions[t], states[t]] += grad_c[t]
-    network_backward_tables(w2, hidden, grad_q, grad_hidden, grads)
-
-
-# ------------------------------------------------------------------ mixers
-
-
-@fused
-def qmix_forward(mixer, b: int, c, x, states, index: bool, scratch, q_tot) -> None:
-    """QMIX's ``Q_tot`` (N,) of seed ``b`` for the agents' values ``c`` (n, N) at its
-    states (``x`` (S, N) features or ``states`` (N,) indices). ``scratch`` keeps, for the
-    backward pass: W1(s) (n*K, N), B1(s)+Σ (pre-activation) and ELU (K, N) each, W2(s),
-    ReLU(V1(s)) (K, N)."""
-    hw1, hw1_b, hb1, hb1_b, hw2, hw2_b, v1, v1_b, v2, v2_b = mixer
-    w1s, pre, hid, w2s, val = scratch
-    n, count = c.shape
-    k_units = pre.shape[0]
-    layer_forward(hw1[b], hw1_b[b], x, states, index, w1s)
-    layer_forward(hb1[b], hb1_b[b], x, states, index, pre)
-    layer_forward(hw2[b], hw2_b[b], x, states, index, w2s)
-    layer_forward(v1[b], v1_b[b], x, states, index, val)
-    relu_inplace(val)
-    for t in range(count):
-        q_tot[t] = v2_b[b, 0]
-    for k in range(k_units):
-        p, e, w, v = pre[k], hid[k], w2s[k], val[k]
-        for i in range(n):
-            wi, ci = w1s[i * k_units + k], c[i]
-            for t in range(count):
-                p[t] += ci[t] * abs(wi[t])
-        weight = v2[b, k, 0]
-        for t in range(count):
-            e[t] = p[t] if p[t] > 0.0 else np.expm1(p[t])
-            q_tot[t] += e[t] * abs(w[t]) + v[t] * weight
-
-
-@fused
-def qmix_backward(mixer, grads, b: int, c, x, states, index: bool, scratch, grad, grad_c) -> None:
-    """Gradients of :func:`qmix_forward` for ``grad`` = ∂L/∂Q_tot (N,): into the mixer's
-    ``grads`` (seed ``b``'s rows) and ``grad_c`` (n, N), ∂L/∂c. Overwrites ``scratch``."""
-    v2 = mixer[8]
-    g_hw1, g_hw1_b, g_hb1, g_hb1_b, g_hw2, g_hw2_b, g_v1, g_v1_b, g_v2, g_v2_b = grads
-    w1s, pre, hid, w2s, val = scratch
-    n, count = c.shape
-    k_units = pre.shape[0]
-    grad_c[:] = 0.0
-    total_grad = np.float32(0.0)
-    for t in range(count):
-        total_grad += grad[t]
-    g_v2_b[b, 0] += total_grad
-    for k in range(k_units):
-        p, e, w, v = pre[k], hid[k], w2s[k], val[k]
-        weight = v2[b, k, 0]
-        total = np.float32(0.0)
-        for t in range(count):
-            total += v[t] * grad[t]
-            v_out = grad[t] * weight if v[t] > 0.0 else 0.0  # ∂L/∂V1(s), through ReLU
-            d_hid = grad[t] * abs(w[t])
-            d_w2 = grad[t] * e[t]
-            w[t] = d_w2 if w[t] > 0.0 else (-d_w2 if w[t] < 0.0 else 0.0)  # through |·|
-            p[t] = d_hid if p[t] > 0.0 else d_hid * np.exp(p[t])  # through ELU
-            v[t] = v_out
-        g_v2[b, k, 0] += total
-        for i in range(n):  # ∂L/∂c_i and ∂L/∂W1(s)_ik, through |·|
-            wi, ci, gi = w1s[i * k_units + k], c[i], grad_c[i]
-            for t in range(count):
-                gi[t] += p[t] * abs(wi[t])
-                d = p[t] * ci[t]
-                wi[t] = d if wi[t] > 0.0 else (-d if wi[t] < 0.0 else 0.0)
-    layer_backward(x, states, index, w1s, g_hw1[b], g_hw1_b[b])
-    layer_backward(x, states, index, pre, g_hb1[b], g_hb1_b[b])
-    layer_backward(x, states, index, w2s, g_hw2[b], g_hw2_b[b])
-    layer_backward(x, states, index, val, g_v1[b], g_v1_b[b])
-
-
-@fused
-def mix(qmix: bool, mixer, b, c, x, states, index, scratch, q_tot) -> None:
-    """``Q_tot`` of seed ``b``: QMIX's mixer, or VDN's sum."""
-    if qmix:
-        qmix_forward(mixer, b, c, x, states, index, scratch, q_tot)
-        return
-    q_tot[:] = 0.0
-    for i in range(c.shape[0]):
-        for t in range(c.shape[1]):
-            q_tot[t] += c[i, t]
+        grad_q[states[t], act[t]] += grad_c[t]
+    net_tables_backward(w2t, hidden, grad_q, grad_hidden, grad_w2t, grads)
 
 
 # ------------------------------------------------------------------ the step
@@ -241,42 +195,70 @@ def agents_forward(agents, target_agents, b, inputs, c, best, hidden, kept) -> N
     tw1, tb1, tw2, tb2 = target_agents
     index, x, nx, states, next_states, actions, legal_of, own_dim = inputs
     n, count = c.shape
-    width = w2.shape[2]
+    units, width = w2.shape[1], w2.shape[2]
     q = np.empty((width, count), np.float32)
-    legal = np.empty((count, width), np.bool_)
+    legal = np.empty((width, count), np.bool_)
+    act = np.empty(count, np.int64)
+    rows = w1.shape[1] if index else 0
+    table = np.empty((rows, width), np.float32)
+    w2t = np.empty((width, units), np.float32)
+    state_best = np.empty(rows, np.float32)
     target_hidden = np.empty_like(hidden[0])
-    tables = np.empty((width, w1.shape[1]), np.float32)
     for i in range(n):
         g = b * n + i
-        legal_of_agent(legal_of, b, i, next_states, legal)
+        act[:] = actions[:, i]
         if index:
-            agent_tables(w1[g], b1[g], w2[g], b2[g], hidden[i], tables)
+            net_tables(w1[g], b1[g], transposed(w2[g], w2t), b2[g], hidden[i], table)
             for t in range(count):
-                c[i, t] = tables[actions[t, i], states[t]]
-            agent_tables(tw1[g], tb1[g], tw2[g], tb2[g], target_hidden, tables)
-            for a in range(width):
+                c[i, t] = table[states[t], act[t]]
+            net_tables(tw1[g], tb1[g], transposed(tw2[g], w2t), tb2[g], target_hidden, table)
+            if legal_of[0]:  # the batch's own masks: every transition's next Q-values
+                for a in range(width):
+                    for t in range(count):
+                        q[a, t] = table[next_states[t], a]
+                legal_of_agent(legal_of, b, i, next_states, legal)
+                best_legal(q, legal, kept[i], best[i])
+            else:  # masks per state: the best of each state, then read at each transition
+                best_of_states(table, legal_of[2], b, i, kept[i], state_best)
                 for t in range(count):
-                    q[a, t] = tables[a, next_states[t]]
+                    best[i, t] = state_best[next_states[t]]
         else:
             lo = 0 if own_dim == 0 else x.shape[0] - (n - i) * own_dim
             hi = x.shape[0] if own_dim == 0 else lo + own_dim
             agent_features(w1[g], b1[g], w2[g], b2[g], x[lo:hi], hidden[i], q)
-            for t in range(count):
-                c[i, t] = q[actions[t, i], t]
+            chosen(q, act, c[i])
             agent_features(tw1[g], tb1[g], tw2[g], tb2[g], nx[lo:hi], target_hidden, q)
-        best_legal(q, legal, kept[i], best[i])
+            legal_of_agent(legal_of, b, i, next_states, legal)
+            best_legal(q, legal, kept[i], best[i])
+
+
+@fused
+def best_of_states(table, state_legal, b, i, valid, out) -> None:
+    """``out[s]`` := max over agent ``i``'s legal (``state_legal`` (B, S, n, A), or every
+    action where it is empty) and valid actions of ``table[s]`` (-inf if none)."""
+    masked = state_legal.shape[0] > 0
+    for s in range(table.shape[0]):
+        best = -np.inf
+        for a in range(table.shape[1]):
+            allowed = valid[a] and (not masked or state_legal[b, s, i, a])
+            if allowed and table[s, a] > best:
+                best = table[s, a]
+        out[s] = best
 
 
 @fused
 def legal_of_agent(legal_of, b, i, next_states, out) -> None:
-    """Agent ``i``'s legal actions at each next state (N, A): the batch's own masks, the
-    per-state masks of integer states, or every action."""
+    """Agent ``i``'s legal actions at each next state, action-major (A, N): the batch's
+    own masks, the per-state masks of integer states, or every action."""
     per_sample, next_legal, state_legal = legal_of
     if per_sample:
-        out[:] = next_legal[b, :, i, :]
+        for t in range(out.shape[1]):
+            for a in range(out.shape[0]):
+                out[a, t] = next_legal[b, t, i, a]
     elif state_legal.shape[0]:
-        for t in range(out.shape[0]):
-            out[t] = state_legal[b, next_states[t], i]
+        for t in range(out.shape[1]):
+            for a in range(out.shape[0]):
+                out[a, t] = state_legal[b, next_states[t], i, a]
     else:
         out[:] = True
 
@@ -288,23 +270,26 @@ def agents_backward(agents, grads, b, inputs, grad_c, hidden) -> None:
     gw1, gb1, gw2, gb2 = grads
     index, x, states, actions, own_dim = inputs[0], inputs[1], inputs[3], inputs[5], inputs[7]
     n, count = grad_c.shape
+    units, width = w2.shape[1], w2.shape[2]
+    act = np.empty(count, np.int64)
     grad_hidden = np.empty_like(hidden[0])
-    if index:
-        grad_q = np.empty((w2.shape[2], w1.shape[1]), np.float32)
-    else:
-        grad_q = np.empty((w2.shape[2], count), np.float32)
+    rows = w1.shape[1] if index else 0
+    w2t = np.empty((width, units), np.float32)
+    grad_w2t = np.empty((width, units), np.float32)
+    tables = (np.empty((rows, width), np.float32), grad_hidden, grad_w2t)
+    grad_q = np.empty((width, 0 if index else count), np.float32)
     for i in range(n):
         g = b * n + i
+        act[:] = actions[:, i]
         parts = (gw1[g], gb1[g], gw2[g], gb2[g])
         if index:
-            agent_backward_tables(
-                w2[g], hidden[i], states, actions[:, i], grad_c[i], grad_q, grad_hidden, parts
-            )
+            w2t = transposed(w2[g], w2t)
+            agent_backward_tables(w2t, hidden[i], states, act, grad_c[i], tables, parts)
         else:
             lo = 0 if own_dim == 0 else x.shape[0] - (n - i) * own_dim
             hi = x.shape[0] if own_dim == 0 else lo + own_dim
             agent_backward_features(
-                w2[g], x[lo:hi], hidden[i], actions[:, i], grad_c[i], grad_q, grad_hidden, parts
+                w2[g], x[lo:hi], hidden[i], act, grad_c[i], grad_q, grad_hidden, parts
             )
 
 
@@ -330,8 +315,8 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser) -> float:
     qmix, index, gamma, own_dim, mixer_dim, units = shape
     seeds, count, n = actions.shape
     hidden_units = agents[0].shape[2]
-    if index:
-        hidden = np.empty((n, hidden_units, agents[0].shape[1]), np.float32)
+    if index:  # state-major tables (S, H)
+        hidden = np.empty((n, agents[0].shape[1], hidden_units), np.float32)
         x = np.empty((0, count), np.float32)
         nx = np.empty((0, count), np.float32)
     else:
@@ -344,13 +329,16 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser) -> float:
     q_tot = np.empty(count, np.float32)
     next_tot = np.empty(count, np.float32)
     grad = np.empty(count, np.float32)
+    columns = count if qmix and not index else 0  # the feature mixer's, (units, N)
     scratch = (
-        np.empty((n * units, count), np.float32),
-        np.empty((units, count), np.float32),
-        np.empty((units, count), np.float32),
-        np.empty((units, count), np.float32),
-        np.empty((units, count), np.float32),
+        np.empty((n * units, columns), np.float32),
+        np.empty((units, columns), np.float32),
+        np.empty((units, columns), np.float32),
+        np.empty((units, columns), np.float32),
+        np.empty((units, columns), np.float32),
     )
+    tables = mixer[0].shape[1] if qmix and index else 0  # the integer-state mixer's
+    work = state_scratch(tables, n, units, count if tables else 0)
     loss = 0.0
     discount = np.float32(gamma)
     for b in range(seeds):
@@ -360,19 +348,17 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser) -> float:
         inputs = (index, x, nx, states[b], next_states[b], actions[b], legal_of, own_dim)
         agents_forward(agents, target_agents, b, inputs, c, best, hidden, valid)
         mixed, next_mixed = x[:mixer_dim], nx[:mixer_dim]
-        mix(qmix, target_mixer, b, best, next_mixed, next_states[b], index, scratch, next_tot)
-        mix(qmix, mixer, b, c, mixed, states[b], index, scratch, q_tot)
+        mix(qmix, target_mixer, b, best, next_mixed, next_states[b], index, scratch, work, next_tot)
+        mix(qmix, mixer, b, c, mixed, states[b], index, scratch, work, q_tot)
         for t in range(count):
             alive = np.float32(0.0) if terminal[b, t] else np.float32(1.0)
             error = q_tot[t] - (reward[b, t] + discount * alive * next_tot[t])
             loss += error * error / count
             grad[t] = np.float32(2.0) * error / np.float32(count)
         zero_seed(optimiser[1], b, seeds)
-        if qmix:
-            qmix_backward(mixer, mixer_grads, b, c, mixed, states[b], index, scratch, grad, grad_c)
-        else:
-            for i in range(n):
-                grad_c[i] = grad
+        mix_backward(
+            qmix, mixer, mixer_grads, b, c, mixed, states[b], index, scratch, work, grad, grad_c
+        )
         agents_backward(agents, agent_grads, b, inputs, grad_c, hidden)
         update_seed(optimiser, b, seeds)
     return loss
