@@ -14,7 +14,10 @@ Prints
     --no-memory.
 
 Usage: python benchmarks/bench_battlefield.py [--episodes E] [--deep-episodes D]
-       [--batch B] [--workers N] [--no-memory]
+       [--batch B] [--workers N] [--step autograd|fused] [--no-memory]
+
+``--step fused`` times the deep learners with the fused CPU gradient step
+(``DeepConfig.step``) instead of autograd's.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import platform
 import subprocess
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -32,6 +36,7 @@ from cmarlcd.experiments import tournament as tour
 from cmarlcd.games import battlefield
 from cmarlcd.learners.automata import LAOCA
 from cmarlcd.learners.coordination import CMARLCDStochastic
+from cmarlcd.learners.deep_config import STEPS
 from cmarlcd.sweeps.runner import default_workers
 from cmarlcd.training.match import Match, MatchBatch
 
@@ -50,7 +55,10 @@ def new_match(a: str, b: str, episodes: int) -> Match:
 
 def compiled_turns(a: str, b: str, episodes: int, evaluate: bool) -> tuple[float, float, int]:
     """(learning turns/s, evaluation turns/s, learning turns) of one match."""
-    warm = new_match(a, b, 2)  # compile (or load the cache)
+    # compile (or load the cache); a deep side's first gradient step comes once its
+    # replay holds a batch (720 transitions: about 110 episodes)
+    deep = not {a, b} <= set(tour.TABULAR)
+    warm = new_match(a, b, 200 if deep else 2)
     warm.learn()
     warm.evaluate(2, np.random.default_rng(3))
     played = new_match(a, b, episodes)
@@ -158,10 +166,13 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=tour.SEED_BATCH, help="rounds together")
     parser.add_argument("--workers", type=int, default=default_workers())
     parser.add_argument("--no-memory", action="store_true")
+    parser.add_argument("--step", choices=STEPS, default="autograd", help="deep gradient step")
     args = parser.parse_args()
+    for name in ("vdn", "qmix"):
+        LEARNERS[name] = replace(LEARNERS[name], step=args.step)
     print(
         f"machine: {platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}; workers: {args.workers}"
+        f"Python {platform.python_version()}; workers: {args.workers}; deep step: {args.step}"
     )
     fast, _, fast_turns = compiled_turns("cmarl-cd", "la-oca", args.python_episodes, False)
     slow, slow_turns = parallel_env_turns(args.python_episodes)

@@ -271,3 +271,21 @@ def test_the_kernels_expm1_is_correctly_rounded() -> None:
     ulp = np.spacing(np.abs(exact).astype(np.float32)).astype(np.float64)
     assert np.max(np.abs(got - exact) / ulp) <= 0.5 + 1e-3
     assert got[-3] == -1.0 and got[-6] == 0.0 and got[-1] == np.float32(1.5)
+
+
+def test_stale_kernel_caches_go_when_any_fused_source_changes(tmp_path) -> None:
+    """Numba checks a cache against its own file only; a change to any fused module
+    must drop every fused cache (a caller would otherwise keep an old callee)."""
+    from cmarlcd.learners.fused_layers import drop_stale_caches
+
+    (tmp_path / "fused_a.py").write_text("x = 1\n")
+    (tmp_path / "fused_b.py").write_text("y = 1\n")
+    cache = tmp_path / "__pycache__"
+    cache.mkdir()
+    compiled = cache / "fused_a.td_step-1.py311.nbi"
+    compiled.write_bytes(b"old")
+    assert drop_stale_caches(tmp_path) and not compiled.exists()  # no stamp yet
+    compiled.write_bytes(b"new")
+    assert not drop_stale_caches(tmp_path) and compiled.exists()  # nothing changed
+    (tmp_path / "fused_b.py").write_text("y = 2\n")  # the callee's module, not a's
+    assert drop_stale_caches(tmp_path) and not compiled.exists()

@@ -9,12 +9,43 @@ pass over the batch), as a matrix-product kernel does.
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
+from pathlib import Path
+
 import numpy as np
 from numba import njit
 
 #: Floating-point liberties the kernels take: reorder and fuse sums (vectorised
 #: reductions), never assume finite values.
 FASTMATH = {"contract", "reassoc", "nsz", "arcp"}
+
+
+def drop_stale_caches(directory: Path) -> bool:
+    """Delete the on-disk caches of the fused kernels in ``directory`` when any of its
+    ``fused_*.py`` sources changed since they were written; True if it deleted them.
+
+    Numba checks a cached function against its own file only, so a kernel whose callee
+    lives in another module (``td_step`` calls ``fused_mixers.mix``) would keep running
+    the old callee after that module changed. The fused modules are one unit here: a
+    stamp of all their sources guards every one's cache. (Caches placed elsewhere by
+    ``NUMBA_CACHE_DIR`` are not covered.)"""
+    sources = sorted(directory.glob("fused_*.py"))
+    stamp = hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()
+    cache = directory / "__pycache__"
+    marker = cache / "fused-sources.stamp"
+    with contextlib.suppress(OSError):
+        if marker.read_text() == stamp:
+            return False
+    with contextlib.suppress(OSError):  # a read-only install: numba caches elsewhere
+        for stale in cache.glob("fused_*.nb[ic]"):
+            stale.unlink(missing_ok=True)
+        cache.mkdir(exist_ok=True)
+        marker.write_text(stamp)
+    return True
+
+
+drop_stale_caches(Path(__file__).parent)
 
 
 def fused(function):
