@@ -160,16 +160,29 @@ def new_batch(ring: Replay, batch_size: int) -> Replay:
 @njit(cache=True)
 def gather(ring, picks, out) -> None:
     """``out[b, n]`` := row ``picks[b, n]`` of seed b's ring, for every field."""
-    masks = out.next_legal.shape[1] > 0
     for b in range(picks.shape[0]):
-        for n in range(picks.shape[1]):
-            k = picks[b, n]
-            out.state[b, n] = ring.state[b, k]
-            out.next_state[b, n] = ring.next_state[b, k]
-            out.actions[b, n] = ring.actions[b, k]
-            out.reward[b, n], out.terminal[b, n] = ring.reward[b, k], ring.terminal[b, k]
-            if masks:
-                out.next_legal[b, n] = ring.next_legal[b, k]
+        rows = picks[b]
+        copy_rows(ring.state[b], rows, out.state[b])
+        copy_rows(ring.next_state[b], rows, out.next_state[b])
+        copy_rows(ring.actions[b], rows, out.actions[b])
+        copy_rows(ring.reward[b], rows, out.reward[b])
+        copy_rows(ring.terminal[b], rows, out.terminal[b])
+        if out.next_legal.shape[1] > 0:
+            copy_rows(ring.next_legal[b], rows, out.next_legal[b])
+
+
+@njit(cache=True)
+def copy_rows(source, rows, target) -> None:
+    """``target[n]`` := ``source[rows[n]]``, rows of any shape taken as flat runs of
+    values: a row view per transition (``target[n] = source[k]``) would cost two atomic
+    reference counts each, most of the gather's time."""
+    flat_source = source.reshape((source.shape[0], -1))
+    flat_target = target.reshape((target.shape[0], -1))
+    width = flat_source.shape[1]
+    for n in range(rows.shape[0]):
+        k = rows[n]
+        for f in range(width):
+            flat_target[n, f] = flat_source[k, f]
 
 
 def draw(ring: Replay, rngs: Sequence[np.random.Generator], batch_size: int) -> np.ndarray:
