@@ -14,6 +14,7 @@ before any run (:data:`MARGINS`), by Schuirmann's TOST at α = 0.05
 
 Usage:
     python benchmarks/fused_equivalence.py dsn --runs 50 --episodes 100k
+    python benchmarks/fused_equivalence.py dsn --algorithms deep-cmarl-cd --runs 50
     python benchmarks/fused_equivalence.py tournament --runs 50 --learn-episodes 20k
 """
 
@@ -34,20 +35,27 @@ from cmarlcd.experiments.equivalence import ALPHA, tost
 #: steps). [choice] ±2 points of DSN success, ±1 step of its mean steps (the tables print
 #: steps to two decimals, and runs differ by several), ±3 points of a match's win rate.
 MARGINS = {"success_rate": 2.0, "mean_steps": 1.0, "win_rate": 3.0}
-FUSED = "vdn.step=fused,qmix.step=fused"
+#: The deep learners each part compares (``--algorithms`` chooses among them).
+DEEP = {"dsn": ("vdn", "qmix", "deep-cmarl-cd"), "tournament": ("vdn", "qmix")}
+
+
+def fused_settings(algorithms: list[str]) -> str:
+    """``--set``'s value that gives every learner of the study the fused step."""
+    return ",".join(f"{name}.step=fused" for name in algorithms)
 
 
 def command(part: str, args: argparse.Namespace, store: Path, fused: bool) -> list[str]:
     """The ``cmarl-cd`` command of one side of the study."""
+    algorithms = ",".join(args.algorithms)
     if part == "dsn":
-        line = ["dsn", "--algorithms", "vdn,qmix", "--runs", str(args.runs)]
+        line = ["dsn", "--algorithms", algorithms, "--runs", str(args.runs)]
         line += ["--episodes", args.episodes, "--eval-episodes", args.eval_episodes]
     else:
-        line = ["tournament", "--algorithms", "vdn,qmix", "--rounds", str(args.runs)]
+        line = ["tournament", "--algorithms", algorithms, "--rounds", str(args.runs)]
         line += ["--learn-episodes", args.learn_episodes, "--eval-episodes", args.eval_episodes]
     line += ["--store", str(store), "--figures", str(store.parent / "figures")]
     line += ["--workers", str(args.workers)]
-    return [*line, "--set", FUSED] if fused else line
+    return [*line, "--set", fused_settings(args.algorithms)] if fused else line
 
 
 def step_of(config: dict) -> str:
@@ -104,6 +112,11 @@ def report(part: str, store: Path) -> list[dict]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("part", choices=("dsn", "tournament"))
+    parser.add_argument(
+        "--algorithms",
+        default="vdn,qmix",
+        help="deep learners compared (DSN: vdn, qmix, deep-cmarl-cd; tournament: vdn, qmix)",
+    )
     parser.add_argument("--runs", type=int, default=50, help="runs (DSN) or rounds per cell")
     parser.add_argument("--episodes", default="100k", help="DSN learning budgets L")
     parser.add_argument("--learn-episodes", default="20k", help="tournament learning episodes")
@@ -114,6 +127,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.runs < 2:
         parser.error("--runs: at least 2 runs a side")
+    args.algorithms = [name.strip() for name in args.algorithms.split(",") if name.strip()]
+    unknown = sorted(set(args.algorithms) - set(DEEP[args.part]))
+    if unknown or not args.algorithms:
+        known = ", ".join(DEEP[args.part])
+        parser.error(f"--algorithms: {args.part} compares {known} (got {', '.join(unknown)})")
     store = args.out / f"{args.part}.sqlite"
     store.parent.mkdir(parents=True, exist_ok=True)
     if not args.report_only:

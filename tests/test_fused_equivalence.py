@@ -1,0 +1,50 @@
+"""The equivalence study of the fused step (benchmarks/fused_equivalence.py): both sides
+computed into one store and tested cell by cell, and bad input refused."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).parents[1] / "benchmarks/fused_equivalence.py"
+
+
+def study(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(SCRIPT), *args], capture_output=True, text=True, check=False
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["tournament", "--algorithms", "deep-cmarl-cd"], "tournament compares vdn, qmix"),
+        (["dsn", "--algorithms", "iql"], "dsn compares vdn, qmix, deep-cmarl-cd (got iql)"),
+        (["dsn", "--runs", "1"], "--runs: at least 2 runs a side"),
+    ],
+)
+def test_bad_input_is_refused(args: list[str], message: str) -> None:
+    done = study(*args)
+    assert done.returncode == 2 and message in done.stderr.splitlines()[-1]
+
+
+@pytest.mark.slow
+def test_a_tiny_study_tests_every_cell_of_both_steps(tmp_path: Path) -> None:
+    done = study(
+        "dsn", "--runs", "3", "--episodes", "300", "--eval-episodes", "20", "--workers", "1",
+        "--out", str(tmp_path),
+    )  # fmt: skip
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    result = json.loads((tmp_path / "dsn.json").read_text())
+    cells = {(cell["cell"], cell["metric"]) for cell in result["cells"]}
+    assert cells == {
+        (f"{name} L=300", metric)
+        for name in ("vdn", "qmix")
+        for metric in ("success_rate", "mean_steps")
+    }
+    for cell in result["cells"]:
+        assert cell["reference_runs"] == cell["candidate_runs"] == 3
