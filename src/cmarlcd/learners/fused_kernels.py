@@ -189,8 +189,9 @@ def agent_backward_tables(w2t, hidden, states, act, grad_c, scratch, grads) -> N
 @fused
 def agents_forward(agents, target_agents, b, inputs, c, best, hidden, kept) -> None:
     """Every agent of seed ``b``: ``c`` (n, N) the online Q of each transition's action
-    (``hidden`` keeps what the backward pass reads), ``best`` (n, N) the target networks'
-    best legal Q at the next state. ``inputs``: see :func:`td_step`."""
+    (``hidden`` keeps what the backward pass reads), ``best`` the target networks' best
+    legal Q: (n, N) at each transition's next state, or, for integer states whose masks
+    are per state, (n, S) at every state. ``inputs``: see :func:`td_step`."""
     w1, b1, w2, b2 = agents
     tw1, tb1, tw2, tb2 = target_agents
     index, x, nx, states, next_states, actions, legal_of, own_dim = inputs
@@ -202,7 +203,6 @@ def agents_forward(agents, target_agents, b, inputs, c, best, hidden, kept) -> N
     rows = w1.shape[1] if index else 0
     table = np.empty((rows, width), np.float32)
     w2t = np.empty((width, units), np.float32)
-    state_best = np.empty(rows, np.float32)
     target_hidden = np.empty_like(hidden[0])
     for i in range(n):
         g = b * n + i
@@ -218,10 +218,8 @@ def agents_forward(agents, target_agents, b, inputs, c, best, hidden, kept) -> N
                         q[a, t] = table[next_states[t], a]
                 legal_of_agent(legal_of, b, i, next_states, legal)
                 best_legal(q, legal, kept[i], best[i])
-            else:  # masks per state: the best of each state, then read at each transition
-                best_of_states(table, legal_of[2], b, i, kept[i], state_best)
-                for t in range(count):
-                    best[i, t] = state_best[next_states[t]]
+            else:  # masks per state: the best of each state
+                best_of_states(table, legal_of[2], b, i, kept[i], best[i])
         else:
             lo = 0 if own_dim == 0 else x.shape[0] - (n - i) * own_dim
             hi = x.shape[0] if own_dim == 0 else lo + own_dim
@@ -323,8 +321,14 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser) -> float:
         hidden = np.empty((n, hidden_units, count), np.float32)
         x = np.empty((features.shape[2], count), np.float32)
         nx = np.empty((features.shape[2], count), np.float32)
+    # integer states with masks per state: the target's Q_tot is a function of the next
+    # state alone, so it is mixed once per state (S) and read at each transition (N)
+    per_state = index and not legal_of[0]
+    n_states = agents[0].shape[1] if per_state else 0
+    every_state = np.arange(n_states)
+    state_tot = np.empty(n_states, np.float32)
     c = np.empty((n, count), np.float32)
-    best = np.empty((n, count), np.float32)
+    best = np.empty((n, n_states if per_state else count), np.float32)
     grad_c = np.empty((n, count), np.float32)
     q_tot = np.empty(count, np.float32)
     next_tot = np.empty(count, np.float32)
@@ -338,7 +342,7 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser) -> float:
         np.empty((units, columns), np.float32),
     )
     tables = mixer[0].shape[1] if qmix and index else 0  # the integer-state mixer's
-    work = state_scratch(tables, n, units, count if tables else 0)
+    work = state_scratch(tables, n, units, max(count, n_states) if tables else 0)
     loss = 0.0
     discount = np.float32(gamma)
     for b in range(seeds):
@@ -348,7 +352,12 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser) -> float:
         inputs = (index, x, nx, states[b], next_states[b], actions[b], legal_of, own_dim)
         agents_forward(agents, target_agents, b, inputs, c, best, hidden, valid)
         mixed, next_mixed = x[:mixer_dim], nx[:mixer_dim]
-        mix(qmix, target_mixer, b, best, next_mixed, next_states[b], index, scratch, work, next_tot)
+        targets = every_state if per_state else next_states[b]
+        target_tot = state_tot if per_state else next_tot
+        mix(qmix, target_mixer, b, best, next_mixed, targets, index, scratch, work, target_tot)
+        if per_state:
+            for t in range(count):
+                next_tot[t] = state_tot[next_states[b, t]]
         mix(qmix, mixer, b, c, mixed, states[b], index, scratch, work, q_tot)
         for t in range(count):
             alive = np.float32(0.0) if terminal[b, t] else np.float32(1.0)
