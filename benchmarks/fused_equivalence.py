@@ -109,6 +109,22 @@ def report(part: str, store: Path) -> list[dict]:
     return results
 
 
+def markdown(part: str, results: list[dict]) -> str:
+    """The cells as a Markdown table (the docs' table of the study)."""
+    lines = [
+        "| cell | metric | autograd | fused | difference [90 % interval] | margin | verdict |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        verdict = "**equivalent**" if r["equivalent"] else "not shown equivalent"
+        lines.append(
+            f"| {part} {r['cell']} | {r['metric'].replace('_', ' ')} | "
+            f"{r['reference_mean']:.2f} | {r['candidate_mean']:.2f} | {r['difference']:+.2f} "
+            f"[{r['low']:+.2f}, {r['high']:+.2f}] | ±{r['margin']:g} | {verdict} |"
+        )
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("part", choices=("dsn", "tournament"))
@@ -124,6 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("results/equivalence"))
     parser.add_argument("--report-only", action="store_true", help="test what is stored")
+    parser.add_argument("--markdown", action="store_true", help="also print a Markdown table")
     args = parser.parse_args(argv)
     if args.runs < 2:
         parser.error("--runs: at least 2 runs a side")
@@ -142,6 +159,8 @@ def main(argv: list[str] | None = None) -> int:
             if done.returncode:
                 return done.returncode
     results = report(args.part, store)
+    if args.markdown:
+        print(markdown(args.part, results))
     (args.out / f"{args.part}.json").write_text(
         json.dumps({"margins": MARGINS, "alpha": ALPHA, "cells": results}, indent=1)
     )

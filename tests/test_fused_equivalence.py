@@ -36,9 +36,10 @@ def test_bad_input_is_refused(args: list[str], message: str) -> None:
 def test_a_tiny_study_tests_every_cell_of_both_steps(tmp_path: Path) -> None:
     done = study(
         "dsn", "--runs", "3", "--episodes", "300", "--eval-episodes", "20", "--workers", "1",
-        "--out", str(tmp_path),
+        "--out", str(tmp_path), "--markdown",
     )  # fmt: skip
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert "| dsn vdn L=300 | success rate |" in done.stdout
     result = json.loads((tmp_path / "dsn.json").read_text())
     cells = {(cell["cell"], cell["metric"]) for cell in result["cells"]}
     assert cells == {
