@@ -105,18 +105,25 @@ def test_fused_gradients_equal_autograd(mixer: str, inputs: str) -> None:
         np.testing.assert_allclose(grad, p.grad.numpy(), rtol=0, atol=1e-5 * scale)
 
 
-@pytest.mark.parametrize("inputs", ["features, masks in the batch", "integer states"])
+@pytest.mark.parametrize(
+    "inputs", ["features, masks in the batch", "integer states", "integer states, per-state masks"]
+)
 @pytest.mark.parametrize("mixer", ["vdn", "qmix"])
 def test_fused_adam_and_weights_follow_autograd_over_steps(mixer: str, inputs: str) -> None:
-    """Four steps with a target copy between: Adam's moments and the weights stay equal to
-    PyTorch's fused Adam's to float32 rounding (the moments check the update's scale,
-    which Adam's first step alone, ±lr, does not)."""
+    """Five steps with a target copy and new per-state masks between: Adam's moments and
+    the weights stay equal to PyTorch's fused Adam's to float32 rounding (the moments
+    check the update's scale, which Adam's first step alone, ±lr, does not); the target
+    values both keep between steps are renewed when the targets or the masks change."""
     auto, fused, batch = pair(mixer, inputs)
-    for step in range(4):
+    for step in range(5):
         sample = batch()
         assert auto.td_step(sample) == pytest.approx(fused.td_step(sample), rel=1e-4)
         if step == 1:
             auto.sync_target(), fused.sync_target()
+        if step == 3 and auto.state_legal is not None:
+            legal = auto.state_legal.clone()
+            legal[..., 1:] = ~legal[..., 1:]  # other masks, action 0 still legal
+            auto.set_state_legal(legal), fused.set_state_legal(legal.clone())
     first, second = fused.fused.flat[2], fused.fused.flat[3]
     for k, p in enumerate(parameters(auto)):
         state = auto.optimizer.state[p]

@@ -187,11 +187,12 @@ def agent_backward_tables(w2t, hidden, states, act, grad_c, scratch, grads) -> N
 
 
 @fused
-def agents_forward(agents, target_agents, b, inputs, c, best, hidden, kept) -> None:
+def agents_forward(agents, target_agents, b, inputs, c, best, hidden, kept, targets) -> None:
     """Every agent of seed ``b``: ``c`` (n, N) the online Q of each transition's action
-    (``hidden`` keeps what the backward pass reads), ``best`` the target networks' best
-    legal Q: (n, N) at each transition's next state, or, for integer states whose masks
-    are per state, (n, S) at every state. ``inputs``: see :func:`td_step`."""
+    (``hidden`` keeps what the backward pass reads), and where ``targets``, ``best`` the
+    target networks' best legal Q: (n, N) at each transition's next state, or, for
+    integer states whose masks are per state, (n, S) at every state. ``inputs``: see
+    :func:`td_step`."""
     w1, b1, w2, b2 = agents
     tw1, tb1, tw2, tb2 = target_agents
     index, x, nx, states, next_states, actions, legal_of, own_dim = inputs
@@ -211,6 +212,8 @@ def agents_forward(agents, target_agents, b, inputs, c, best, hidden, kept) -> N
             net_tables(w1[g], b1[g], transposed(w2[g], w2t), b2[g], hidden[i], table)
             for t in range(count):
                 c[i, t] = table[states[t], act[t]]
+            if not targets:
+                continue
             net_tables(tw1[g], tb1[g], transposed(tw2[g], w2t), tb2[g], target_hidden, table)
             if legal_of[0]:  # the batch's own masks: every transition's next Q-values
                 for a in range(width):
@@ -292,7 +295,7 @@ def agents_backward(agents, grads, b, inputs, grad_c, hidden) -> None:
 
 
 @fused
-def td_step(nets, grads, batch, legal_of, valid, shape, optimiser) -> float:
+def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache) -> float:
     """One step: the summed TD losses of every seed (paper Section V-A/B), their
     gradients left in ``grads``, and Adam's update of every parameter, seed by seed.
 
@@ -305,9 +308,13 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser) -> float:
     discount, own_dim: features of each agent's own observation or 0, mixer_dim: the
     leading features the mixer reads, mixer hidden units). ``optimiser``: the flat
     parameters, gradients (the same memory as ``grads``) and Adam's two moments, and
-    Adam's settings (:func:`adam`).
+    Adam's settings (:func:`adam`). ``cache``: (refresh, table (B, S)): for integer
+    states with masks per state, each seed's target ``Q_tot`` at every state, kept
+    between steps (it changes only when the target networks or the masks do) and
+    recomputed where ``refresh``.
     """
     agents, target_agents, mixer, target_mixer = nets
+    refresh, target_table = cache
     agent_grads, mixer_grads = grads
     features, next_features, states, next_states, actions, reward, terminal = batch
     qmix, index, gamma, own_dim, mixer_dim, units = shape
@@ -326,7 +333,6 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser) -> float:
     per_state = index and not legal_of[0]
     n_states = agents[0].shape[1] if per_state else 0
     every_state = np.arange(n_states)
-    state_tot = np.empty(n_states, np.float32)
     c = np.empty((n, count), np.float32)
     best = np.empty((n, n_states if per_state else count), np.float32)
     grad_c = np.empty((n, count), np.float32)
@@ -350,14 +356,16 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser) -> float:
             transpose_into(features[b], x)
             transpose_into(next_features[b], nx)
         inputs = (index, x, nx, states[b], next_states[b], actions[b], legal_of, own_dim)
-        agents_forward(agents, target_agents, b, inputs, c, best, hidden, valid)
+        targets = refresh or not per_state
+        agents_forward(agents, target_agents, b, inputs, c, best, hidden, valid, targets)
         mixed, next_mixed = x[:mixer_dim], nx[:mixer_dim]
-        targets = every_state if per_state else next_states[b]
-        target_tot = state_tot if per_state else next_tot
-        mix(qmix, target_mixer, b, best, next_mixed, targets, index, scratch, work, target_tot)
+        if targets:
+            at = every_state if per_state else next_states[b]
+            target_tot = target_table[b] if per_state else next_tot
+            mix(qmix, target_mixer, b, best, next_mixed, at, index, scratch, work, target_tot)
         if per_state:
             for t in range(count):
-                next_tot[t] = state_tot[next_states[b, t]]
+                next_tot[t] = target_table[b, next_states[b, t]]
         mix(qmix, mixer, b, c, mixed, states[b], index, scratch, work, q_tot)
         for t in range(count):
             alive = np.float32(0.0) if terminal[b, t] else np.float32(1.0)

@@ -45,11 +45,21 @@ class FusedStep:
         self.rates = np.full(len(params), model.optimizer.param_groups[0]["lr"], np.float64)
         self.adam = adam_settings(model.optimizer)
         self.steps = 0
+        # integer states, masks per state: the target's Q_tot at every state, per seed
+        states = self.agents[0].shape[1]
+        self.target_table = np.zeros((model.n_seeds, states), np.float32)
+        self.targets_changed()
+
+    def targets_changed(self) -> None:
+        """The target networks or the per-state masks changed: the kept target values
+        are recomputed at the next step (as autograd's step recomputes its table)."""
+        self.refresh = True
 
     def __call__(self, batch: dict[str, torch.Tensor]) -> float:
         """One step on a replay batch (the keys of :meth:`ValueDecomposition.td_loss`);
         the mean loss per seed."""
         self.steps += 1
+        per_state = batch["state"].dtype == torch.int64 and "next_legal" not in batch
         loss = fused_kernels.td_step(
             (self.agents, self.target_agents, self.mixer, self.target_mixer),
             (self.agent_grads, self.mixer_grads),
@@ -58,7 +68,10 @@ class FusedStep:
             self.model.valid.numpy(),
             self._shape(batch),
             (*self.flat, self.rates, (self.steps, *self.adam)),
+            (self.refresh, self.target_table),
         )
+        if per_state:
+            self.refresh = False
         return loss / self.model.n_seeds
 
     def _batch(self, batch: dict[str, torch.Tensor]) -> tuple:

@@ -320,6 +320,8 @@ class ValueDecomposition(StackedModel):
         next states of :meth:`td_step` (whose cached values it clears)."""
         super().set_state_legal(legal)
         self._next_value_table = None
+        if getattr(self, "fused", None) is not None:  # None too while it is being made
+            self.fused.targets_changed()
 
     @torch.no_grad()
     def greedy_table(self) -> torch.Tensor:
@@ -388,6 +390,8 @@ class ValueDecomposition(StackedModel):
         self.target_agents.load_state_dict(self.agents.state_dict())
         self.target_mixer.load_state_dict(self.mixer.state_dict())
         self._next_value_table = None
+        if self.fused is not None:
+            self.fused.targets_changed()
 
 
 def generators_of(seed: np.random.SeedSequence, count: int) -> list[torch.Generator]:
