@@ -82,9 +82,9 @@ def samples(part: str, store: Path) -> dict[tuple[str, str], dict[str, list[floa
                 out[(cell, "success_rate")][step].append(100 * values["success_rate"])
                 out[(cell, "mean_steps")][step].append(values["mean_steps"])
         else:
-            first = config["algorithms"][0]
-            side = json.loads(metrics["sides"].replace("'", '"')).index(first)
-            wins = json.loads(metrics["wins"])[side]
+            # the first-listed learner's position in this round (they alternate), so that
+            # self-play measures one copy too
+            wins = metrics["wins"][metrics["first_side"]]
             out[(algorithm, "win_rate")][step].append(100 * wins / metrics["episodes"])
     return out
 

@@ -49,3 +49,18 @@ def test_a_tiny_study_tests_every_cell_of_both_steps(tmp_path: Path) -> None:
     }
     for cell in result["cells"]:
         assert cell["reference_runs"] == cell["candidate_runs"] == 3
+
+
+@pytest.mark.slow
+def test_a_tiny_tournament_study_tests_every_pairing(tmp_path: Path) -> None:
+    done = study(
+        "tournament", "--runs", "2", "--learn-episodes", "150", "--eval-episodes", "20",
+        "--workers", "1", "--out", str(tmp_path),
+    )  # fmt: skip
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    result = json.loads((tmp_path / "tournament.json").read_text())
+    pairings = {cell["cell"] for cell in result["cells"]}
+    assert pairings == {"vdn vs vdn", "vdn vs qmix", "qmix vs qmix"}
+    for cell in result["cells"]:
+        assert cell["metric"] == "win_rate" and cell["reference_runs"] == 2
+        assert 0 <= cell["reference_mean"] <= 100 and 0 <= cell["candidate_mean"] <= 100
