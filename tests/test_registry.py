@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from cmarlcd import registry
+from cmarlcd.runs import identity
 from cmarlcd.training import TabularRun, evaluate
 from cmarlcd.training.match import Match
 
@@ -43,7 +44,7 @@ def test_every_tabular_learner_plays_both_sides_of_every_two_team_game(
 def test_learners_are_found_by_their_own_names() -> None:
     for name, config in registry.LEARNERS.items():
         assert config.name == name and registry.is_paper_setting(config)
-        assert registry.learner_config(name, {}) == config
+        assert registry.learner_config(name, identity(config)) == config
     assert registry.display_name("la-oca") == "LA-OCA" and registry.needs_torch("qmix")
     with pytest.raises(ValueError, match="unknown 'dqn'; available: cmarl-cd, la-oca"):
         registry.require_learner("dqn")

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from cmarlcd.learners.deep_coordination import BATTLEFIELD_DEEP_CMARLCD, DeepCMARLCDConfig
-from cmarlcd.runs import RunSpec, added_setting, identity
+from cmarlcd.runs import RunSpec, Settings, added_setting, as_stored, identity
 
 
 @dataclass(frozen=True)
@@ -15,10 +15,36 @@ class Example:
     mode: str = added_setting("old", "9.9")
 
 
+@dataclass(frozen=True)
+class NewDefault(Settings):
+    """A setting whose default changed when it was added: new runs take "new", the
+    stored ones ran as "old"."""
+
+    rate: float = 0.1
+    mode: str = added_setting("new", "9.9", before="old")
+
+    def to_config(self) -> dict:
+        return identity(self)
+
+
 def test_an_added_setting_at_its_default_is_left_out_of_the_identity() -> None:
     assert identity(Example()) == {"rate": 0.1}
     assert identity(Example(rate=0.2)) == {"rate": 0.2}
     assert identity(Example(mode="new")) == {"rate": 0.1, "mode": "new"}
+
+
+def test_an_added_setting_with_a_new_default_is_left_out_at_its_value_from_before() -> None:
+    assert identity(NewDefault()) == {"rate": 0.1, "mode": "new"}
+    assert identity(NewDefault(mode="old")) == {"rate": 0.1}
+
+
+def test_a_stored_identity_without_an_added_setting_reads_as_before() -> None:
+    """A run stored before the setting existed ran the old way, whatever today's default."""
+    assert NewDefault.from_config({"rate": 0.2}) == NewDefault(rate=0.2, mode="old")
+    assert NewDefault.from_config({"rate": 0.2, "mode": "new"}) == NewDefault(rate=0.2)
+    assert as_stored(Example, {"rate": 0.3}) == {"rate": 0.3, "mode": "old"}
+    for settings in (NewDefault(), NewDefault(mode="old"), NewDefault(rate=0.5)):
+        assert NewDefault.from_config(settings.to_config()) == settings
 
 
 def test_deep_cmarl_cd_acting_from_its_network_keeps_the_identity_it_had_before() -> None:

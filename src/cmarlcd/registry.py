@@ -50,6 +50,7 @@ from cmarlcd.learners.lenient import LenientConfig, LenientStochasticConfig
 from cmarlcd.learners.q_learning import IQLConfig, IQLStochasticConfig
 from cmarlcd.learners.tabular import TabularConfig
 from cmarlcd.paper import TABLE_ACTIONS, TABLE_AGENTS
+from cmarlcd.runs import as_stored
 
 LearnerConfig = TabularConfig | DeepConfig | DeepCMARLCDConfig
 
@@ -256,8 +257,10 @@ def require_learner(name: str, parameter: str = "algorithms") -> LearnerConfig:
 
 def learner_config(name: str, settings: Mapping[str, Any]) -> LearnerConfig:
     """Learner ``name`` with ``settings`` (a stored config's learner fields; the
-    others keep the learner's defaults)."""
-    return replace(require_learner(name), **settings)
+    settings added since it was stored at their value from before, the others at the
+    learner's defaults)."""
+    default = require_learner(name)
+    return replace(default, **as_stored(type(default), settings))
 
 
 def is_paper_setting(config: LearnerConfig) -> bool:
@@ -366,5 +369,8 @@ def comparable_learner(name: str, settings: Mapping[str, Any] | None = None) -> 
     known = comparable_learners()
     require(name in known, "learners", f"unknown {name!r}; available: {', '.join(known)}")
     default = known[name]
+    if settings is None:
+        return default
     own = {f.name for f in fields(default)}
-    return replace(default, **{k: v for k, v in (settings or {}).items() if k in own})
+    stored = {k: v for k, v in settings.items() if k in own}
+    return replace(default, **as_stored(type(default), stored))

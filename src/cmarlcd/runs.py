@@ -31,25 +31,45 @@ def canonical_json(config: Mapping[str, Any]) -> str:
 
 #: Field metadata naming the version a setting was added in (:func:`added_setting`).
 ADDED_IN = "added_in"
+#: Field metadata: the value of an added setting that keeps the behaviour from before it.
+BEFORE = "before"
+_AS_DEFAULT = object()
 
 
-def added_setting(default: Any, version: str) -> Any:
-    """A dataclass field for a setting added in ``version``, after runs were stored: at
-    ``default``, the value that keeps the behaviour from before, it is left out of a
-    run's identity (:func:`identity`), so that stores made before it still resume and
-    every run keeps its seeds and numbers."""
-    return field(default=default, metadata={ADDED_IN: version})
+def added_setting(default: Any, version: str, before: Any = _AS_DEFAULT) -> Any:
+    """A dataclass field for a setting added in ``version``, after runs were stored.
+
+    ``before`` is the value that keeps the behaviour from before the setting existed
+    (default: ``default``). At that value the setting is left out of a run's identity
+    (:func:`identity`), and a stored identity without it reads as that value
+    (:func:`as_stored`), so that stores made before it still resume and every run keeps
+    its seeds and numbers. A ``default`` other than ``before`` changes what new runs do:
+    they carry the setting in their identity, so they are new runs, not the stored ones.
+    """
+    kept = default if before is _AS_DEFAULT else before
+    return field(default=default, metadata={ADDED_IN: version, BEFORE: kept})
 
 
 def identity(config: Any) -> dict[str, Any]:
     """A settings dataclass as a run's identity: every field (nested ones as
     :func:`dataclasses.asdict` writes them) but the settings added since runs were
-    stored (:func:`added_setting`) that hold their default."""
+    stored (:func:`added_setting`) that hold their value from before."""
     values = asdict(config)
     for spec in fields(config):
-        if ADDED_IN in spec.metadata and getattr(config, spec.name) == spec.default:
+        if ADDED_IN in spec.metadata and getattr(config, spec.name) == spec.metadata[BEFORE]:
             del values[spec.name]
     return values
+
+
+def as_stored(kind: type, values: Mapping[str, Any]) -> dict[str, Any]:
+    """The fields ``values`` of a stored identity of a ``kind`` dataclass, with each added
+    setting it leaves out (:func:`identity`) at its value from before."""
+    left_out = {
+        spec.name: spec.metadata[BEFORE]
+        for spec in fields(kind)
+        if ADDED_IN in spec.metadata and spec.name not in values
+    }
+    return {**left_out, **values}
 
 
 @dataclass(frozen=True)
@@ -99,7 +119,7 @@ class Settings:
     @classmethod
     def from_config(cls, config: Mapping[str, Any]) -> Self:
         """Settings from a stored config."""
-        return cls(**config)
+        return cls(**as_stored(cls, config))
 
     def stream(self) -> dict[str, Any] | None:
         """The part of the config that seeds the run's random streams (None: all of it),
