@@ -39,9 +39,10 @@ MARGINS = {"success_rate": 2.0, "mean_steps": 1.0, "win_rate": 3.0}
 DEEP = {"dsn": ("vdn", "qmix", "deep-cmarl-cd"), "tournament": ("vdn", "qmix")}
 
 
-def fused_settings(algorithms: list[str]) -> str:
-    """``--set``'s value that gives every learner of the study the fused step."""
-    return ",".join(f"{name}.step=fused" for name in algorithms)
+def step_settings(algorithms: list[str], step: str) -> str:
+    """``--set``'s value that gives every learner of the study ``step`` (named, not left
+    to the default ``auto``: the study compares the two steps themselves)."""
+    return ",".join(f"{name}.step={step}" for name in algorithms)
 
 
 def command(part: str, args: argparse.Namespace, store: Path, fused: bool) -> list[str]:
@@ -55,24 +56,28 @@ def command(part: str, args: argparse.Namespace, store: Path, fused: bool) -> li
         line += ["--learn-episodes", args.learn_episodes, "--eval-episodes", args.eval_episodes]
     line += ["--store", str(store), "--figures", str(store.parent / "figures")]
     line += ["--workers", str(args.workers)]
-    return [*line, "--set", fused_settings(args.algorithms)] if fused else line
+    return [*line, "--set", step_settings(args.algorithms, "fused" if fused else "autograd")]
 
 
 def step_of(config: dict) -> str:
-    """Which step a stored run took: ``fused`` where its learners' settings say so."""
+    """Which step a stored run's learners took: ``autograd`` (named, or left out of the
+    identity as in runs stored before the setting), ``fused``, or ``other`` (``auto``,
+    or the two mixed: not part of the study)."""
     learners = config.get("learners") or [config.get("learner", {})]
     steps = {learner.get("step", "autograd") for learner in learners}
-    return "fused" if "fused" in steps else "autograd"
+    return steps.pop() if len(steps) == 1 and steps <= {"autograd", "fused"} else "other"
 
 
-def samples(part: str, store: Path) -> dict[tuple[str, str], dict[str, list[float]]]:
-    """(cell, metric) -> step -> one value per run."""
+def samples(
+    part: str, store: Path, first_run: int = 0
+) -> dict[tuple[str, str], dict[str, list[float]]]:
+    """(cell, metric) -> step -> one value per run (runs from index ``first_run`` on)."""
     out: dict = defaultdict(lambda: defaultdict(list))
-    query = "SELECT experiment, algorithm, config, metrics FROM runs"
+    query = "SELECT experiment, algorithm, config, metrics, run_index FROM runs"
     with sqlite3.connect(f"file:{store}?mode=ro", uri=True) as conn:
         rows = conn.execute(query).fetchall()
-    for experiment, algorithm, config_text, metrics_text in rows:
-        if experiment != part:
+    for experiment, algorithm, config_text, metrics_text, run_index in rows:
+        if experiment != part or run_index < first_run:
             continue
         config, metrics = json.loads(config_text), json.loads(metrics_text)
         step = step_of(config)
@@ -89,11 +94,12 @@ def samples(part: str, store: Path) -> dict[tuple[str, str], dict[str, list[floa
     return out
 
 
-def report(part: str, store: Path) -> list[dict]:
+def report(part: str, store: Path, first_run: int = 0) -> list[dict]:
     """The TOST of every cell, printed and returned."""
     results = []
-    print(f"{part}: TOST at alpha = {ALPHA} (a {100 * (1 - 2 * ALPHA):.0f} % interval)")
-    for (cell, metric), by_step in sorted(samples(part, store).items()):
+    since = f", runs {first_run} on" if first_run else ""
+    print(f"{part}: TOST at alpha = {ALPHA} (a {100 * (1 - 2 * ALPHA):.0f} % interval{since})")
+    for (cell, metric), by_step in sorted(samples(part, store, first_run).items()):
         if len(by_step.get("autograd", [])) < 2 or len(by_step.get("fused", [])) < 2:
             continue
         result = tost(by_step["autograd"], by_step["fused"], MARGINS[metric])
@@ -141,15 +147,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("results/equivalence"))
     parser.add_argument("--report-only", action="store_true", help="test what is stored")
     parser.add_argument("--markdown", action="store_true", help="also print a Markdown table")
+    parser.add_argument(
+        "--first-run",
+        type=int,
+        default=0,
+        help="test only the runs (rounds) from this index on, e.g. the rounds a study "
+        "added after a first look, as a confirmation of their own (written to "
+        "PART-from-N.json)",
+    )
     args = parser.parse_args(argv)
     if args.runs < 2:
         parser.error("--runs: at least 2 runs a side")
+    if not 0 <= args.first_run < args.runs:
+        parser.error("--first-run: from 0 to --runs - 1")
     args.algorithms = [name.strip() for name in args.algorithms.split(",") if name.strip()]
     unknown = sorted(set(args.algorithms) - set(DEEP[args.part]))
     if unknown or not args.algorithms:
         known = ", ".join(DEEP[args.part])
         parser.error(f"--algorithms: {args.part} compares {known} (got {', '.join(unknown)})")
     store = args.out / f"{args.part}.sqlite"
+    if args.report_only and not store.is_file():
+        parser.error(f"--report-only: no study stored at {store}")
     store.parent.mkdir(parents=True, exist_ok=True)
     if not args.report_only:
         for fused in (False, True):
@@ -158,10 +176,11 @@ def main(argv: list[str] | None = None) -> int:
             done = subprocess.run([sys.executable, "-m", "cmarlcd", *line])
             if done.returncode:
                 return done.returncode
-    results = report(args.part, store)
+    results = report(args.part, store, args.first_run)
     if args.markdown:
         print(markdown(args.part, results))
-    (args.out / f"{args.part}.json").write_text(
+    name = f"{args.part}-from-{args.first_run}" if args.first_run else args.part
+    (args.out / f"{name}.json").write_text(
         json.dumps({"margins": MARGINS, "alpha": ALPHA, "cells": results}, indent=1)
     )
     return 0

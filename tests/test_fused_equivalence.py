@@ -25,6 +25,8 @@ def study(*args: str) -> subprocess.CompletedProcess:
         (["tournament", "--algorithms", "deep-cmarl-cd"], "tournament compares vdn, qmix"),
         (["dsn", "--algorithms", "iql"], "dsn compares vdn, qmix, deep-cmarl-cd (got iql)"),
         (["dsn", "--runs", "1"], "--runs: at least 2 runs a side"),
+        (["dsn", "--runs", "5", "--first-run", "5"], "--first-run: from 0 to --runs - 1"),
+        (["dsn", "--report-only", "--out", "/nonexistent/x"], "no study stored at"),
     ],
 )
 def test_bad_input_is_refused(args: list[str], message: str) -> None:
