@@ -678,6 +678,7 @@ def test_tournament_readings_are_recorded_shown_and_kept_apart(paths) -> None:
     ]
 
 
+@pytest.mark.slow
 def test_tournament_with_every_algorithm(paths) -> None:
     pytest.importorskip("torch")
     _, _, where = paths
@@ -909,7 +910,7 @@ def test_compare_rejects_bad_input(paths, args, option) -> None:
         pytest.param(
             ["dsn", "--algorithms", "vdn,deep-cmarl-cd", "--episodes", "100", "--runs", "1",
              "--eval-episodes", "20", "--set", "vdn.step=fused,deep-cmarl-cd.step=fused"],
-            id="dsn",
+            id="dsn", marks=pytest.mark.slow,
         ),
         pytest.param(
             ["tournament", "--algorithms", "vdn,qmix", "--rounds", "1", "--learn-episodes",
@@ -919,10 +920,11 @@ def test_compare_rejects_bad_input(paths, args, option) -> None:
     ],
 )  # fmt: skip
 def test_the_fused_step_from_the_command_line(tmp_path, command: list[str]) -> None:
-    """The deep learners with ``step=fused`` (the DSN's one-hot states; the battlefield's
-    features, slow), as a user runs them: exit 0; the same seeds give the same stored
-    numbers twice; the runs are others than autograd's (the setting is in their
-    identity)."""
+    """The deep learners with ``step=fused`` named (the DSN's one-hot states; the
+    battlefield's features), as a user runs them: exit 0; the same seeds give the same
+    stored numbers twice; the runs are others than autograd's (the setting is in their
+    identity). Slow: the default step (``auto``) is the fused one on the CPU, so every
+    deep command of the default run takes it too."""
     pytest.importorskip("torch")
     from tests.helpers import stored
 
@@ -938,4 +940,5 @@ def test_the_fused_step_from_the_command_line(tmp_path, command: list[str]) -> N
 
     first, second = run("first", command), run("second", command)
     assert first and first == second
-    assert not set(first) & set(run("autograd", command[:-2]))
+    autograd = [*command[:-1], command[-1].replace("=fused", "=autograd")]
+    assert not set(first) & set(run("autograd", autograd))

@@ -201,6 +201,7 @@ def test_a_claim_s_cell_is_its_verdict_and_margins() -> None:
 # ---------------------------------------------------------------- end to end
 
 
+@pytest.mark.slow
 def test_the_study_runs_resumes_and_is_a_section_of_the_report(tmp_path) -> None:
     where = ["--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "figures")]
     args = ["readings", "--algorithms", "cmarl-cd,la-oca", "--rounds", "2"]

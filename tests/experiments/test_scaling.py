@@ -51,6 +51,7 @@ def test_the_paper_success_is_stored_at_the_papers_size_only() -> None:
     assert larger.spec.n_states == layout.state_count(12, 3) == 1_753
 
 
+@pytest.mark.slow
 def test_the_study_end_to_end(paths) -> None:  # noqa: F811
     """Rows from the stored runs: one per size and learner, smallest network first; the
     return per target is the runs' mean return over the targets; a second call computes

@@ -169,7 +169,7 @@ def test_a_seed_learns_what_it_learns_alone_when_another_seed_finishes_short_of_
         assert np.array_equal(final["together", k], final["alone", k]), f"seed {k}"
 
 
-@pytest.mark.parametrize("name", ["vdn", "deep-cmarl-cd"])
+@pytest.mark.parametrize("name", ["vdn", pytest.param("deep-cmarl-cd", marks=pytest.mark.slow)])
 def test_evaluating_on_the_way_leaves_a_feature_reading_seed_as_it_was(name: str) -> None:
     """A seed that reads the game's features has no table: its own side plays its greedy
     strategy on a game of its own, between learning turns (in the middle of an episode

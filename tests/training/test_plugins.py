@@ -169,6 +169,7 @@ print(run.train(200))
 """
 
 
+@pytest.mark.slow
 def test_a_plug_in_whose_kernels_allocate_trains_in_the_compiled_loop_first() -> None:
     """The plug-in's observe calls ``.max()`` (numba allocates for it) under plain
     ``@njit``: the loop must compile it as such even when no object API compiled it
