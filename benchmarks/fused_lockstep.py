@@ -1,10 +1,11 @@
 """Lockstep: does the fused step drift from autograd's faster than rounding does?
 
 The equivalence study (``fused_equivalence.py``) compares the two steps' *results*; this
-script looks for a systematic difference in the steps themselves, on the batches a real
-battlefield match feeds them. It plays one VDN-vs-QMIX match with autograd, records every
-replay batch and target copy of each side, then replays that sequence into three copies
-of each side's starting model:
+script looks for a systematic difference in the steps themselves, on the batches real
+training feeds them: ``battlefield``, one VDN-vs-QMIX match; ``dsn``, one seed of deep
+CMARL-CD on the DSN (its keyed update). It trains with autograd, records every batch and
+target copy of each model, then replays that sequence into three copies of each model
+as it started:
 
 * ``autograd``: autograd's step (the reference, as in the match);
 * ``fused``: the fused step;
@@ -17,14 +18,15 @@ At points along the sequence it prints:
   difference between the weights after one fused step and after one autograd step, on
   that point's batch (float32 rounding of weights of order 0.1 to 1: 1e-8 to 1e-7);
 * **distance**: each copy's distance to the reference's weights, relative to their norm;
-* **agree**: the share of (state, agent) pairs of the last 50 batches where the copy's
-  greedy action is the reference's.
+* **agree**: the share of (state, agent) pairs where the copy's greedy action is the
+  reference's (the battlefield: the states of the last 50 batches; the DSN: every state).
 
 If the fused copy drifts no faster than the jittered one, the two steps differ by
 rounding only, and a difference between their runs is the chaos of learning.
 
 Usage:
-    python benchmarks/fused_lockstep.py --episodes 20000
+    python benchmarks/fused_lockstep.py battlefield --episodes 20000
+    python benchmarks/fused_lockstep.py dsn --episodes 20000
 """
 
 from __future__ import annotations
@@ -37,24 +39,28 @@ import time
 import numpy as np
 import torch
 
+from cmarlcd import registry
 from cmarlcd.experiments import tournament as tour
-from cmarlcd.games import battlefield
-from cmarlcd.learners.fused_step import FusedStep
+from cmarlcd.games import battlefield, sensor_network
+from cmarlcd.learners.degree_model import DegreeModel
+from cmarlcd.learners.fused_step import FusedDegreeStep, FusedStep
 from cmarlcd.learners.value_decomposition import ValueDecomposition
+from cmarlcd.training.deep import DeepBatch
 from cmarlcd.training.match import Match
 
 JITTER = 2.0**-23  # float32's relative rounding
 
 
-def record(episodes: int, seed: int) -> dict[int, dict]:
-    """Play one autograd VDN-vs-QMIX match; per model: its starting copy and its events
+def record(game: str, episodes: int, seed: int) -> dict[int, dict]:
+    """Train with autograd; per model: its starting copy and its events
     (``("learn", batch)`` or ``("sync", None)``) in order."""
     log: dict[int, dict] = {}
-    learn, sync = ValueDecomposition.learn, ValueDecomposition.sync_target
+    kind = ValueDecomposition if game == "battlefield" else DegreeModel
+    learn, sync = kind.learn, kind.sync_target
 
-    def entry(model: ValueDecomposition) -> dict:
+    def entry(model) -> dict:
         if id(model) not in log:
-            log[id(model)] = {"start": _copy(model), "events": [], "mixer": model.config.mixer}
+            log[id(model)] = {"start": _copy(model), "events": [], "name": _name(model)}
         return log[id(model)]
 
     def recording_learn(model, batch):
@@ -65,18 +71,34 @@ def record(episodes: int, seed: int) -> dict[int, dict]:
         entry(model)["events"].append(("sync", None))
         return sync(model)
 
-    learners = tour.battlefield_learners()
-    env, a, b = np.random.default_rng(seed).spawn(3)
-    match = Match(battlefield.SPEC, (learners["vdn"], learners["qmix"]), env, (a, b), episodes)
-    ValueDecomposition.learn, ValueDecomposition.sync_target = recording_learn, recording_sync
+    kind.learn, kind.sync_target = recording_learn, recording_sync
     try:
-        match.learn()
+        _train(game, episodes, seed)
     finally:
-        ValueDecomposition.learn, ValueDecomposition.sync_target = learn, sync
+        kind.learn, kind.sync_target = learn, sync
     return log
 
 
-def _copy(model: ValueDecomposition) -> ValueDecomposition:
+def _train(game: str, episodes: int, seed: int) -> None:
+    """One autograd VDN-vs-QMIX match, or one seed of deep CMARL-CD on the DSN."""
+    if game == "battlefield":
+        learners = tour.battlefield_learners()
+        env, a, b = np.random.default_rng(seed).spawn(3)
+        pair = (learners["vdn"], learners["qmix"])
+        Match(battlefield.SPEC, pair, env, (a, b), episodes).learn()
+        return
+    config = dataclasses.replace(registry.LEARNERS["deep-cmarl-cd"], step="autograd")
+    run = DeepBatch(sensor_network.SPEC, config, [np.random.SeedSequence(seed)], episodes)
+    run.train([], lambda *args: None)
+
+
+def _name(model) -> str:
+    if isinstance(model, ValueDecomposition):
+        return model.config.mixer
+    return "deep CMARL-CD"
+
+
+def _copy(model):
     """A copy of the model as it is (weights, targets, optimiser), generators left out."""
     generators, model.generators = model.generators, None
     try:
@@ -85,16 +107,20 @@ def _copy(model: ValueDecomposition) -> ValueDecomposition:
         model.generators = generators
 
 
-def _params(model: ValueDecomposition) -> list[torch.nn.Parameter]:
-    return [*model.agents.parameters(), *model.mixer.parameters()]
+def _params(model) -> list[torch.nn.Parameter]:
+    """The parameters a step moves, in the fused step's order."""
+    if isinstance(model, ValueDecomposition):
+        return [*model.agents.parameters(), *model.mixer.parameters()]
+    record = list(model.record.parameters()) if model.config.estimates_unseen else []
+    return [*model.agents.parameters(), *record]
 
 
-def fused_copy(model: ValueDecomposition) -> ValueDecomposition:
+def fused_copy(model):
     """A copy of the autograd model that takes the fused step, with the model's Adam
     moments and step count."""
     out = _copy(model)
     out.config = dataclasses.replace(out.config, step="fused")
-    out.fused = FusedStep(out)
+    out.fused = (FusedStep if isinstance(model, ValueDecomposition) else FusedDegreeStep)(out)
     _, _, first, second = out.fused.flat
     for k, p in enumerate(_params(model)):
         state = model.optimizer.state.get(p)
@@ -105,19 +131,19 @@ def fused_copy(model: ValueDecomposition) -> ValueDecomposition:
     return out
 
 
-def flat(model: ValueDecomposition) -> torch.Tensor:
+def flat(model) -> torch.Tensor:
     """The online weights as one vector."""
     return torch.cat([p.detach().reshape(-1) for p in _params(model)])
 
 
-def jitter(model: ValueDecomposition, noise: torch.Generator) -> None:
+def jitter(model, noise: torch.Generator) -> None:
     """Move the online weights by one float32 rounding, at random."""
     with torch.no_grad():
         for p in _params(model):
             p.mul_(1 + JITTER * torch.randn(p.shape, generator=noise))
 
 
-def one_step_gap(reference: ValueDecomposition, batch: dict[str, torch.Tensor]) -> float:
+def one_step_gap(reference, batch: dict[str, torch.Tensor]) -> float:
     """The largest weight difference after one fused and one autograd step from the
     reference's weights and moments (the reference is left as it is)."""
     by_autograd, by_fused = _copy(reference), fused_copy(reference)
@@ -126,10 +152,14 @@ def one_step_gap(reference: ValueDecomposition, batch: dict[str, torch.Tensor]) 
     return float((flat(by_autograd) - flat(by_fused)).abs().max())
 
 
-def agreement(models: dict[str, ValueDecomposition], states: torch.Tensor) -> dict[str, float]:
-    """Share of (state, agent) pairs where each copy's greedy action is the reference's."""
+def agreement(models: dict, states: torch.Tensor | None) -> dict[str, float]:
+    """Share of (state, agent) pairs where each copy's greedy action is the reference's
+    (at ``states``, or every integer state)."""
     with torch.no_grad():
-        actions = {name: model.greedy(states) for name, model in models.items()}
+        actions = {
+            name: model.greedy(states) if states is not None else model.greedy_table()
+            for name, model in models.items()
+        }
     return {
         name: float((acts == actions["autograd"]).float().mean()) for name, acts in actions.items()
     }
@@ -141,11 +171,11 @@ def replay(name: str, side: dict, points: int) -> None:
     models["jittered"] = _copy(side["start"])
     events = side["events"]
     steps = sum(kind == "learn" for kind, _ in events)
-    states = torch.cat([b["state"] for kind, b in events if kind == "learn"][-50:], dim=1)
+    states = None
+    if isinstance(side["start"], ValueDecomposition):
+        states = torch.cat([b["state"] for kind, b in events if kind == "learn"][-50:], dim=1)
     every = max(1, steps // points)
-    print(
-        f"{name} ({side['mixer']}): {steps:,} gradient steps, {len(events) - steps} target copies"
-    )
+    print(f"{name} ({side['name']}): {steps:,} gradient steps, {len(events) - steps} target copies")
     print(
         f"  {'step':>6} {'loss':>7} {'one step':>9}   distance: {'fused':>8} {'jittered':>9}"
         f"   agree: {'fused':>7} {'jittered':>9}"
@@ -179,6 +209,7 @@ def replay(name: str, side: dict, points: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("game", choices=("battlefield", "dsn"))
     parser.add_argument("--episodes", type=int, default=20000, help="learning episodes played")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--points", type=int, default=10, help="rows printed per side")
@@ -187,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--episodes and --points: at least 1")
     torch.set_num_threads(1)
     start = time.perf_counter()
-    log = record(args.episodes, args.seed)
+    log = record(args.game, args.episodes, args.seed)
     print(f"recorded {args.episodes:,} episodes in {time.perf_counter() - start:.0f} s")
     for k, side in enumerate(log.values()):
         replay(f"side {k}", side, args.points)
