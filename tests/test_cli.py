@@ -923,8 +923,8 @@ def test_the_fused_step_from_the_command_line(tmp_path, command: list[str]) -> N
     """The deep learners with ``step=fused`` named (the DSN's one-hot states; the
     battlefield's features), as a user runs them: exit 0; the same seeds give the same
     stored numbers twice; the runs are others than autograd's (the setting is in their
-    identity). Slow: the default step (``auto``) is the fused one on the CPU, so every
-    deep command of the default run takes it too."""
+    identity). Slow: the default run takes the fused step from the command line in
+    ``train``'s fixed-seed runs at ``step=auto`` (tests/experiments/test_environment.py)."""
     pytest.importorskip("torch")
     from tests.helpers import stored
 

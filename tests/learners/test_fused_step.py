@@ -14,7 +14,7 @@ torch = pytest.importorskip("torch")
 
 from cmarlcd import ConfigError  # noqa: E402
 from cmarlcd.learners import fused_mixers  # noqa: E402
-from cmarlcd.learners.deep_config import DeepConfig  # noqa: E402
+from cmarlcd.learners.deep_config import DeepConfig, takes_fused_step  # noqa: E402
 from cmarlcd.learners.value_decomposition import ValueDecomposition  # noqa: E402
 
 COUNTS = [3, 4, 2]  # unequal action counts: padded actions are masked
@@ -265,6 +265,53 @@ def test_fused_degree_step_is_refused_where_it_does_not_apply(settings: dict) ->
     with pytest.raises(ConfigError) as info:
         DeepCMARLCDConfig(**fused)
     assert info.value.parameter == "step"
+
+
+@pytest.mark.parametrize(
+    ("settings", "fused"),
+    [({}, True), ({"update": "replayed"}, False), ({"share": True}, False)],
+)
+def test_deep_cmarl_cd_at_step_auto_takes_the_fused_step_where_it_covers(
+    settings: dict, fused: bool
+) -> None:
+    """``step="auto"``: the fused step for the keyed update with a network per agent,
+    autograd's for the settings the fused kernels do not cover (no error)."""
+    from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+    from cmarlcd.learners.degree_model import DegreeModel
+
+    config = DeepCMARLCDConfig(hidden=4, step="auto", **settings)
+    model = DegreeModel(COUNTS, 5, config, [np.random.SeedSequence(0)])
+    assert (model.fused is not None) is fused
+
+
+def test_vdn_and_qmix_at_step_auto_take_the_fused_step_on_the_cpu_only() -> None:
+    """``step="auto"``: fused on the CPU; on another device autograd's, where an explicit
+    ``step="fused"`` is refused."""
+    for mixer in ("vdn", "qmix"):
+        config = DeepConfig(mixer=mixer, hidden=4, mixer_hidden=3, step="auto")
+        assert ValueDecomposition(COUNTS, 5, config, [np.random.SeedSequence(0)]).fused
+    assert takes_fused_step("auto", torch.device("cpu"))
+    assert not takes_fused_step("auto", torch.device("meta"))  # stands for a card
+    assert not takes_fused_step("auto", torch.device("cpu"), covered=False)
+    assert not takes_fused_step("autograd", torch.device("cpu"))
+    assert takes_fused_step("fused", torch.device("meta"))  # and FusedStep refuses it
+
+
+def test_deep_runs_stored_before_the_step_setting_read_as_autograd() -> None:
+    """A stored identity without ``step`` is a run of 0.5.x, which took autograd's step;
+    the other steps carry theirs, so their runs are others, whatever the default."""
+    from dataclasses import replace
+
+    from cmarlcd import registry
+    from cmarlcd.runs import identity
+
+    for name in ("vdn", "qmix", "deep-cmarl-cd"):
+        default = registry.LEARNERS[name]
+        stored = {k: v for k, v in identity(default).items() if k != "step"}
+        assert registry.learner_config(name, stored).step == "autograd"
+        assert "step" not in identity(replace(default, step="autograd"))
+        for step in ("auto", "fused"):
+            assert identity(replace(default, step=step))["step"] == step
 
 
 def test_the_kernels_expm1_is_correctly_rounded() -> None:

@@ -16,8 +16,27 @@ from cmarlcd.runs import added_setting
 MIXERS = ("vdn", "qmix")
 #: How a deep learner takes its gradient step ([choice]): ``autograd``, PyTorch's autograd
 #: and Adam (any device); ``fused``, hand-derived gradients and Adam in compiled CPU
-#: kernels (:mod:`cmarlcd.learners.fused_step`), equal to autograd's to float32 rounding.
-STEPS = ("autograd", "fused")
+#: kernels (:mod:`cmarlcd.learners.fused_step`), equal to autograd's to float32 rounding
+#: (CPU only); ``auto``, the fused step where it runs (on the CPU, for a learner it
+#: covers), else autograd's.
+STEPS = ("auto", "autograd", "fused")
+#: The step of the runs stored before ``step`` existed (0.5.x): their identity leaves it
+#: out, and reads back as this one.
+STEP_BEFORE = "autograd"
+#: The deep learners' default step ([choice]): autograd's until the equivalence study
+#: (benchmarks/fused_equivalence.py) shows the fused step's results the same within its
+#: declared margins in every cell; ``auto`` then.
+DEFAULT_STEP = "autograd"
+
+
+def takes_fused_step(step: str, device, covered: bool = True) -> bool:
+    """Whether a model with the ``step`` setting computing on ``device`` (a
+    :class:`torch.device`) takes the fused step: ``fused`` always (the step refuses a
+    device that is not the CPU), ``auto`` on the CPU where the fused kernels cover the
+    learner's settings (``covered``)."""
+    return step == "fused" or (step == "auto" and covered and device.type == "cpu")
+
+
 #: How the mixers are named in tables and figures.
 DISPLAY_NAMES = {"vdn": "VDN", "qmix": "QMIX"}
 
@@ -89,9 +108,11 @@ class DeepConfig(DeepLearnerConfig):
     """Fraction of the L learning episodes over which ε is annealed (eq. 18: 0.8)."""
     eps_after: float = 0.01
     """ε for the remaining episodes (eq. 18: 0.01)."""
-    step: str = added_setting("autograd", "0.6.0")
-    """[choice] How the gradient step is computed (:data:`STEPS`): ``autograd`` or
-    ``fused`` (CPU only; other float rounding, so other trajectories than autograd's)."""
+    step: str = added_setting(DEFAULT_STEP, "0.6.0", before=STEP_BEFORE)
+    """[choice] How the gradient step is computed (:data:`STEPS`): ``autograd`` (the
+    default, :data:`DEFAULT_STEP`), ``fused`` (CPU only) or ``auto`` (the fused step on
+    the CPU, autograd's on a GPU). The two steps round floats differently, so runs
+    follow other trajectories."""
 
     @property
     def name(self) -> str:  # type: ignore[override]

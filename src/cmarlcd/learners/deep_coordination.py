@@ -36,7 +36,7 @@ from typing import ClassVar
 import numpy as np
 
 from cmarlcd.errors import check_discount, require
-from cmarlcd.learners.deep_config import STEPS, DeepLearnerConfig
+from cmarlcd.learners.deep_config import DEFAULT_STEP, STEP_BEFORE, STEPS, DeepLearnerConfig
 from cmarlcd.learners.degree_rules import check_degree_settings
 from cmarlcd.runs import added_setting
 
@@ -123,11 +123,13 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     slot of its set, or the one visited least recently), so that fewer states are lost
     to collisions while the memory has room: ``n`` states in ``m`` direct-mapped slots
     keep about ``m (1 - exp(-n/m))`` of them."""
-    step: str = added_setting("autograd", "0.6.0")
-    """[choice] How the gradient step is computed (``deep_config.STEPS``): ``autograd`` or
-    ``fused`` (compiled CPU kernels, :mod:`cmarlcd.learners.fused_degree_kernels`; for
-    ``update="keyed"`` with one network per agent; other float rounding, so other
-    trajectories than autograd's)."""
+    step: str = added_setting(DEFAULT_STEP, "0.6.0", before=STEP_BEFORE)
+    """[choice] How the gradient step is computed (``deep_config.STEPS``): ``autograd``
+    (the default, ``deep_config.DEFAULT_STEP``), ``fused`` (compiled CPU kernels,
+    :mod:`cmarlcd.learners.fused_degree_kernels`; for ``update="keyed"`` with one network
+    per agent) or ``auto`` (the fused step on the CPU where it covers the settings, else
+    autograd's). The two steps round floats differently, so runs follow other
+    trajectories."""
     batch_size: int = 400
     """States (``keyed``, drawn from the memory) or visits (``replayed``) per gradient
     step; learning starts once a state is kept (``keyed``) or this many visits are
@@ -215,7 +217,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
         steps = ", ".join(STEPS)
         require(self.step in STEPS, "step", f"must be one of {steps} (got {self.step!r})")
         require(
-            self.step == "autograd" or (self.keyed and not self.share),
+            self.step != "fused" or self.fused_covered,
             "step",
             "'fused' is the keyed update with one network per agent (update='keyed', "
             "share=false); the others take step=autograd",
@@ -250,6 +252,12 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     def keyed(self) -> bool:
         """Whether the updates go through the keyed memory."""
         return self.update == "keyed"
+
+    @property
+    def fused_covered(self) -> bool:
+        """Whether the fused step covers these settings: the keyed update with one
+        network per agent."""
+        return self.keyed and not self.share
 
     def ready(self, stored: int) -> bool:
         """Keyed: learning starts once a state is kept (a batch draws states with

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from cmarlcd.learners.deep_config import takes_fused_step
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 from cmarlcd.learners.fused_step import FusedDegreeStep
 from cmarlcd.learners.value_decomposition import (
@@ -137,7 +138,8 @@ class DegreeModel(StackedModel):
             ],
             fused=True,
         )
-        self.fused = FusedDegreeStep(self) if config.step == "fused" else None
+        fused = takes_fused_step(config.step, self.device, config.fused_covered)
+        self.fused = FusedDegreeStep(self) if fused else None
 
     def targets(
         self, degrees: torch.Tensor, actions: torch.Tensor, returns: torch.Tensor,

@@ -90,8 +90,10 @@ class FusedStep:
     def _legal(self, batch: dict[str, torch.Tensor]) -> tuple:
         seeds, n, width = self.model.n_seeds, self.model.n_agents, self.model.width
         own = batch.get("next_legal")
-        if own is not None:
-            return True, own.numpy(), np.empty((0, 0, n, width), np.bool_)
+        if own is not None:  # as autograd's step does, a mask that broadcasts is one
+            shape = (seeds, batch["state"].shape[1], n, width)
+            legal = np.ascontiguousarray(np.broadcast_to(own.numpy(), shape))
+            return True, legal, np.empty((0, 0, n, width), np.bool_)
         none = np.empty((0, 0, 0, width), np.bool_)
         legal = self.model.state_legal
         if legal is None or batch["state"].dtype != torch.int64:

@@ -41,7 +41,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.learners.deep_config import DeepConfig, takes_fused_step
 from cmarlcd.learners.fused_step import FusedStep
 
 # -------------------------------------------------------------------------- layers
@@ -304,7 +304,7 @@ class ValueDecomposition(StackedModel):
             lr=config.lr,
             fused=True,  # one pass over the parameters: ~10x the default on CPU (CUDA too)
         )
-        self.fused = FusedStep(self) if config.step == "fused" else None
+        self.fused = FusedStep(self) if takes_fused_step(config.step, self.device) else None
 
     def q_values(self, state: torch.Tensor, legal: torch.Tensor | None = None) -> torch.Tensor:
         """Online Q (B, N, n, A) with illegal and padded actions at -inf."""
