@@ -220,7 +220,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.step != "fused" or self.fused_covered,
             "step",
             "'fused' is the keyed update with one network per agent (update='keyed', "
-            "share=false); the others take step=autograd",
+            "share=false); the others take step=autograd (or auto, which falls back to it)",
         )
         step = self.record_step
         in_range = bool(np.isfinite(step)) and 0 < step <= 1
