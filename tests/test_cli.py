@@ -304,6 +304,7 @@ def test_dsn_bad_input(paths, args, option) -> None:
     assert_rejected_cleanly(result, option, store, figures)
 
 
+@pytest.mark.slow
 def test_a_larger_sensor_network_end_to_end(paths) -> None:
     """``--grid``/``--targets``: its own rows (no paper values, success = every target
     captured), stored with the layout; the paper's grid keeps its keys."""

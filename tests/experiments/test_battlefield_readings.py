@@ -117,6 +117,7 @@ def test_unseen_random_draws_uniformly_among_legal_targets_from_its_generator() 
     assert not (greedy_draws("random", seed=2) == draws).all()
 
 
+@pytest.mark.slow
 def test_unseen_random_changes_the_evaluation_not_what_was_learned() -> None:
     contests = [
         tour.Tournament(TABULAR[:1], rounds=1, learn_episodes=300, eval_episodes=300, readings=r)

@@ -144,6 +144,7 @@ def test_two_settings_of_one_learner_are_two_rows_named_by_their_settings() -> N
     assert cells == {"CMARL-CD": (2, 1.0), "CMARL-CD (delta=0.2)": (2, 0.0)}
 
 
+@pytest.mark.slow
 def test_deep_cmarlcd_plays_the_comparison_with_its_one_step_settings() -> None:
     """Deep CMARL-CD is a learner of ``compare`` with its one-step preset; its runs store
     that preset and read back to it; it plays the small games only; on the climbing game

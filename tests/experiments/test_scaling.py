@@ -114,6 +114,7 @@ def test_bad_input_is_one_line(paths, args, option) -> None:  # noqa: F811
     assert_rejected_cleanly(result, option, store, figures)
 
 
+@pytest.mark.slow
 def test_without_torch_the_deep_learners_are_left_out_with_a_note(paths, monkeypatch) -> None:  # noqa: F811
     without_torch(monkeypatch)
     _, _, where = paths
