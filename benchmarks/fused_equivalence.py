@@ -41,7 +41,7 @@ DEEP = {"dsn": ("vdn", "qmix", "deep-cmarl-cd"), "tournament": ("vdn", "qmix")}
 
 def step_settings(algorithms: list[str], step: str) -> str:
     """``--set``'s value that gives every learner of the study ``step`` (named, not left
-    to the default ``auto``: the study compares the two steps themselves)."""
+    to the default, which may change: the study compares the two steps themselves)."""
     return ",".join(f"{name}.step={step}" for name in algorithms)
 
 
