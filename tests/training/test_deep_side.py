@@ -44,7 +44,7 @@ def test_compiled_greedy_action_is_the_networks_argmax(mixer) -> None:
     legal = rng.random((200, 6, 6)) < 0.6
     legal[:, :, 0] = True
     expected = side.model.greedy(torch.from_numpy(features)[None], torch.from_numpy(legal)[None])
-    hidden = np.zeros(side.config.hidden)
+    hidden = np.zeros(side.config.hidden, np.float32)
     for n in range(200):
         for i in range(6):
             action = deep_kernels.greedy_agent(

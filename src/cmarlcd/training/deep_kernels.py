@@ -61,7 +61,7 @@ class FeatureData(NamedTuple):
     counts: np.ndarray
     weights: Weights
     hidden: np.ndarray
-    """Scratch: one agent's hidden layer."""
+    """Scratch: one agent's hidden layer (float32)."""
     obs: np.ndarray
     """The episode so far: each turn's features, (max_steps + 2, n_features), the last
     row the greedy evaluation's own (it may run between two turns of a learning episode)
@@ -132,27 +132,49 @@ def exploration(side) -> float:
 
 @kernel
 def hidden_layer(weights, agent: int, x, hidden) -> None:
-    """``hidden`` := ReLU(x W1 + b1) of agent ``agent``."""
+    """``hidden`` := ReLU(x W1 + b1) of agent ``agent``, in float32 as the networks
+    compute it (``hidden`` is a float32 scratch).
+
+    Each unit's sum runs over the features in their order, as before, but the units
+    are summed side by side, so that the inner loop (over units, along W1's rows)
+    vectorises; a feature of value 0 adds nothing and is skipped. For finite weights
+    these are the very sums of the unit-by-unit loop, bit for bit
+    (``tests/training/test_deep_kernels.py``)."""
     w1, b1 = weights[0], weights[1]
+    units = hidden.shape[0]
+    for h in range(units):
+        hidden[h] = b1[agent, h]
+    for f in range(x.shape[0]):
+        value = x[f]
+        if value == 0.0:
+            continue
+        for h in range(units):
+            hidden[h] += value * w1[agent, f, h]
+    for h in range(units):
+        if not hidden[h] > 0.0:  # ReLU (a NaN, too, becomes 0)
+            hidden[h] = 0.0
+
+
+@kernel
+def output_unit(weights, agent: int, hidden, a: int) -> float:
+    """Output ``a`` of agent ``agent``'s network at its hidden layer ``hidden`` (from
+    :func:`hidden_layer`): b2[a] + sum_h hidden[h] W2[h, a], summed in float64."""
+    w2 = weights[2]
+    q = np.float64(weights[3][agent, a])
     for h in range(hidden.shape[0]):
-        z = b1[agent, h]
-        for f in range(x.shape[0]):
-            z += x[f] * w1[agent, f, h]
-        hidden[h] = z if z > 0.0 else 0.0
+        q += np.float64(hidden[h]) * w2[agent, h, a]
+    return q
 
 
 @kernel
 def greedy_agent(weights, agent: int, x, legal_row, count: int, hidden) -> int:
     """The agent's legal action of largest Q at ``x`` (lowest index on ties)."""
     hidden_layer(weights, agent, x, hidden)
-    w2, b2 = weights[2], weights[3]
     best, best_q = -1, 0.0
     for a in range(count):
         if not legal_row[a]:
             continue
-        q = b2[agent, a]
-        for h in range(hidden.shape[0]):
-            q += hidden[h] * w2[agent, h, a]
+        q = output_unit(weights, agent, hidden, a)
         if best < 0 or q > best_q:
             best, best_q = a, q
     return best

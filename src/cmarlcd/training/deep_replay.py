@@ -52,7 +52,7 @@ class KeyedReplay(NamedTuple):
     record_weights: Weights
     """... (one "agent" per seed) the record network's layers for feature inputs, or empty."""
     record_hidden: np.ndarray
-    """(B, record_hidden) scratch for the record network's hidden layer."""
+    """(B, record_hidden) float32 scratch for the record network's hidden layer."""
     params: KeyedParams
 
 
@@ -98,7 +98,7 @@ class KeyedKind:
             np.zeros((seeds, steps)),
             np.zeros((seeds, 0 if features else spec.n_states), np.float32),
             Weights(*(np.zeros((seeds, *shape), np.float32) for shape in shapes)),
-            np.zeros((seeds, hidden)),
+            np.zeros((seeds, hidden), np.float32),
             keyed_params(config),
         )
 

@@ -260,7 +260,7 @@ class DeepSide(Side):
             self.data = FeatureData(
                 counts,
                 Weights(*(array[agents] for array in group.weights)),
-                np.zeros(config.hidden),
+                np.zeros(config.hidden, np.float32),
                 np.zeros((steps + 2, spec.n_features), np.float32),  # + the greedy row
                 np.zeros((steps + 1, n, width), np.bool_),
                 joints,

@@ -38,6 +38,7 @@ from cmarlcd.training.deep_kernels import (
     game,
     hidden_layer,
     index_enter,
+    output_unit,
 )
 from cmarlcd.training.protocol import SideKernels
 
@@ -56,12 +57,8 @@ def clip_row(values, count: int, lo: float, hi: float, out) -> None:
 def agent_degrees(weights, agent: int, x, count: int, hidden, out) -> None:
     """``out[:count]`` := agent ``agent``'s degree network at features ``x``."""
     hidden_layer(weights, agent, x, hidden)
-    w2, b2 = weights[2], weights[3]
     for a in range(count):
-        c = b2[agent, a]
-        for h in range(hidden.shape[0]):
-            c += hidden[h] * w2[agent, h, a]
-        out[a] = c
+        out[a] = output_unit(weights, agent, hidden, a)
 
 
 @kernel
@@ -223,10 +220,7 @@ def record_estimate(replay, x) -> float:
     """The record network's estimate at features ``x``."""
     weights, hidden = replay.record_weights, replay.record_hidden
     hidden_layer(weights, 0, x, hidden)
-    value = weights[3][0, 0]
-    for h in range(hidden.shape[0]):
-        value += hidden[h] * weights[2][0, h, 0]
-    return value
+    return output_unit(weights, 0, hidden, 0)
 
 
 @kernel
