@@ -53,6 +53,32 @@ def test_compiled_greedy_action_is_the_networks_argmax(mixer) -> None:
             assert action == int(expected[0, n, i])
 
 
+@pytest.mark.parametrize("mixer", ["vdn", "qmix"])
+def test_greedy_cache_changes_no_action(mixer) -> None:
+    """The battlefield's state determines its features: its deep sides keep the greedy
+    actions they computed at each state. They play exactly as a game that does not say
+    so (every action from the networks), learning and in the evaluations between
+    learning stages, where the weights have changed since the last."""
+    uncached = dataclasses.replace(battlefield.SPEC, state_determines_features=False)
+    configs = (DeepConfig(mixer=mixer, **SMALL), DeepConfig(mixer="vdn", **SMALL))
+    plays = []
+    for spec in (battlefield.SPEC, uncached):
+        env, a, b = (np.random.default_rng(k) for k in range(3))
+        plays.append(Match(spec, configs, env, (a, b), 120))
+    cached, plain = plays
+    assert cached.sides[0].data.cache.keys.size > 0 and plain.sides[0].data.cache.keys.size == 0
+    for stage in range(3):
+        results = []
+        for played in plays:
+            played.learn(40)
+            results.append(played.evaluate(300, np.random.default_rng(10 + stage)))
+        assert results[0] == results[1]
+        assert cached.turns == plain.turns
+    side = cached.sides[0]
+    assert stepped(side.model) and int(side.counters[deep_kernels.GENERATION]) > 2
+    assert (side.data.cache.actions >= 0).any()  # the cache was used
+
+
 def test_gradient_steps_and_target_copies_follow_the_schedule() -> None:
     config = DeepConfig(mixer="vdn", **SMALL)
     played = new_match((config, AutomatonConfig()), 60)

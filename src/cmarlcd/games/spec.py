@@ -64,6 +64,12 @@ class GameSpec:
         max_steps: an episode is truncated after this many steps.
         teams: the agents of each team; a cooperative game has one team of everyone.
         n_features: length of the ``features`` vector (0: the game has none).
+        state_determines_features: whether a team's ``features`` and its agents' legal
+            actions are functions of its state index (``state(env, team)``), as on the
+            battlefield; a deep side then keeps the greedy actions it computed at each
+            state while its weights stay the same
+            (:data:`cmarlcd.training.deep_kernels.GREEDY_CACHE_SLOTS`). Declare it only
+            where it holds: a side would act on another state's actions otherwise.
     """
 
     name: str
@@ -75,6 +81,7 @@ class GameSpec:
     max_steps: int
     teams: tuple[tuple[int, ...], ...]
     n_features: int = 0
+    state_determines_features: bool = False
 
     def __post_init__(self) -> None:
         counts = np.array(self.action_counts, dtype=np.int64)

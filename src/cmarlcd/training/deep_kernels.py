@@ -32,9 +32,18 @@ from cmarlcd.training.protocol import SideKernels
 game = Unbound("game")
 
 #: Entries of a deep side's ``counters``: turns observed, episodes finished, the turns
-#: observed when the loop last paused for it, and whether it met a state for the first
-#: time since its group last looked (index inputs).
-TURNS, EPISODES, PAUSED_AT, NEW_STATES = range(4)
+#: observed when the loop last paused for it, whether it met a state for the first time
+#: since its group last looked (index inputs), and how many times its weights have been
+#: copied from the networks (the generation its greedy cache is valid for).
+TURNS, EPISODES, PAUSED_AT, NEW_STATES, GENERATION = range(5)
+#: Slots of a deep side's cache of greedy actions (:class:`GreedyCache`; a power of 2,
+#: about 1 MB a side on the battlefield). A cache changes no action, only how often the
+#: networks are evaluated: a fixed greedy strategy meets the same few thousand states
+#: over and over (every episode starts in the same one).
+GREEDY_CACHE_SLOTS = 2**14
+#: Fibonacci hashing of a state index into the cache's slots.
+HASH_MULTIPLIER = np.uint64(0x9E3779B97F4A7C15)
+HASH_SHIFT = np.uint64(40)
 #: The inputs a deep side can read, by name.
 INPUTS = ("features", "index")
 #: [choice] The most states a deep side reads as one-hot indices (its Q-table copy holds
@@ -53,6 +62,23 @@ class Weights(NamedTuple):
     """(n_agents, hidden, width)"""
     b2: np.ndarray
     """(n_agents, width)"""
+
+
+class GreedyCache(NamedTuple):
+    """The greedy actions a deep side computed at the states it met, kept while its
+    weights stay those of one generation (``counters[GENERATION]``), where the game's
+    state determines its features and masks (``GameSpec.state_determines_features``;
+    elsewhere the arrays are empty and every action comes from the networks). A slot
+    holds one state at a time (the last one hashed there)."""
+
+    keys: np.ndarray
+    """(slots,) int64: the state each slot holds (-1: none yet)."""
+    generations: np.ndarray
+    """(slots,) int64: the weights' generation it was computed with."""
+    actions: np.ndarray
+    """(slots, n_agents) int32: each agent's greedy action there (-1: not computed)."""
+    states: np.ndarray
+    """(max_steps + 1,) int64: the learning episode's state index at each turn."""
 
 
 class FeatureData(NamedTuple):
@@ -77,6 +103,8 @@ class FeatureData(NamedTuple):
     schedule (start, end, anneal fraction, after), learning episodes, train_every)."""
     scratch: np.ndarray
     """(2, width) floats a learner's kernels may use as they like."""
+    cache: GreedyCache
+    """The greedy actions computed so far (VDN and QMIX)."""
 
 
 class IndexData(NamedTuple):
@@ -182,9 +210,12 @@ def greedy_agent(weights, agent: int, x, legal_row, count: int, hidden) -> int:
 
 def features_enter(side, env, team, offset, legal, length, terminal) -> int:
     """Template: turn ``length``'s features and legal actions into the episode record
-    (a terminal state's are never read)."""
+    (a terminal state's are never read), and its state index where the side caches
+    greedy actions."""
     if terminal:
         return length
+    if side.cache.keys.shape[0] > 0:
+        side.cache.states[length] = game.state(env, team)
     game.features(env, team, side.obs[length])
     game.legal(env, legal)
     for i in range(side.counts.shape[0]):
@@ -194,17 +225,48 @@ def features_enter(side, env, team, offset, legal, length, terminal) -> int:
 
 
 @kernel
+def cache_slot(side, s: int) -> int:
+    """The slot of state ``s`` in the side's greedy cache, emptied first if it holds
+    another state or an older generation's actions; -1 where the side caches nothing."""
+    cache = side.cache
+    slots = cache.keys.shape[0]
+    if slots == 0:
+        return -1
+    slot = int((np.uint64(s) * HASH_MULTIPLIER) >> HASH_SHIFT) & (slots - 1)
+    generation = side.counters[GENERATION]
+    if cache.keys[slot] != s or cache.generations[slot] != generation:
+        cache.keys[slot], cache.generations[slot] = s, generation
+        for i in range(cache.actions.shape[1]):
+            cache.actions[slot, i] = -1
+    return slot
+
+
+@kernel
+def cached_greedy(side, slot: int, agent: int, x, legal_row, count: int) -> int:
+    """:func:`greedy_agent` at ``x``, read from cache slot ``slot`` once computed there
+    (``slot`` -1: computed every time)."""
+    if slot < 0:
+        return greedy_agent(side.weights, agent, x, legal_row, count, side.hidden)
+    action = side.cache.actions[slot, agent]
+    if action < 0:
+        action = greedy_agent(side.weights, agent, x, legal_row, count, side.hidden)
+        side.cache.actions[slot, agent] = action
+    return action
+
+
+@kernel
 def features_act(side, key: int, rng, joint) -> None:
     """ε-greedy (eq. 18): each agent independently a uniform legal action with
     probability ε, else its greedy legal action."""
     eps = exploration(side)
     x, legal = side.obs[key], side.legal[key]
+    slot = cache_slot(side, side.cache.states[key]) if side.cache.keys.shape[0] > 0 else -1
     for i in range(side.counts.shape[0]):
         count = side.counts[i]
         if rng.random() < eps:
             joint[i] = uniform_legal_action(legal[i], count, rng.random())
         else:
-            joint[i] = greedy_agent(side.weights, i, x, legal[i], count, side.hidden)
+            joint[i] = cached_greedy(side, slot, i, x, legal[i], count)
 
 
 @kernel
@@ -224,12 +286,20 @@ def features_observe(side, t: int, next_key: int, terminal: bool) -> None:
 
 def features_greedy(side, env, team, offset, legal, rng, joint) -> None:
     """Template: every agent's greedy legal action at the side's features (``rng`` is not
-    drawn from: a network has a greedy action in every state)."""
+    drawn from: a network has a greedy action in every state); the features and masks
+    are read only where the cache does not hold every action yet."""
     x = side.obs[side.obs.shape[0] - 1]
-    game.features(env, team, x)
-    game.legal(env, legal)
+    slot = cache_slot(side, game.state(env, team)) if side.cache.keys.shape[0] > 0 else -1
+    read = False
     for i in range(joint.shape[0]):
-        joint[i] = greedy_agent(side.weights, i, x, legal[offset + i], side.counts[i], side.hidden)
+        if slot >= 0 and side.cache.actions[slot, i] >= 0:
+            joint[i] = side.cache.actions[slot, i]
+            continue
+        if not read:
+            game.features(env, team, x)
+            game.legal(env, legal)
+            read = True
+        joint[i] = cached_greedy(side, slot, i, x, legal[offset + i], side.counts[i])
 
 
 # ------------------------------------------------------------- index inputs

@@ -46,11 +46,14 @@ from cmarlcd.learners.degree_model import DegreeModel
 from cmarlcd.learners.tabular import full_legal
 from cmarlcd.learners.value_decomposition import ValueDecomposition
 from cmarlcd.training.deep_kernels import (
+    GENERATION,
+    GREEDY_CACHE_SLOTS,
     INPUTS,
     NEW_STATES,
     PAUSED_AT,
     TURNS,
     FeatureData,
+    GreedyCache,
     IndexData,
     Weights,
     deep_kernels,
@@ -221,7 +224,10 @@ class DeepGroup(Group):
         return self.replay_kind.greedy_table(self.ring, table, self.legal, self.config)
 
     def _copy_weights(self) -> None:
-        """The loops' copy of the networks := the networks."""
+        """The loops' copy of the networks := the networks (a new generation of
+        weights: the greedy actions cached so far are no longer read)."""
+        for view in self.views:
+            view.counters[GENERATION] += 1
         agents = self.model.agents
         with torch.no_grad():
             if self.inputs == "index":
@@ -251,7 +257,7 @@ class DeepSide(Side):
         n, width, steps = counts.shape[0], int(counts.max()), spec.max_steps
         self.group, self.index, self.kernels, self.frozen = group, index, kernels, False
         replay = group.replay_kind.view(group.ring, index)
-        counters = np.zeros(4, np.int64)
+        counters = np.zeros(5, np.int64)
         schedule = np.array(config.schedule(learn_episodes), np.float64)
         joints, rewards = np.zeros((steps, n), np.int64), np.zeros(steps)
         self.data: FeatureData | IndexData
@@ -269,6 +275,7 @@ class DeepSide(Side):
                 counters,
                 schedule,
                 np.zeros((2, width)),
+                new_greedy_cache(spec, n),
             )
         else:
             self.data = IndexData(
@@ -337,6 +344,18 @@ class DeepSide(Side):
     def memory_bytes(self) -> int:
         share = self.group.memory_bytes() // len(self.group.views)
         return share + self.group.replay_kind.nbytes(self.data.replay)
+
+
+def new_greedy_cache(spec: GameSpec, n_agents: int) -> GreedyCache:
+    """A side's empty greedy cache: :data:`GREEDY_CACHE_SLOTS` slots where the game's
+    state determines its features, else none."""
+    slots = GREEDY_CACHE_SLOTS if spec.state_determines_features else 0
+    return GreedyCache(
+        np.full(slots, -1, np.int64),
+        np.zeros(slots, np.int64),
+        np.full((slots, n_agents), -1, np.int32),
+        np.zeros(spec.max_steps + 1 if slots else 0, np.int64),
+    )
 
 
 def streams_of(

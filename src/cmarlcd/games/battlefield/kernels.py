@@ -166,6 +166,7 @@ class Battlefield:
             max_steps=self.max_turns,
             teams=(tuple(range(n)), tuple(range(n, 2 * n))),
             n_features=2 * n,
+            state_determines_features=True,  # see battle_features
         )
 
 
