@@ -8,7 +8,8 @@ Prints
     tabular-deep, deep-deep), a deep pairing's learning alone (B = 1) and with B rounds
     learning together (the tournament's --seed-batch), and from them the projected wall
     time of the paper's protocol (30 rounds x 10 matches x (500k + 500k) episodes) on
-    this machine's workers;
+    this machine's workers, and the states each deep side's greedy cache holds after
+    the evaluation;
   * the peak memory (max RSS of a fresh process) of one tabular match at the paper's
     500,000 learning episodes, CMARL-CD against itself (the largest tables), unless
     --no-memory.
@@ -38,6 +39,7 @@ from cmarlcd.learners.automata import LAOCA
 from cmarlcd.learners.coordination import CMARLCDStochastic
 from cmarlcd.learners.deep_config import STEPS
 from cmarlcd.sweeps.runner import default_workers
+from cmarlcd.training.deep_kernels import GENERATION, GREEDY_CACHE_SLOTS
 from cmarlcd.training.match import Match, MatchBatch
 
 LEARNERS = tour.battlefield_learners()
@@ -53,8 +55,23 @@ def new_match(a: str, b: str, episodes: int) -> Match:
     return Match(battlefield.SPEC, (LEARNERS[a], LEARNERS[b]), env, sides, episodes)
 
 
-def compiled_turns(a: str, b: str, episodes: int, evaluate: bool) -> tuple[float, float, int]:
-    """(learning turns/s, evaluation turns/s, learning turns) of one match."""
+def cached_states(played: Match) -> list[int]:
+    """States each deep side of ``played`` holds greedy actions for, computed with its
+    current weights (:class:`cmarlcd.training.deep_kernels.GreedyCache`)."""
+    held = []
+    for side in played.sides:
+        cache = getattr(side.data, "cache", None)
+        if cache is not None and cache.keys.size:
+            generation = side.data.counters[GENERATION]
+            held.append(int(((cache.keys >= 0) & (cache.generations == generation)).sum()))
+    return held
+
+
+def compiled_turns(
+    a: str, b: str, episodes: int, evaluate: bool
+) -> tuple[float, float, int, list[int]]:
+    """(learning turns/s, evaluation turns/s, learning turns, the states each deep side's
+    greedy cache holds after the evaluation) of one match."""
     # compile (or load the cache); a deep side's first gradient step comes once its
     # replay holds a batch (720 transitions: about 110 episodes)
     deep = not {a, b} <= set(tour.TABULAR)
@@ -66,10 +83,11 @@ def compiled_turns(a: str, b: str, episodes: int, evaluate: bool) -> tuple[float
     played.learn()
     learn = played.turns / (time.perf_counter() - start)
     if not evaluate:
-        return learn, float("nan"), played.turns
+        return learn, float("nan"), played.turns, []
     start = time.perf_counter()
     result = played.evaluate(episodes, np.random.default_rng(3))
-    return learn, result.turns / (time.perf_counter() - start), played.turns
+    evaluation = result.turns / (time.perf_counter() - start)
+    return learn, evaluation, played.turns, cached_states(played)
 
 
 def batched_learning_turns(a: str, b: str, episodes: int, batch: int) -> float:
@@ -174,7 +192,7 @@ def main() -> None:
         f"machine: {platform.machine()}, {os.cpu_count()} cores, "
         f"Python {platform.python_version()}; workers: {args.workers}; deep step: {args.step}"
     )
-    fast, _, fast_turns = compiled_turns("cmarl-cd", "la-oca", args.python_episodes, False)
+    fast, _, fast_turns, _ = compiled_turns("cmarl-cd", "la-oca", args.python_episodes, False)
     slow, slow_turns = parallel_env_turns(args.python_episodes)
     assert fast_turns == slow_turns, "both paths must play the same turns"
     print(
@@ -186,7 +204,7 @@ def main() -> None:
     for (a, b), count in PAIRINGS.items():
         deep = "vdn" in (a, b) or "qmix" in (a, b)
         episodes = args.deep_episodes if deep else args.episodes
-        learn, evaluate, turns = compiled_turns(a, b, episodes, True)
+        learn, evaluate, turns, held = compiled_turns(a, b, episodes, True)
         per_episode = turns / episodes
         batched = batched_learning_turns(a, b, episodes, args.batch) if deep else learn
         turns_per_stage = tour.PAPER_LEARN_EPISODES * per_episode
@@ -201,6 +219,11 @@ def main() -> None:
             f"match (500k + 500k episodes) ~ {alone / 60:.1f} min alone, "
             f"{together / 60:.1f} min batched"
         )
+        if held:
+            print(
+                f"  greedy cache after the evaluation: {' and '.join(f'{n:,}' for n in held)} "
+                f"states held (of {GREEDY_CACHE_SLOTS:,} slots a side)"
+            )
     for label, seconds in (("alone", alone_seconds), ("batched", batched_seconds)):
         total = tour.PAPER_ROUNDS * seconds / args.workers
         print(
