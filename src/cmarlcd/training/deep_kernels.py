@@ -37,11 +37,12 @@ game = Unbound("game")
 #: copied from the networks (the generation its greedy cache is valid for).
 TURNS, EPISODES, PAUSED_AT, NEW_STATES, GENERATION = range(5)
 #: Slots of a deep side's cache of greedy actions (:class:`GreedyCache`; a power of 2,
-#: 0.3 MB a side on the battlefield). A cache changes no action, only how often the
-#: networks are evaluated: two fixed greedy strategies meet the same few thousand states
-#: over and over (1,600 and 2,400 in 20,000 battlefield episodes of 150,000 turns;
-#: every episode starts in the same one).
-GREEDY_CACHE_SLOTS = 2**13
+#: 0.6 MB a side). A cache changes no action, only how often the networks are
+#: evaluated: fixed greedy strategies meet the same few thousand battlefield states over
+#: and over (every episode starts in the same one); ``benchmarks/bench_battlefield.py``
+#: prints how many each deep side holds after an evaluation (800 to 5,300 in 5,000
+#: episodes).
+GREEDY_CACHE_SLOTS = 2**14
 #: Fibonacci hashing of a state index into the cache's slots.
 HASH_MULTIPLIER = np.uint64(0x9E3779B97F4A7C15)
 HASH_SHIFT = np.uint64(40)
