@@ -794,8 +794,17 @@ def test_reproduce_is_one_sweep_with_a_section_per_part_of_the_paper(paths, monk
     # one bar a unit: the comparison's DSN runs count episodes, its others runs
     assert seen["sections"] == [*SECTIONS, "Comparison: DSN"] and seen["cost"] > 0
     assert doc["runs_computed"] > 0 and doc["runs_reused"] == 0
-    again = invoke("reproduce", "--workers", "1", "--json", *paths[2])
-    assert json.loads(again.stdout)["runs_computed"] == 0
+    times = doc["time"]["time_by_part"]  # the time of each part, this command's runs all
+    assert list(times) == list(SECTIONS)
+    assert sum(t["runs"] for t in times.values()) == doc["runs_computed"]
+    for t in times.values():
+        assert t["computed_now"] == t["runs"] and t["compute_seconds"] > 0
+        assert 0 < t["done_after_seconds"] <= doc["wall_seconds"] + 1
+    again = json.loads(invoke("reproduce", "--workers", "1", "--json", *paths[2]).stdout)
+    assert again["runs_computed"] == 0
+    for name, t in again["time"]["time_by_part"].items():  # all from the store now
+        assert t["computed_now"] == 0 and t["done_after_seconds"] is None
+        assert t["compute_seconds"] == times[name]["compute_seconds"]
 
 
 @pytest.mark.slow

@@ -95,6 +95,8 @@ class RunRecord:
     metrics: dict[str, Any]
     wall_seconds: float
     version: str = ""
+    finished_at: float = 0.0
+    """When it was stored, in seconds since the epoch (0: not read from a store)."""
 
     @property
     def config(self) -> dict[str, Any]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import dataclass
 from typing import Annotated, Any
 
@@ -37,7 +38,9 @@ from cmarlcd.experiments import tournament as tour
 from cmarlcd.limits import check_seed
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.reports.compare import compare_section
+from cmarlcd.reports.timing import time_section
 from cmarlcd.runs import RunSpec
+from cmarlcd.sweeps.runner import default_workers
 
 
 @dataclass(frozen=True)
@@ -166,6 +169,7 @@ def reproduce(
         plan[COMPARISON] = comparison_of(chosen, seed).specs()
     section_of = {spec.key: bar_name(name, spec) for name, specs in plan.items() for spec in specs}
     everything = [spec for specs in plan.values() for spec in specs]
+    started = time.time()
     records, done = compute_runs(
         everything,
         run,
@@ -185,6 +189,8 @@ def reproduce(
     doc["theorem1"] = theorem_documents(part["Theorem 1"], run.figures, console)
     if COMPARISON in part:
         doc["compare"] = present(compare_section(part[COMPARISON], run.figures), console)
+    workers = run.workers or default_workers()
+    doc["time"] = present(time_section(part, started, done.wall_seconds, workers), console)
     doc.update(run_counts(done, run.store, console))
     if console is None:
         print(json.dumps(doc, indent=2))

@@ -403,7 +403,7 @@ class ResultStore:
         """Stored runs, optionally of one experiment, in key order."""
         query = (
             "SELECT experiment, algorithm, config, root_seed, run_index, metrics, wall_seconds,"
-            " version FROM runs"
+            " version, finished_at FROM runs"
         )
         args: tuple[Any, ...] = ()
         if experiment is not None:
@@ -411,7 +411,8 @@ class ResultStore:
             args = (experiment,)
         query += " ORDER BY experiment, algorithm, config, root_seed, run_index"
         for row in self._conn.execute(query, args):
-            yield RunRecord(RunKey(*row[:5]), json.loads(row[5]), float(row[6]), row[7])
+            metrics, seconds, version, finished = json.loads(row[5]), float(row[6]), row[7], row[8]
+            yield RunRecord(RunKey(*row[:5]), metrics, seconds, version, float(finished))
 
     def get(self, keys: Iterable[RunKey]) -> list[RunRecord]:
         """The stored records of ``keys`` (missing keys are skipped), in the given order."""
