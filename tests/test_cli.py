@@ -952,3 +952,36 @@ def test_the_fused_step_from_the_command_line(tmp_path, command: list[str]) -> N
     assert first and first == second
     autograd = [*command[:-1], command[-1].replace("=fused", "=autograd")]
     assert not set(first) & set(run("autograd", autograd))
+
+
+def test_reproduce_set_goes_to_every_part_its_learner_plays_in() -> None:
+    """``reproduce --set``: VDN's step to its DSN rows and its tournament matches,
+    CMARL-CD's temperature to its DSN row and every pairing it plays."""
+    pytest.importorskip("torch")  # the paper preset's DSN rows include VDN
+    from cmarlcd.cli.reproduce import PRESETS, reproduction_plan
+
+    text = "vdn.step=fused,cmarl-cd.temperature=0.25"
+    plan = reproduction_plan(PRESETS["paper"], 0, {}, True, text)
+    rows = {s.algorithm: s.config for s in plan["Tables 3-7"]}
+    assert rows["vdn"]["learner"]["step"] == "fused"
+    assert rows["cmarl-cd"]["learner"]["temperature"] == 0.25
+    assert "step" not in rows["qmix"]["learner"]  # autograd's, left out of the identity
+    for spec in plan["Figs. 6-7"]:
+        for name, learner in zip(spec.config["algorithms"], spec.config["learners"], strict=True):
+            assert (learner.get("step") == "fused") == (name == "vdn")
+            assert (learner.get("temperature") == 0.25) == (name == "cmarl-cd")
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("jal.alpha=0.1", "error: --set: 'jal' plays in no part of the paper"),
+        ("vdn", "error: --set: expected LEARNER.SETTING=VALUE"),
+        ("cmarl-cd.temperature=hot", "error: --set:"),
+        ("la-oca.nothing=1", "error: --set: la-oca has no setting 'nothing'"),
+    ],
+)
+def test_reproduce_refuses_a_setting_it_cannot_apply(paths, text, message) -> None:
+    result = invoke("reproduce", "--preset", "smoke", "--set", text, *paths[2])
+    assert result.exit_code == 2 and result.stderr.startswith(message), result.stderr
+    assert not paths[0].exists()  # refused before any run

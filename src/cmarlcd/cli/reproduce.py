@@ -13,6 +13,8 @@ from cmarlcd import registry, reports
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
     SeedOption,
+    SetOption,
+    apply_settings,
     fails_cleanly,
 )
 from cmarlcd.cli.repeated import repeated_document
@@ -154,6 +156,7 @@ def reproduce(
             "paper; cmarl-cd compare, 10 runs per cell in the quick preset, 50 in the paper's).",
         ),
     ] = True,
+    settings: SetOption = "",
     *,
     run: Execution,
 ) -> None:
@@ -164,7 +167,7 @@ def reproduce(
     check_seed(seed)
     chosen, console = PRESETS[preset], console_for(run.as_json)
     doc: dict[str, Any] = {"preset": preset}
-    plan = reproduction_plan(chosen, seed, doc, run.as_json)
+    plan = reproduction_plan(chosen, seed, doc, run.as_json, settings)
     if with_comparison:
         plan[COMPARISON] = comparison_of(chosen, seed).specs()
     section_of = {spec.key: bar_name(name, spec) for name, specs in plan.items() for spec in specs}
@@ -225,18 +228,22 @@ def _paper_sweeps(chosen: Preset, seed: int) -> list[rep.RepeatedSweep]:
 
 
 def reproduction_plan(
-    chosen: Preset, seed: int, doc: dict[str, Any], as_json: bool
+    chosen: Preset, seed: int, doc: dict[str, Any], as_json: bool, settings: str = ""
 ) -> dict[str, list[RunSpec]]:
-    """Every run of a preset, by section of the paper."""
+    """Every run of a preset, by section of the paper, the paper's learners with
+    ``settings`` (``--set``)."""
+    rows = _reproduced_learners(chosen, doc, as_json)
+    players = _reproduced_tournament(chosen, doc, as_json)
+    items = settings_by_part(settings, {"the DSN rows": rows, "the tournament": players})
     dsn_sweep = dsn_exp.DsnSweep(
-        learners=_reproduced_learners(chosen, doc, as_json),
+        learners=apply_settings(items["the DSN rows"], rows),
         episodes=chosen.dsn_episodes,
         runs=chosen.dsn_runs,
         eval_episodes=chosen.dsn_eval_episodes,
         seed=seed,
     )
     contest = tour.Tournament(
-        learners=_reproduced_tournament(chosen, doc, as_json),
+        learners=apply_settings(items["the tournament"], players),
         rounds=chosen.tournament_rounds,
         learn_episodes=chosen.tournament_episodes,
         eval_episodes=chosen.tournament_episodes,
@@ -250,3 +257,20 @@ def reproduction_plan(
         "Figs. 6-7": contest.specs(),
         "Theorem 1": theorem.specs(seed=seed),
     }
+
+
+def settings_by_part(text: str, parts: dict[str, tuple[LearnerConfig, ...]]) -> dict[str, str]:
+    """``--set``'s items (``LEARNER.SETTING=VALUE``) for each part, by the learners that
+    play in it: an item goes to every part its learner plays in (CMARL-CD's to the DSN
+    rows and the tournament); one whose learner plays in none is an error."""
+    items = [part.strip() for part in text.split(",") if part.strip()]
+    out: dict[str, list[str]] = {name: [] for name in parts}
+    for item in items:
+        learner = item.partition("=")[0].strip().lower().rpartition(".")[0]
+        require(bool(learner), "set", f"expected LEARNER.SETTING=VALUE (got {item!r})")
+        where = [name for name, configs in parts.items() if learner in {c.name for c in configs}]
+        playing = "; ".join(f"{n}: {', '.join(c.name for c in cs)}" for n, cs in parts.items())
+        require(bool(where), "set", f"{learner!r} plays in no part of the paper ({playing})")
+        for name in where:
+            out[name].append(item)
+    return {name: ",".join(chosen) for name, chosen in out.items()}
