@@ -257,7 +257,7 @@ class DeepSide(Side):
         n, width, steps = counts.shape[0], int(counts.max()), spec.max_steps
         self.group, self.index, self.kernels, self.frozen = group, index, kernels, False
         replay = group.replay_kind.view(group.ring, index)
-        counters = np.zeros(5, np.int64)
+        counters = np.zeros(GENERATION + 1, np.int64)  # every entry up to the last
         schedule = np.array(config.schedule(learn_episodes), np.float64)
         joints, rewards = np.zeros((steps, n), np.int64), np.zeros(steps)
         self.data: FeatureData | IndexData
