@@ -135,6 +135,57 @@ def test_fused_adam_and_weights_follow_autograd_over_steps(mixer: str, inputs: s
         np.testing.assert_allclose(b.detach().numpy(), a.detach().numpy(), atol=2e-6)
 
 
+#: A float32 below the smallest normal one (1.18e-38): a subnormal.
+SUBNORMAL = np.float32(1.0e-39)
+
+
+def subnormal(array: np.ndarray) -> np.ndarray:
+    return (array != 0) & (np.abs(array) < np.finfo(np.float32).tiny)
+
+
+@pytest.mark.parametrize("learner", ["vdn", "qmix", "deep-cmarl-cd"])
+def test_fused_step_leaves_no_subnormal_moment(learner: str) -> None:
+    """A first moment that has decayed into the subnormals (a parameter the batches have
+    missed for a while) is zero after the next step that gives it no gradient, not 0.9 of
+    itself (still subnormal, where the CPU's slow path made the DSN's step three times
+    slower); parameters that get a gradient are stepped as before, and the others stay
+    where they were."""
+    if learner == "deep-cmarl-cd":
+        _, model, batch = degree_pair(True, "estimate")
+    else:
+        _, model, batch = pair(learner, "integer states")
+    first, grads = model.fused.flat[2], model.fused.flat[1]
+    for moment in first:
+        moment[:] = SUBNORMAL
+    before = [weight.copy() for weight in model.fused.flat[0]]
+    model.learn(batch())
+    missed = [g == 0 for g in grads]
+    assert any(m.any() for m in missed) and not all(m.all() for m in missed)
+    for moment, still, weight, old in zip(first, missed, model.fused.flat[0], before, strict=True):
+        assert not subnormal(moment).any()
+        assert (moment[still] == 0).all()
+        assert (moment[~still] != 0).all()
+        np.testing.assert_array_equal(weight[still], old[still])
+
+
+def test_fused_step_leaves_the_threads_float_mode_as_it_found_it() -> None:
+    """The flush holds during the step only: a thread that did not flush subnormals does
+    not after it, and one that did still does."""
+    from cmarlcd.learners.fused_step import flushing_subnormals
+
+    _, fused, batch = pair("vdn", "integer states")
+    if not torch.set_flush_denormal(True):
+        pytest.skip("this CPU has no flush-to-zero mode")
+    try:
+        for mode in (False, True, False):
+            torch.set_flush_denormal(mode)
+            assert flushing_subnormals() is mode
+            fused.learn(batch())
+            assert flushing_subnormals() is mode
+    finally:
+        torch.set_flush_denormal(False)
+
+
 def test_fused_and_autograd_illegal_actions_never_bootstrap() -> None:
     """A next state whose best value is illegal: the fused step's target, like
     autograd's, takes the best legal one (the losses agree only if both mask it)."""
