@@ -45,6 +45,25 @@ def test_one_hot_lookup_equals_the_dense_product() -> None:
     assert torch.allclose(mixer(q, state), mixer(q, one_hot), atol=1e-6)
 
 
+def test_the_loops_table_copy_is_the_tables_bit_for_bit() -> None:
+    """What the compiled loop acts from after each gradient step (:meth:`copy_tables`, in
+    scratch kept between calls) is :meth:`tables` exactly, also once the weights have
+    changed since the scratch was made."""
+    config = DeepConfig(mixer="vdn", hidden=9)
+    model = ValueDecomposition([3, 4, 2], 7, config, seeds(3))
+    agents = model.agents
+    out = np.full((3, 7, 3, 4), np.nan, np.float32)
+    noise = torch.Generator().manual_seed(1)
+    for _ in range(3):
+        agents.copy_tables(out)
+        with torch.no_grad():
+            expected = agents.tables().numpy()
+            for p in agents.parameters():
+                p.add_(torch.randn(p.shape, generator=noise))
+        assert np.array_equal(out, expected)
+        assert (out != agents.tables().detach().numpy()).any()  # the next call must redo it
+
+
 def test_eq_18_epsilon_schedule() -> None:
     cfg = DeepConfig()
     # L = 100: annealed over 0.8 L = 80 episodes from 1.0 to 0.0, then 0.01

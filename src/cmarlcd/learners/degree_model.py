@@ -73,6 +73,11 @@ class SharedAgentNetwork(nn.Module):
         )
         return out.view(b, s, self.n_agents, -1)
 
+    def copy_tables(self, out: np.ndarray) -> None:
+        """``out`` (B, in_dim, n_agents, n_actions) := :meth:`tables`."""
+        with torch.no_grad():
+            np.copyto(out, self.tables().cpu().numpy())
+
     def feature_weights(self) -> tuple[torch.Tensor, ...]:
         """The per-agent layers the compiled loop reads, agent-major (B * n, ...): the
         shared weights, each agent's index row folded into its first bias."""

@@ -124,6 +124,8 @@ class AgentNetworks(nn.Module):
         flat = [gens[i] for gens in generators for i in range(n_agents)]
         self.first = GroupLinear(in_dim if own_dim is None else own_dim, hidden, flat)
         self.second = GroupLinear(hidden, n_actions, flat)
+        self._scratch: tuple[torch.Tensor, torch.Tensor] | None = None
+        """:meth:`copy_tables`' hidden layer and outputs, made at its first call."""
 
     def forward(self, state: torch.Tensor) -> torch.Tensor:
         """``state``: (B, N) int64 or (B, N, in_dim) -> Q (B, N, n_agents, n_actions)."""
@@ -142,6 +144,24 @@ class AgentNetworks(nn.Module):
     def tables(self) -> torch.Tensor:
         """Q of every integer (one-hot) state: (B, in_dim, n_agents, n_actions)."""
         return self._by_seed(self.second(torch.relu(self.first.table())))
+
+    def copy_tables(self, out: np.ndarray) -> None:
+        """``out`` (B, in_dim, n_agents, n_actions) := :meth:`tables`, bit for bit (the
+        same operations), computed in scratch kept between calls: the loop's copy after
+        every gradient step spent most of its time getting fresh memory for them."""
+        weight = self.first.weight
+        if self._scratch is None or self._scratch[0].device != weight.device:
+            groups, states = weight.shape[:2]
+            self._scratch = (
+                torch.empty((groups, states, self.first.weight.shape[2]), device=weight.device),
+                torch.empty((groups, states, self.second.weight.shape[2]), device=weight.device),
+            )
+        hidden, q = self._scratch
+        with torch.no_grad():
+            torch.add(weight, self.first.bias[:, None, :], out=hidden)
+            hidden.relu_()
+            torch.baddbmm(self.second.bias[:, None, :], hidden, self.second.weight, out=q)
+        np.copyto(out, self._by_seed(q).cpu().numpy())
 
     def feature_weights(self) -> tuple[torch.Tensor, ...]:
         """The per-agent layers the compiled loop reads (w1, b1, w2, b2), agent-major."""

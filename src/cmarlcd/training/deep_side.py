@@ -231,7 +231,7 @@ class DeepGroup(Group):
         agents = self.model.agents
         with torch.no_grad():
             if self.inputs == "index":
-                np.copyto(self.values, agents.tables().cpu().numpy())
+                agents.copy_tables(self.values)
                 return
             for copy, weight in zip(self.weights, agents.feature_weights(), strict=True):
                 np.copyto(copy, weight.cpu().numpy())
