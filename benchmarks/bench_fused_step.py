@@ -7,12 +7,19 @@ QMIX mixer of 70). Prints milliseconds per step for both, the ratio, and the rat
 step's matrix products in GFLOP/s beside the machine's own matrix-product rate measured in
 the same run (torch.bmm and NumPy on the step's first-layer shape, and one large product).
 
+Then the fused DSN VDN step of a model trained for ``--trained-episodes`` episodes (whose
+Adam moments have decayed into the subnormals where the batches missed a parameter), as
+the fused step takes it (subnormals flushed to zero) and without the flush, from the same
+state each time.
+
 Usage: python benchmarks/bench_fused_step.py [--seeds B] [--repeats R]
+           [--trained-episodes E]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import platform
 import statistics
@@ -24,8 +31,10 @@ import torch
 
 from cmarlcd.games import battlefield
 from cmarlcd.games import sensor_network as dsn
+from cmarlcd.learners import fused_step
 from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig
 from cmarlcd.learners.value_decomposition import ValueDecomposition
+from cmarlcd.training.deep import DeepBatch
 
 
 @dataclass(frozen=True)
@@ -149,10 +158,48 @@ def product_rates(repeats: int) -> dict[str, float]:
     return rates
 
 
+def subnormal_seconds(seeds: int, repeats: int, episodes: int) -> tuple[dict[str, float], int]:
+    """Median seconds of one fused DSN VDN step of a model trained for ``episodes``
+    episodes without the flush (so its moments hold the subnormals a run kept before it),
+    then stepped with the flush and without, interleaved, each from the trained state (its
+    weights and moments restored before every step); and the subnormal first moments."""
+    config = replace(DeepConfig(mixer="vdn"), step="fused")
+    run = DeepBatch(dsn.SPEC, config, [np.random.SeedSequence(k) for k in range(seeds)], episodes)
+    original = fused_step.subnormals_flushed
+    fused_step.subnormals_flushed = contextlib.nullcontext  # trained as before the flush
+    try:
+        run.train([], lambda *args: None)
+    finally:
+        fused_step.subnormals_flushed = original
+    step = run.group.model.fused
+    state = [*step.flat[0], *step.flat[2], *step.flat[3]]
+    saved = [array.copy() for array in state]
+    tiny = np.finfo(np.float32).tiny
+    subnormal = sum(int(((m != 0) & (np.abs(m) < tiny)).sum()) for m in step.flat[2])
+    batches = [run.group.sample() for _ in range(repeats)]
+    ways = {"flushed": fused_step.subnormals_flushed, "not flushed": contextlib.nullcontext}
+    times: dict[str, list[float]] = {way: [] for way in ways}
+    try:
+        for batch in batches:
+            for way, flush in ways.items():
+                fused_step.subnormals_flushed = flush
+                for array, kept in zip(state, saved, strict=True):
+                    np.copyto(array, kept)
+                start = time.perf_counter()
+                step(batch)
+                times[way].append(time.perf_counter() - start)
+    finally:
+        fused_step.subnormals_flushed = original
+    return {way: statistics.median(values) for way, values in times.items()}, subnormal
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10, help="seeds stacked (the runner's 10)")
     parser.add_argument("--repeats", type=int, default=20)
+    parser.add_argument(
+        "--trained-episodes", type=int, default=20000, help="DSN episodes before the last part"
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
     print(
@@ -170,6 +217,13 @@ def main() -> None:
             f"fused {1e3 * fused:.2f} ms ({flops / fused / 1e9:.1f} GFLOP/s), "
             f"{auto / fused:.2f}x"
         )
+    seconds, subnormal = subnormal_seconds(args.seeds, args.repeats, args.trained_episodes)
+    flushed, kept = seconds["flushed"], seconds["not flushed"]
+    print(
+        f"DSN VDN fused after {args.trained_episodes:,} episodes ({subnormal:,} first moments "
+        f"subnormal): {1e3 * flushed:.2f} ms flushed, {1e3 * kept:.2f} ms not, "
+        f"{kept / flushed:.2f}x"
+    )
 
 
 if __name__ == "__main__":
