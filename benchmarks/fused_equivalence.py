@@ -10,12 +10,19 @@ before any run (:data:`MARGINS`), by Schuirmann's TOST at α = 0.05
 * ``dsn``: the VDN and QMIX rows of Tables 3-7: each run's success rate and mean steps at
   each learning budget L;
 * ``tournament``: VDN and QMIX on the battlefield, each pairing's per-match win rate of
-  its first learner (the share of the evaluation episodes it wins).
+  its first learner (the share of the evaluation episodes it wins);
+* ``head-to-head``: each of VDN and QMIX with the fused step against itself with
+  autograd's, in the same matches (positions alternating by round): per match, the fused
+  side's win rate minus the even split of the episodes not tied, ``(100 - ties) / 2``,
+  which is zero in expectation when the two steps play alike; tested paired
+  (:func:`cmarlcd.experiments.equivalence.paired_tost`) within the win rate's margin.
+  Computed in this process (the command line plays a learner once per pairing).
 
 Usage:
     python benchmarks/fused_equivalence.py dsn --runs 50 --episodes 100k
     python benchmarks/fused_equivalence.py dsn --algorithms deep-cmarl-cd --runs 50
     python benchmarks/fused_equivalence.py tournament --runs 50 --learn-episodes 20k
+    python benchmarks/fused_equivalence.py head-to-head --runs 200 --learn-episodes 20k
 """
 
 from __future__ import annotations
@@ -28,7 +35,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-from cmarlcd.experiments.equivalence import ALPHA, tost
+from cmarlcd.experiments.equivalence import ALPHA, paired_tost, tost
 
 #: Margins declared before the runs: how far the fused runs' mean may lie from autograd's
 #: and still count as the same result (the units the reports print: points of a rate,
@@ -36,7 +43,11 @@ from cmarlcd.experiments.equivalence import ALPHA, tost
 #: steps to two decimals, and runs differ by several), ±3 points of a match's win rate.
 MARGINS = {"success_rate": 2.0, "mean_steps": 1.0, "win_rate": 3.0}
 #: The deep learners each part compares (``--algorithms`` chooses among them).
-DEEP = {"dsn": ("vdn", "qmix", "deep-cmarl-cd"), "tournament": ("vdn", "qmix")}
+DEEP = {
+    "dsn": ("vdn", "qmix", "deep-cmarl-cd"),
+    "tournament": ("vdn", "qmix"),
+    "head-to-head": ("vdn", "qmix"),
+}
 
 
 def step_settings(algorithms: list[str], step: str) -> str:
@@ -94,8 +105,82 @@ def samples(
     return out
 
 
+def head_to_head_specs(args: argparse.Namespace) -> list:
+    """The matches of each learner's fused step (listed first) against its autograd step."""
+    from dataclasses import replace
+
+    from cmarlcd.cli.options import parse_count
+    from cmarlcd.experiments import tournament as tour
+    from cmarlcd.runs import RunSpec
+
+    learners = tour.battlefield_learners()
+    learn = parse_count(args.learn_episodes, "learn-episodes")
+    evaluate = parse_count(args.eval_episodes, "eval-episodes")
+    specs = []
+    for name in args.algorithms:
+        pair = tuple(replace(learners[name], step=step) for step in ("fused", "autograd"))
+        pairing = tour.Pairing(pair, learn, evaluate)
+        label = f"{name} fused vs autograd"
+        specs += [RunSpec.make(tour.EXPERIMENT, label, pairing, 0, r) for r in range(args.runs)]
+    return specs
+
+
+def compute_head_to_head(args: argparse.Namespace, store: Path) -> None:
+    """Every match of :func:`head_to_head_specs` not yet stored (resumable), rounds learning
+    together as the tournament's do."""
+    from cmarlcd.experiments import tournament as tour
+    from cmarlcd.sweeps.runner import run_sweep
+    from cmarlcd.sweeps.store import ResultStore
+    from cmarlcd.version import __version__
+
+    with ResultStore(store) as db:
+        done = run_sweep(
+            head_to_head_specs(args), db, workers=args.workers, version=__version__,
+            seed_batch=tour.SEED_BATCH, description="head-to-head",
+        )  # fmt: skip
+    print(f"head-to-head: {done.computed} matches computed", flush=True)
+
+
+def head_to_head_samples(store: Path, first_run: int = 0) -> dict[str, tuple[list, list]]:
+    """cell -> (each match's even split, the fused side's win rate), in points."""
+    out: dict = defaultdict(lambda: ([], []))
+    query = "SELECT algorithm, metrics, run_index FROM runs"
+    with sqlite3.connect(f"file:{store}?mode=ro", uri=True) as conn:
+        rows = conn.execute(query).fetchall()
+    for algorithm, metrics_text, run_index in rows:
+        if run_index < first_run:
+            continue
+        metrics = json.loads(metrics_text)
+        episodes = metrics["episodes"]
+        even, fused = out[algorithm]
+        even.append(100 * (episodes - metrics["ties"]) / 2 / episodes)
+        fused.append(100 * metrics["wins"][metrics["first_side"]] / episodes)
+    return out
+
+
+def report_head_to_head(store: Path, first_run: int = 0) -> list[dict]:
+    """The paired TOST of every head-to-head cell, printed and returned."""
+    results = []
+    print(f"head-to-head: paired TOST at alpha = {ALPHA} (the fused side against the even split)")
+    for cell, (even, fused) in sorted(head_to_head_samples(store, first_run).items()):
+        if len(even) < 2:
+            continue
+        result = paired_tost(even, fused, MARGINS["win_rate"])
+        verdict = "equivalent" if result.equivalent else "NOT shown equivalent"
+        print(
+            f"  {cell:26} even split {result.reference_mean:6.2f} fused side "
+            f"{result.candidate_mean:6.2f}  difference {result.difference:+6.2f} "
+            f"[{result.low:+6.2f}, {result.high:+6.2f}] within ±{result.margin:g}: "
+            f"{verdict} (p = {result.p_value:.3g}; {result.reference_runs} matches)"
+        )
+        results.append({"cell": cell, "metric": "win_rate", **result.to_dict()})
+    return results
+
+
 def report(part: str, store: Path, first_run: int = 0) -> list[dict]:
     """The TOST of every cell, printed and returned."""
+    if part == "head-to-head":
+        return report_head_to_head(store, first_run)
     results = []
     since = f", runs {first_run} on" if first_run else ""
     print(f"{part}: TOST at alpha = {ALPHA} (a {100 * (1 - 2 * ALPHA):.0f} % interval{since})")
@@ -117,8 +202,9 @@ def report(part: str, store: Path, first_run: int = 0) -> list[dict]:
 
 def markdown(part: str, results: list[dict]) -> str:
     """The cells as a Markdown table (the docs' table of the study)."""
+    sides = "even split | fused side" if part == "head-to-head" else "autograd | fused"
     lines = [
-        "| cell | metric | autograd | fused | difference [90 % interval] | margin | verdict |",
+        f"| cell | metric | {sides} | difference [90 % interval] | margin | verdict |",
         "|---|---|---|---|---|---|---|",
     ]
     for r in results:
@@ -133,7 +219,7 @@ def markdown(part: str, results: list[dict]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("part", choices=("dsn", "tournament"))
+    parser.add_argument("part", choices=tuple(DEEP))
     parser.add_argument(
         "--algorithms",
         default="vdn,qmix",
@@ -169,7 +255,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.report_only and not store.is_file():
         parser.error(f"--report-only: no study stored at {store}")
     store.parent.mkdir(parents=True, exist_ok=True)
-    if not args.report_only:
+    if not args.report_only and args.part == "head-to-head":
+        compute_head_to_head(args, store)
+    elif not args.report_only:
         for fused in (False, True):
             line = command(args.part, args, store, fused)
             print("run: cmarl-cd " + " ".join(line), flush=True)

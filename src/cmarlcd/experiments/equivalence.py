@@ -8,6 +8,10 @@ standard error ``se`` (Welch: unequal variances) and ``t``, the ``1 - α`` quant
 Student's t with Welch–Satterthwaite's degrees of freedom, the two are equivalent at
 level ``α`` when ``[d - t·se, d + t·se]`` (the ``1 - 2α`` interval) lies inside
 ``(-margin, margin)``; the p-value is the larger of the two one-sided tests'.
+
+Where each candidate value has a reference value of its own (the two sides of one match:
+:func:`paired_tost`), the test is on the differences, one per pair: their mean, its
+standard error and Student's t with ``n - 1`` degrees of freedom.
 """
 
 from __future__ import annotations
@@ -74,6 +78,38 @@ def tost(
         low, high = difference - half, difference + half
         below = float(stats.t.sf((difference + margin) / se, df))  # H0: d <= -margin
         above = float(stats.t.cdf((difference - margin) / se, df))  # H0: d >= margin
+        p_value = max(below, above)
+    return Equivalence(
+        float(ref.mean()), float(new.mean()), difference, low, high, float(margin),
+        p_value, len(ref), len(new),
+    )  # fmt: skip
+
+
+def paired_tost(
+    reference: Sequence[float], candidate: Sequence[float], margin: float, alpha: float = ALPHA
+) -> Equivalence:
+    """TOST of ``|mean(candidate - reference)| < margin`` where ``candidate[k]`` and
+    ``reference[k]`` come from one trial (see the module): the differences' mean, its
+    ``1 - 2α`` interval from Student's t with ``n - 1`` degrees of freedom."""
+    from scipy import stats  # imported when used: it slows every command's start
+
+    ref, new = np.asarray(reference, float), np.asarray(candidate, float)
+    require(len(ref) == len(new), "runs", "a paired test needs one reference value a run")
+    require(len(ref) >= 2, "runs", "TOST needs at least 2 runs")
+    require(margin > 0, "margin", f"must be > 0 (got {margin})")
+    require(0 < alpha < 0.5, "alpha", f"must be in (0, 0.5) (got {alpha})")
+    differences = new - ref
+    difference = float(differences.mean())
+    se = float(differences.std(ddof=1)) / math.sqrt(len(differences))
+    if se == 0.0:
+        low = high = difference
+        p_value = 0.0 if abs(difference) < margin else 1.0
+    else:
+        df = len(differences) - 1
+        half = float(stats.t.ppf(1 - alpha, df)) * se
+        low, high = difference - half, difference + half
+        below = float(stats.t.sf((difference + margin) / se, df))
+        above = float(stats.t.cdf((difference - margin) / se, df))
         p_value = max(below, above)
     return Equivalence(
         float(ref.mean()), float(new.mean()), difference, low, high, float(margin),
