@@ -7,10 +7,11 @@ QMIX mixer of 70). Prints milliseconds per step for both, the ratio, and the rat
 step's matrix products in GFLOP/s beside the machine's own matrix-product rate measured in
 the same run (torch.bmm and NumPy on the step's first-layer shape, and one large product).
 
-Then the fused DSN VDN step of a model trained for ``--trained-episodes`` episodes (whose
-Adam moments have decayed into the subnormals where the batches missed a parameter), as
-the fused step takes it (subnormals flushed to zero) and without the flush, from the same
-state each time.
+Then the DSN VDN step as a run meets it, after ``--trained-episodes`` episodes, both ways
+(each model trained its own way); and the fused step of a model trained without the
+flush (whose Adam moments have decayed into the subnormals where the batches missed a
+parameter), as the fused step takes it (subnormals flushed to zero) and without the
+flush, from the same state each time.
 
 Usage: python benchmarks/bench_fused_step.py [--seeds B] [--repeats R]
            [--trained-episodes E]
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import copy
 import os
 import platform
 import statistics
@@ -193,6 +195,42 @@ def subnormal_seconds(seeds: int, repeats: int, episodes: int) -> tuple[dict[str
     return {way: statistics.median(values) for way, values in times.items()}, subnormal
 
 
+def trained_seconds(seeds: int, repeats: int, episodes: int) -> dict[str, float]:
+    """Median seconds of one DSN VDN step at each way, each on a model trained that way for
+    ``episodes`` episodes (the state a real run's steps meet, the fused one with its
+    flush), on batches drawn from its own replay, from its trained state every time
+    (weights and optimiser restored between steps, outside the timing)."""
+    out = {}
+    for way in ("autograd", "fused"):
+        config = replace(DeepConfig(mixer="vdn"), step=way)
+        sequences = [np.random.SeedSequence(k) for k in range(seeds)]
+        run = DeepBatch(dsn.SPEC, config, sequences, episodes)
+        run.train([], lambda *args: None)
+        model = run.group.model
+        batches = [run.group.sample() for _ in range(repeats)]
+        weights = copy.deepcopy(model.state_dict())
+        optimiser = copy.deepcopy(model.optimizer.state_dict())
+        moments = (
+            [array.copy() for array in model.fused.flat[2] + model.fused.flat[3]]
+            if model.fused
+            else []
+        )
+        times = []
+        for batch in batches:
+            model.load_state_dict(weights)
+            model.optimizer.load_state_dict(optimiser)
+            if model.fused:
+                for array, kept in zip(
+                    model.fused.flat[2] + model.fused.flat[3], moments, strict=True
+                ):
+                    np.copyto(array, kept)
+            start = time.perf_counter()
+            model.learn(batch)
+            times.append(time.perf_counter() - start)
+        out[way] = statistics.median(times)
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10, help="seeds stacked (the runner's 10)")
@@ -217,6 +255,12 @@ def main() -> None:
             f"fused {1e3 * fused:.2f} ms ({flops / fused / 1e9:.1f} GFLOP/s), "
             f"{auto / fused:.2f}x"
         )
+    trained = trained_seconds(args.seeds, args.repeats, args.trained_episodes)
+    auto, fused = trained["autograd"], trained["fused"]
+    print(
+        f"DSN VDN after {args.trained_episodes:,} episodes of a run, each way trained its "
+        f"own way: autograd {1e3 * auto:.2f} ms, fused {1e3 * fused:.2f} ms, {auto / fused:.2f}x"
+    )
     seconds, subnormal = subnormal_seconds(args.seeds, args.repeats, args.trained_episodes)
     flushed, kept = seconds["flushed"], seconds["not flushed"]
     print(
