@@ -960,15 +960,15 @@ def test_reproduce_set_goes_to_every_part_its_learner_plays_in() -> None:
     pytest.importorskip("torch")  # the paper preset's DSN rows include VDN
     from cmarlcd.cli.reproduce import PRESETS, reproduction_plan
 
-    text = "vdn.step=fused,cmarl-cd.temperature=0.25"
+    text = "vdn.step=autograd,cmarl-cd.temperature=0.25"
     plan = reproduction_plan(PRESETS["paper"], 0, {}, True, text)
     rows = {s.algorithm: s.config for s in plan["Tables 3-7"]}
-    assert rows["vdn"]["learner"]["step"] == "fused"
+    assert "step" not in rows["vdn"]["learner"]  # autograd's, left out of the identity
     assert rows["cmarl-cd"]["learner"]["temperature"] == 0.25
-    assert "step" not in rows["qmix"]["learner"]  # autograd's, left out of the identity
+    assert rows["qmix"]["learner"]["step"] == "auto"  # the default
     for spec in plan["Figs. 6-7"]:
         for name, learner in zip(spec.config["algorithms"], spec.config["learners"], strict=True):
-            assert (learner.get("step") == "fused") == (name == "vdn")
+            assert (learner.get("step") == "auto") == (name == "qmix")
             assert (learner.get("temperature") == 0.25) == (name == "cmarl-cd")
 
 

@@ -205,10 +205,10 @@ def test_copies_played_at_once_end_to_end(paths) -> None:  # noqa: F811
 #: the settings of the version that stored it.
 GOLDEN_TRAIN_RUNS = {
     # 0.5.x, before copies of an environment were played at once, and before the deep
-    # learners' step was a setting: they took autograd's step (the default)
-    "train-before-copies.json": None,
-    # 0.6.0: the deep learners at step "auto" (the fused step on the CPU)
-    "train-step-auto.json": "vdn.step=auto,deep-cmarl-cd.step=auto",
+    # learners' step was a setting: they took autograd's step (their default then)
+    "train-before-copies.json": "vdn.step=autograd,deep-cmarl-cd.step=autograd",
+    # 0.6.0: the deep learners at step "auto" (the fused step on the CPU), the default
+    "train-step-auto.json": None,
 }
 
 

@@ -23,10 +23,11 @@ STEPS = ("auto", "autograd", "fused")
 #: The step of the runs stored before ``step`` existed (0.5.x): their identity leaves it
 #: out, and reads back as this one.
 STEP_BEFORE = "autograd"
-#: The deep learners' default step ([choice]): autograd's until the equivalence study
-#: (benchmarks/fused_equivalence.py) shows the fused step's results the same within its
-#: declared margins in every cell; ``auto`` then.
-DEFAULT_STEP = "autograd"
+#: The deep learners' default step ([choice]): ``auto``, the fused step on the CPU, since
+#: the equivalence study (benchmarks/fused_equivalence.py, docs: The fused gradient step)
+#: showed its runs equivalent to autograd's within the declared margins (0.6.0; autograd's
+#: before, and still on a GPU).
+DEFAULT_STEP = "auto"
 
 
 def takes_fused_step(step: str, device, covered: bool = True) -> bool:
@@ -109,10 +110,10 @@ class DeepConfig(DeepLearnerConfig):
     eps_after: float = 0.01
     """ε for the remaining episodes (eq. 18: 0.01)."""
     step: str = added_setting(DEFAULT_STEP, "0.6.0", before=STEP_BEFORE)
-    """[choice] How the gradient step is computed (:data:`STEPS`): ``autograd`` (the
-    default, :data:`DEFAULT_STEP`), ``fused`` (CPU only) or ``auto`` (the fused step on
-    the CPU, autograd's on a GPU). The two steps round floats differently, so runs
-    follow other trajectories."""
+    """[choice] How the gradient step is computed (:data:`STEPS`): ``auto`` (the default,
+    :data:`DEFAULT_STEP`: the fused step on the CPU, autograd's on a GPU), ``fused`` (CPU
+    only) or ``autograd`` (the step of the runs stored before 0.6.0). The two steps round
+    floats differently, so runs follow other trajectories."""
 
     @property
     def name(self) -> str:  # type: ignore[override]

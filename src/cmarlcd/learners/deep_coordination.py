@@ -124,12 +124,12 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     to collisions while the memory has room: ``n`` states in ``m`` direct-mapped slots
     keep about ``m (1 - exp(-n/m))`` of them."""
     step: str = added_setting(DEFAULT_STEP, "0.6.0", before=STEP_BEFORE)
-    """[choice] How the gradient step is computed (``deep_config.STEPS``): ``autograd``
-    (the default, ``deep_config.DEFAULT_STEP``), ``fused`` (compiled CPU kernels,
+    """[choice] How the gradient step is computed (``deep_config.STEPS``): ``auto`` (the
+    default, ``deep_config.DEFAULT_STEP``: the fused step on the CPU where it covers the
+    settings, else autograd's), ``fused`` (compiled CPU kernels,
     :mod:`cmarlcd.learners.fused_degree_kernels`; for ``update="keyed"`` with one network
-    per agent) or ``auto`` (the fused step on the CPU where it covers the settings, else
-    autograd's). The two steps round floats differently, so runs follow other
-    trajectories."""
+    per agent) or ``autograd`` (the step of the runs stored before 0.6.0). The two steps
+    round floats differently, so runs follow other trajectories."""
     batch_size: int = 400
     """States (``keyed``, drawn from the memory) or visits (``replayed``) per gradient
     step; learning starts once a state is kept (``keyed``) or this many visits are
