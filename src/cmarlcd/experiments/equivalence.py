@@ -59,30 +59,12 @@ def tost(
 ) -> Equivalence:
     """Schuirmann's two one-sided Welch tests of ``|mean(candidate) - mean(reference)| <
     margin`` (see the module)."""
-    from scipy import stats  # imported when used: it slows every command's start
-
     ref, new = np.asarray(reference, float), np.asarray(candidate, float)
     require(len(ref) >= 2 and len(new) >= 2, "runs", "TOST needs at least 2 runs a side")
-    require(margin > 0, "margin", f"must be > 0 (got {margin})")
-    require(0 < alpha < 0.5, "alpha", f"must be in (0, 0.5) (got {alpha})")
     va, vb = ref.var(ddof=1) / len(ref), new.var(ddof=1) / len(new)
-    difference = float(new.mean() - ref.mean())
     se = math.sqrt(va + vb)
-    if se == 0.0:  # both sides constant: the difference is known exactly
-        inside = abs(difference) < margin
-        low = high = difference
-        p_value = 0.0 if inside else 1.0
-    else:
-        df = (va + vb) ** 2 / (va**2 / (len(ref) - 1) + vb**2 / (len(new) - 1))
-        half = float(stats.t.ppf(1 - alpha, df)) * se
-        low, high = difference - half, difference + half
-        below = float(stats.t.sf((difference + margin) / se, df))  # H0: d <= -margin
-        above = float(stats.t.cdf((difference - margin) / se, df))  # H0: d >= margin
-        p_value = max(below, above)
-    return Equivalence(
-        float(ref.mean()), float(new.mean()), difference, low, high, float(margin),
-        p_value, len(ref), len(new),
-    )  # fmt: skip
+    df = (va + vb) ** 2 / (va**2 / (len(ref) - 1) + vb**2 / (len(new) - 1)) if se else 0.0
+    return _two_one_sided(ref, new, float(new.mean() - ref.mean()), se, df, margin, alpha)
 
 
 def paired_tost(
@@ -91,25 +73,39 @@ def paired_tost(
     """TOST of ``|mean(candidate - reference)| < margin`` where ``candidate[k]`` and
     ``reference[k]`` come from one trial (see the module): the differences' mean, its
     ``1 - 2α`` interval from Student's t with ``n - 1`` degrees of freedom."""
-    from scipy import stats  # imported when used: it slows every command's start
-
     ref, new = np.asarray(reference, float), np.asarray(candidate, float)
     require(len(ref) == len(new), "runs", "a paired test needs one reference value a run")
     require(len(ref) >= 2, "runs", "TOST needs at least 2 runs")
+    differences = new - ref
+    se = float(differences.std(ddof=1)) / math.sqrt(len(differences))
+    return _two_one_sided(
+        ref, new, float(differences.mean()), se, len(differences) - 1, margin, alpha
+    )
+
+
+def _two_one_sided(
+    ref: np.ndarray,
+    new: np.ndarray,
+    difference: float,
+    se: float,
+    df: float,
+    margin: float,
+    alpha: float,
+) -> Equivalence:
+    """The two one-sided t tests of ``difference`` (standard error ``se``, ``df`` degrees
+    of freedom) against ``±margin``, and the ``1 - 2α`` interval."""
+    from scipy import stats  # imported when used: it slows every command's start
+
     require(margin > 0, "margin", f"must be > 0 (got {margin})")
     require(0 < alpha < 0.5, "alpha", f"must be in (0, 0.5) (got {alpha})")
-    differences = new - ref
-    difference = float(differences.mean())
-    se = float(differences.std(ddof=1)) / math.sqrt(len(differences))
-    if se == 0.0:
+    if se == 0.0:  # constant: the difference is known exactly
         low = high = difference
         p_value = 0.0 if abs(difference) < margin else 1.0
     else:
-        df = len(differences) - 1
         half = float(stats.t.ppf(1 - alpha, df)) * se
         low, high = difference - half, difference + half
-        below = float(stats.t.sf((difference + margin) / se, df))
-        above = float(stats.t.cdf((difference - margin) / se, df))
+        below = float(stats.t.sf((difference + margin) / se, df))  # H0: d <= -margin
+        above = float(stats.t.cdf((difference - margin) / se, df))  # H0: d >= margin
         p_value = max(below, above)
     return Equivalence(
         float(ref.mean()), float(new.mean()), difference, low, high, float(margin),
