@@ -405,3 +405,16 @@ def test_a_command_run_as_a_user_runs_it(
     else:
         local = reference(case, references, tmp_path / "process", env)
         assert stored(store) == stored(local)
+
+
+def test_progress_into_a_log_is_plain_lines(tmp_path: Path) -> None:
+    """stderr a pipe, as under nohup or a batch job: the progress is plain lines (rich
+    alone would draw nothing until the end), the first at the start, the last ``done``."""
+    case = CASES[2]  # the tournament: 3 pairings x 1 round
+    args = [a for a in case.command_line(tmp_path) if a != "--no-progress"]
+    done = run_command(args, {})
+    assert done.returncode == 0, done.stderr[-3000:]
+    lines = [line for line in done.stderr.splitlines() if line.startswith("[")]
+    assert lines[0].startswith("[0:00:00] battlefield 0% 0/750 episodes eta "), lines
+    assert lines[-1].endswith("] done") and len(lines) >= 2, lines
+    assert count_runs(tmp_path / "runs.sqlite") == case.runs

@@ -14,7 +14,14 @@ import pytest
 from rich.console import Console
 
 from cmarlcd import registry
-from cmarlcd.cli.progress import OVERALL, Pace, RichSweepView, clock, percent
+from cmarlcd.cli.progress import (
+    LOG_EVERY_SECONDS,
+    OVERALL,
+    Pace,
+    RichSweepView,
+    clock,
+    percent,
+)
 from cmarlcd.cli.reproduce import bar_name
 from cmarlcd.experiments import compare, register
 from cmarlcd.progress import report_progress
@@ -117,6 +124,50 @@ def test_a_bar_shows_100_percent_only_when_every_run_is_stored() -> None:
     view.run_finished("DSN", "k", 0.5, 1.0)
     assert view.progress.columns[2].render(view.progress.tasks[0]).plain.strip() == "100%"
     view.finish()
+
+
+def test_into_a_log_the_bars_become_a_line_a_minute() -> None:
+    """stderr not a terminal (nohup, a batch job): rich would draw the bars only at the
+    end; the view writes a line at the start, then at most one a minute, one when a part
+    is done and one at the end, each with every unfinished bar."""
+    now = [0.0]
+    log = io.StringIO()
+    view = RichSweepView(Console(file=log, width=100), clock=lambda: now[0])
+    dsn = Section("DSN", 2, 0, 10.0, 0.0, "episodes", 2.0, 0.0, {"k": 2.0}, {"k": 2.0})
+    table = Section("Table 1", 2, 1, 2.0, 1.0, "runs", 2.0, 1.0, {"j": 1.0}, {"j": 1.0})
+    view.start([dsn, table])
+    for _ in range(8):  # 8 reports, 20 s apart: 160 s, so 2 more lines
+        now[0] += LOG_EVERY_SECONDS / 3
+        view.advance("DSN", 1.0, 0.25, "k")
+    view.run_finished("DSN", "k", 1.0, 80.0)
+    view.run_finished("DSN", "k", 1.0, 80.0)  # the DSN done: a line at once
+    view.advance("Table 1", 1.0, 1.0, "j")
+    view.run_finished("Table 1", "j", 1.0, 1.0)  # everything done: the last line
+    view.finish()  # nothing new to say
+    lines = log.getvalue().splitlines()
+    assert lines[0] == (
+        "[0:00:00] all 25% eta -:--:--; DSN 0% 0/10 episodes eta -:--:--; "
+        "Table 1 50% 1/2 runs eta -:--:--"
+    )
+    assert [line[:9] for line in lines] == [
+        "[0:00:00]", "[0:01:00]", "[0:02:00]", "[0:02:40]", "[0:02:40]"
+    ]  # fmt: skip
+    # overall: 1 of 4 estimated seconds stored, + 6 x 0.25 reported = 62.5 %
+    assert lines[2].startswith("[0:02:00] all 62% eta ")
+    assert "; DSN 60% 6/10 episodes eta" in lines[2]
+    assert lines[3].startswith("[0:02:40] all 75% eta ") and "DSN" not in lines[3]
+    assert lines[3].endswith("; Table 1 50% 1/2 runs eta " + lines[3].split()[-1])
+    assert lines[4] == "[0:02:40] done"
+
+
+def test_on_a_terminal_there_are_bars_and_no_lines() -> None:
+    log = io.StringIO()
+    view = RichSweepView(Console(file=log, width=100, force_terminal=True))
+    view.start([Section("DSN", 1, 0, 1.0, 0.0, "episodes", 1.0, 0.0, {"k": 1.0}, {"k": 1.0})])
+    view.advance("DSN", 1.0, 1.0, "k")
+    view.run_finished("DSN", "k", 1.0, 1.0)
+    view.finish()
+    assert "[0:00:00]" not in log.getvalue() and "━" in log.getvalue()
 
 
 def test_clock_format() -> None:

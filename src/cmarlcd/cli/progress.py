@@ -6,6 +6,12 @@ already in the store count as done from the start. A sweep of several sections
 (``reproduce``) adds an overall bar in estimated seconds of work, whose ETA covers the
 whole sweep. A bar shows 100 % only once every run of its part is stored.
 
+**Into a log.** When stderr is not a terminal (``nohup``, a batch job, ``2> log``) rich
+would draw the bars once, at the end; the view then writes one plain line instead, at
+the start, every :data:`LOG_EVERY_SECONDS` while work is reported, when a part is done
+and at the end: the time since the start and each unfinished bar's percentage, work
+and ETA.
+
 **The ETA** (:class:`Pace`) comes from the estimated cost of the work (each experiment's
 ``cost``), not from the raw units, because a unit's cost varies within a section (a
 7-agent game takes longer than a 2-agent one, a VDN episode than a CMARL-CD one, and the
@@ -33,6 +39,9 @@ from cmarlcd.sweeps.runner import Section, SweepObserver
 
 #: The overall bar's name when a sweep has several sections.
 OVERALL = "all"
+#: [choice] Seconds between two progress lines when stderr is not a terminal (a log file,
+#: ``nohup``, a batch job): the bars then become one line a minute.
+LOG_EVERY_SECONDS = 60.0
 
 
 def amount(value: float) -> str:
@@ -208,6 +217,9 @@ class RichSweepView(SweepObserver):
         self.pace: Pace | None = None
         self.tasks: dict[str, Any] = {}
         self.runs: dict[str, list[int]] = {}  # section -> [stored, total]
+        self.lines = show and not self.console.is_terminal  # a log: lines, not bars
+        self.started = self.last_line = 0.0
+        self.last_text = ""
 
     def finished(self, name: str) -> bool:
         stored, total = self.runs[name]
@@ -223,7 +235,7 @@ class RichSweepView(SweepObserver):
             _Column(columns.eta),
             _Column(columns.rate),
             console=self.console,
-            disable=not self.show,
+            disable=not self.show or self.lines,
             transient=False,
             get_time=self.now,
         )
@@ -239,6 +251,8 @@ class RichSweepView(SweepObserver):
                 sum(s.runs for s in sections),
             ]
         self.progress.start()
+        self.started = self.now()
+        self._log_line(force=True)
 
     def _add(self, name: str, total: float, completed: float, unit: str) -> None:
         assert self.progress is not None
@@ -257,6 +271,7 @@ class RichSweepView(SweepObserver):
         self.progress.advance(self.tasks[section], work)
         if OVERALL in self.tasks:
             self.progress.advance(self.tasks[OVERALL], cost)
+        self._log_line()
 
     def run_finished(
         self, section: str, kind: str = "", cost: float = 0.0, seconds: float = math.nan
@@ -266,8 +281,39 @@ class RichSweepView(SweepObserver):
         for name in (section, OVERALL):
             if name in self.runs:
                 self.runs[name][0] += 1
+        self._log_line(force=self.finished(section))
+
+    def status_line(self) -> str:
+        """``[0:12:05] all 12% eta 2:10:33; Figs. 6-7 4% 40.0M/300.0M episodes eta ...``:
+        the time since the start, then each unfinished bar (the overall one first), or
+        ``done`` when none is left."""
+        return f"[{clock(self.now() - self.started)}] {self._bars_text()}"
+
+    def _bars_text(self) -> str:
+        assert self.progress is not None
+        columns = _Columns(self)
+        parts = []
+        for task in sorted(self.progress.tasks, key=lambda t: t.fields["section"] != OVERALL):
+            if self.finished(task.fields["section"]):
+                continue
+            cells = (columns.percent(task), columns.work(task), columns.eta(task))
+            parts.append(" ".join([task.description, *(c.plain.strip() for c in cells if c)]))
+        return "; ".join(parts) or "done"
+
+    def _log_line(self, force: bool = False) -> None:
+        """Write :meth:`status_line` to the log, at most every LOG_EVERY_SECONDS unless
+        ``force``."""
+        if not self.lines or self.progress is None:
+            return
+        if self.last_text == "done":  # said once
+            return
+        if force or self.now() - self.last_line >= LOG_EVERY_SECONDS:
+            self.last_line, self.last_text = self.now(), self._bars_text()
+            line = f"[{clock(self.last_line - self.started)}] {self.last_text}"
+            self.console.print(line, soft_wrap=True, highlight=False, markup=False)
 
     def finish(self) -> None:
         if self.progress is not None:
+            self._log_line(force=True)
             self.progress.stop()
             self.progress = None
