@@ -283,13 +283,9 @@ class RichSweepView(SweepObserver):
                 self.runs[name][0] += 1
         self._log_line(force=self.finished(section))
 
-    def status_line(self) -> str:
-        """``[0:12:05] all 12% eta 2:10:33; Figs. 6-7 4% 40.0M/300.0M episodes eta ...``:
-        the time since the start, then each unfinished bar (the overall one first), or
-        ``done`` when none is left."""
-        return f"[{clock(self.now() - self.started)}] {self._bars_text()}"
-
     def _bars_text(self) -> str:
+        """``all 12% eta 2:10:33; Figs. 6-7 4% 40.0M/300.0M episodes eta ...``: each
+        unfinished bar (the overall one first), or ``done`` when none is left."""
         assert self.progress is not None
         columns = _Columns(self)
         parts = []
@@ -301,8 +297,8 @@ class RichSweepView(SweepObserver):
         return "; ".join(parts) or "done"
 
     def _log_line(self, force: bool = False) -> None:
-        """Write :meth:`status_line` to the log, at most every LOG_EVERY_SECONDS unless
-        ``force``."""
+        """Write the time since the start and :meth:`_bars_text` to the log, at most
+        every LOG_EVERY_SECONDS unless ``force``."""
         if not self.lines or self.progress is None:
             return
         if self.last_text == "done":  # said once
