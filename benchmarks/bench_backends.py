@@ -14,21 +14,33 @@ a local Ray started before the clock (its start-up is timed on its own line), tw
 *cold*, as a command's first sweep finds it (Ray's worker processes start and load
 cmarl-cd), then *warm*, the same sweep again on the same workers.
 
-Usage: python benchmarks/bench_backends.py [--json]
+**Worker start-up**: the seconds from a sweep's first task to every one of its local
+workers ready to compute (the DSN's kernels loaded), for workers that come from the fork
+server (*cold*: the command's first sweep, which starts the server, imports the package
+and loads the kernels from numba's cache; *warm*: a later sweep of the same command) and,
+measured in the same run, the baseline of 0.6.0, workers forked from the sweep's own
+process after it loaded the kernels itself (which is unsafe with threads running), and
+spawned workers (where the system has no fork server), each loading everything itself.
+
+Usage: python benchmarks/bench_backends.py [--json] [--startup-only]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import platform
 import tempfile
 import time
+from multiprocessing import forkserver
 from pathlib import Path
 
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments.sensor_network import DsnSweep
 from cmarlcd.registry import LEARNERS
+from cmarlcd.sweeps.backends import local
+from cmarlcd.sweeps.backends.tasks import warm_up
 from cmarlcd.sweeps.runner import run_sweep
 from cmarlcd.sweeps.store import ResultStore
 
@@ -75,6 +87,71 @@ def measure(name: str, specs: list, ray: object | None) -> list[dict]:
     return rows
 
 
+def ready_seconds(workers: int) -> float:
+    """Seconds from the first task to ``workers`` local workers all ready."""
+    backend = local.ProcessBackend(workers, lambda *_: None)
+    backend.prepare(LONG[:1])
+    start = time.perf_counter()
+    backend._start()
+    while not all(worker.ready for worker in backend.workers):
+        backend.poll(0.01)
+    seconds = time.perf_counter() - start
+    backend.close(cancel=False)
+    return seconds
+
+
+def _stop_fork_server() -> None:
+    forkserver._forkserver._stop()
+    local._server = local._Server()
+
+
+def _forked_ready(conn) -> None:
+    conn.send("ready")
+
+
+def forked_seconds(workers: int) -> tuple[float, float]:
+    """0.6.0's baseline: the kernels loaded in this process, then ``workers`` forks of it
+    ready; the two times."""
+    start = time.perf_counter()
+    warm_up(LONG[:1])
+    loaded = time.perf_counter() - start
+    context = multiprocessing.get_context("fork")
+    start = time.perf_counter()
+    pipes, processes = [], []
+    for _ in range(workers):
+        ours, theirs = context.Pipe()
+        processes.append(context.Process(target=_forked_ready, args=(theirs,)))
+        processes[-1].start()
+        pipes.append(ours)
+    for pipe in pipes:
+        pipe.recv()
+    seconds = time.perf_counter() - start
+    for process in processes:
+        process.join()
+    return loaded, seconds
+
+
+def startup_rows(workers: int = 2) -> list[dict]:
+    """Worker start-up, each way, ``workers`` workers (the kernels in numba's cache)."""
+    rows = []
+    _stop_fork_server()
+    rows.append({"start": "fork server, cold", "seconds": ready_seconds(workers)})
+    rows.append({"start": "fork server, warm", "seconds": ready_seconds(workers)})
+    original = local.worker_context
+    local.worker_context = lambda warm, deep: multiprocessing.get_context("spawn")
+    try:
+        rows.append({"start": "spawn", "seconds": ready_seconds(workers)})
+    finally:
+        local.worker_context = original
+    loaded, forked = forked_seconds(workers)
+    rows.append({"start": "0.6.0: fork, kernels loaded first", "seconds": loaded + forked})
+    rows.append({"start": "0.6.0: fork alone", "seconds": forked})
+    for row in rows:
+        row["workers"] = workers
+        row["per_worker_seconds"] = row["seconds"] / workers
+    return rows
+
+
 def ray_startup(ray: object) -> float:
     start = time.perf_counter()
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
@@ -86,6 +163,7 @@ def ray_startup(ray: object) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--startup-only", action="store_true", help="only worker start-up")
     args = parser.parse_args()
     try:
         import ray
@@ -93,18 +171,32 @@ def main() -> None:
         ray = None
     # compile once, outside the clock (every backend loads the same cached kernels)
     timed_sweep(LONG[:1] + SHORT[:1], "process", 1)
-    rows = measure("long runs", LONG, ray) + measure("short runs", SHORT, ray)
-    startup = ray_startup(ray) if ray is not None else None
+    starts = startup_rows()
+    rows = (
+        []
+        if args.startup_only
+        else measure("long runs", LONG, ray) + measure("short runs", SHORT, ray)
+    )
+    startup = ray_startup(ray) if ray is not None and not args.startup_only else None
     if args.json:
-        print(json.dumps({"rows": rows, "ray_startup_seconds": startup}, indent=2))
+        print(
+            json.dumps({"rows": rows, "ray_startup_seconds": startup, "workers": starts}, indent=2)
+        )
         return
     print(f"{platform.processor() or platform.machine()}, {platform.python_version()}")
+    print("worker start-up, 2 workers (the DSN's kernels in numba's cache):")
+    for r in starts:
+        print(
+            f"  {r['start']:36} {r['seconds']:6.2f} s  ({r['per_worker_seconds']:.3f} s a worker)"
+        )
     print(f"{'sweep':11} {'backend':9} {'workers':>7} {'runs':>5} {'wall s':>8} "
           f"{'speed-up':>8} {'effic.':>6} {'overhead ms/run':>15}")  # fmt: skip
     for r in rows:
         print(f"{r['sweep']:11} {r['backend']:9} {r['workers']:>7} {r['runs']:>5} "
               f"{r['wall_seconds']:>8.2f} {r['speedup']:>7.2f}x {r['efficiency']:>6.2f} "
               f"{r['overhead_ms_per_run']:>15.2f}")  # fmt: skip
+    if args.startup_only:
+        return
     if startup is not None:
         print(f"starting a local Ray of 2 CPUs: {startup:.1f} s (paid once per command)")
     else:

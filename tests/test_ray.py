@@ -92,3 +92,17 @@ def test_a_node_with_another_version_is_one_line(local_ray, tmp_path, monkeypatc
         run_sweep(specs, store, workers=2, backend="ray")
     assert err.value.parameter == "backend"
     assert "runs cmarl-cd" in err.value.message and "0.0.0-elsewhere" in err.value.message
+
+
+def test_an_experiment_registered_outside_the_package_runs_on_ray(local_ray, tmp_path) -> None:
+    """The toy experiment of tests/test_runner.py (registered at the top of that module)
+    reaches Ray's workers, which import the module, and stores what local processes do."""
+    from tests.test_runner import specs as toy_specs
+
+    todo = toy_specs(scales=(1, 2), runs=3)
+    stored = {}
+    for backend in ("process", "ray"):
+        with ResultStore(tmp_path / f"{backend}.sqlite") as store:
+            assert run_sweep(todo, store, workers=2, backend=backend).computed == len(todo)
+            stored[backend] = {r.key: r.metrics for r in store.records()}
+    assert stored["ray"] == stored["process"]

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
+import json
 import math
+import multiprocessing
 import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,7 +24,30 @@ from cmarlcd.runs import Experiment, RunSpec, Settings
 from cmarlcd.sweeps.runner import SweepInterrupted, SweepObserver, run_sweep
 from cmarlcd.sweeps.store import ResultStore
 
-FAIL_AT: dict[str, int] = {}
+
+def sweep_pid() -> int:
+    """The process of the sweep this run belongs to (a worker's parent, or this one)."""
+    parent = multiprocessing.parent_process()
+    return parent.pid if parent is not None else os.getpid()
+
+
+def fail_flag(pid: int | None = None) -> Path:
+    """A file that makes one toy run of the sweep in process ``pid`` fail: it reaches the
+    sweep's worker processes, which start fresh, as a global variable would not."""
+    return Path(tempfile.gettempdir()) / f"cmarlcd-toy-fail-{pid or sweep_pid()}.json"
+
+
+@contextlib.contextmanager
+def failing_at(index: int, error: str = "interrupt"):
+    """Within the block, run ``index`` of the toy (scale * 1000 + run) raises: a
+    KeyboardInterrupt (``interrupt``, as Ctrl-C), a ValueError (``value``), or the worker
+    process dies (``die``)."""
+    flag = fail_flag(os.getpid())
+    flag.write_text(json.dumps({"index": index, "error": error}))
+    try:
+        yield
+    finally:
+        flag.unlink(missing_ok=True)
 
 
 @dataclass(frozen=True)
@@ -34,8 +61,15 @@ class Toy(Settings):
 
 def draw(toy: Toy, seed: np.random.SeedSequence) -> dict:
     """A toy experiment: a few numbers from the run's own stream."""
-    if FAIL_AT.get("index") == toy.scale * 1000 + int(seed.spawn_key[-1]):
-        raise KeyboardInterrupt
+    flag = fail_flag()
+    if flag.exists():
+        fail = json.loads(flag.read_text())
+        if fail["index"] == toy.scale * 1000 + int(seed.spawn_key[-1]):
+            if fail["error"] == "interrupt":
+                raise KeyboardInterrupt
+            if fail["error"] == "die":
+                os.kill(os.getpid(), signal.SIGKILL)
+            raise ValueError(f"run {fail['index']} of the toy fails")
     rng = np.random.default_rng(seed)
     return {"values": (toy.scale * rng.random(3)).tolist()}
 
@@ -99,12 +133,13 @@ def test_interrupted_sweep_resumes_where_it_stopped(tmp_path, workers: int) -> N
     reference = tmp_path / "ref.sqlite"
     with ResultStore(reference) as store:
         sweep(store, todo)
-    FAIL_AT["index"] = 1000 + 3  # scale 1, run 3 raises KeyboardInterrupt (as Ctrl-C)
-    try:
-        with ResultStore(tmp_path / "s.sqlite") as store, pytest.raises(SweepInterrupted) as info:
-            sweep(store, todo, workers=workers)
-    finally:
-        FAIL_AT.clear()
+    # scale 1, run 3 raises KeyboardInterrupt (as Ctrl-C)
+    with (
+        failing_at(1000 + 3),
+        ResultStore(tmp_path / "s.sqlite") as store,
+        pytest.raises(SweepInterrupted) as info,
+    ):
+        sweep(store, todo, workers=workers)
     assert "run the same command again" in str(info.value)
     with ResultStore(tmp_path / "s.sqlite") as store:
         kept = store.count()
@@ -168,16 +203,20 @@ def test_progress_has_a_total_and_reaches_it(tmp_path, workers: int) -> None:
     assert seen.stored == first.total and seen.runs == len(specs) - 1
 
 
-def children_of(pid: int) -> list[int]:
-    """Processes whose parent is ``pid`` (Linux /proc)."""
-    found = []
+def descendants_of(pid: int) -> dict[int, int]:
+    """Every process under ``pid``, with its depth (1: a child; Linux /proc)."""
+    parents: dict[int, int] = {}
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
+            parents[int(stat.parent.name)] = int(stat.read_text().rsplit(")", 1)[1].split()[1])
         except OSError:
             continue
-        if int(fields[1]) == pid:
-            found.append(int(stat.parent.name))
+    found, todo = {}, [(pid, 0)]
+    while todo:
+        parent, depth = todo.pop()
+        for child in (c for c, p in parents.items() if p == parent):
+            found[child] = depth + 1
+            todo.append((child, depth + 1))
     return found
 
 
@@ -191,7 +230,9 @@ def alive(pid: int) -> bool:
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_workers_exit_when_the_sweep_s_parent_is_killed(tmp_path) -> None:
-    """kill -9 of the parent (an OOM killer, a scheduler) must not leave workers behind."""
+    """kill -9 of the parent (an OOM killer, a scheduler) must not leave workers behind,
+    nor the fork server they come from (the workers are its children: the sweep's
+    grandchildren)."""
     command = [
         sys.executable,
         "-m",
@@ -212,16 +253,19 @@ def test_workers_exit_when_the_sweep_s_parent_is_killed(tmp_path) -> None:
         str(tmp_path / "f"),
     ]
     parent = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    workers: list[int] = []
+    workers: dict[int, int] = {}
     try:
         deadline = time.monotonic() + 120
-        while len(workers := children_of(parent.pid)) < 2 and time.monotonic() < deadline:
+        while time.monotonic() < deadline:
+            workers = descendants_of(parent.pid)
+            if sum(depth >= 2 for depth in workers.values()) >= 2:
+                break
             time.sleep(0.2)
-        assert len(workers) >= 2, "the sweep never started its workers"
+        assert sum(depth >= 2 for depth in workers.values()) >= 2, "no workers started"
         time.sleep(1.0)  # the workers are now deep in compiled training loops
         os.kill(parent.pid, signal.SIGKILL)
         parent.wait()
-        deadline = time.monotonic() + 30  # at once as a rule; the bound allows a busy machine
+        deadline = time.monotonic() + 10  # at once as a rule (a compiled chunk takes ~30 s)
         while any(alive(w) for w in workers) and time.monotonic() < deadline:
             time.sleep(0.1)
         assert not any(alive(w) for w in workers)

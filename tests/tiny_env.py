@@ -114,3 +114,17 @@ def make_disagreeing(**kwargs) -> TinyEnv:
     """A factory whose copies disagree: every second call makes a game of 3 actions."""
     _MADE[0] += 1
     return TinyEnv(actions=2 + _MADE[0] % 2, **kwargs)
+
+
+class BreakingEnv(TinyEnv):
+    """The tiny game, until a copy's 30th step raises: a run that fails in its worker."""
+
+    def step(self, actions):
+        self.steps = getattr(self, "steps", 0) + 1
+        if self.steps >= 30:
+            raise RuntimeError("the tiny game broke at its 30th step")
+        return super().step(actions)
+
+
+def make_breaking(**kwargs) -> TinyEnv:
+    return BreakingEnv(**kwargs)

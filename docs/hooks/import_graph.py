@@ -52,7 +52,7 @@ LAYERS: list[tuple[str, list[str]]] = [
         "foundations",
         ["runs", "theory", "progress", "limits", "devices", "compiled", "paper", "version"],
     ),
-    ("leaves", ["errors", "_moved"]),
+    ("leaves", ["errors", "plugins", "_moved"]),
 ]
 UNLAYERED = "in no layer"
 

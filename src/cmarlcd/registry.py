@@ -50,6 +50,7 @@ from cmarlcd.learners.lenient import LenientConfig, LenientStochasticConfig
 from cmarlcd.learners.q_learning import IQLConfig, IQLStochasticConfig
 from cmarlcd.learners.tabular import TabularConfig
 from cmarlcd.paper import TABLE_ACTIONS, TABLE_AGENTS
+from cmarlcd.plugins import note
 from cmarlcd.runs import as_stored
 
 LearnerConfig = TabularConfig | DeepConfig | DeepCMARLCDConfig
@@ -233,6 +234,28 @@ GAMES: dict[str, Game] = {
         _random(2),
     )
 }
+
+
+def register_learner(learner: Learner) -> Learner:
+    """Make ``learner`` known by name (the command line, the experiments, the reports),
+    in its stochastic-game and repeated-game forms. Called at the top level of a module,
+    it registers the learner in the sweep's worker processes too (:mod:`cmarlcd.plugins`)."""
+    REGISTRY[learner.name] = learner
+    for forms, form in ((LEARNERS, learner.stochastic), (REPEATED_LEARNERS, learner.repeated)):
+        if form is not None:
+            forms[learner.name] = form
+        else:
+            forms.pop(learner.name, None)
+    note("learner", learner.name)
+    return learner
+
+
+def register_game(game: Game) -> Game:
+    """Make ``game`` known by name. Called at the top level of a module, it registers the
+    game in the sweep's worker processes too (:mod:`cmarlcd.plugins`)."""
+    GAMES[game.name] = game
+    note("game", game.name)
+    return game
 
 
 def stochastic_games() -> dict[str, Callable[[], GameSpec]]:

@@ -12,6 +12,7 @@ import errno
 import functools
 import os
 import sys
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
@@ -20,7 +21,7 @@ import typer
 
 from cmarlcd.errors import BackendLost, ConfigError, require
 from cmarlcd.games.battlefield import Unit
-from cmarlcd.sweeps.runner import SweepInterrupted
+from cmarlcd.sweeps.runner import RunFailed, SweepInterrupted
 from cmarlcd.sweeps.store import check_output_directory, check_store
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -88,8 +89,24 @@ def leave_now(message: str) -> None:
     os._exit(2)
 
 
+def traceback_note(details: str) -> str:
+    """Where a failed run's traceback was written (a new file in the temporary folder),
+    as the end of its one line."""
+    if not details:
+        return ""
+    try:
+        with tempfile.NamedTemporaryFile(
+            "w", prefix="cmarl-cd-failure-", suffix=".txt", delete=False
+        ) as file:
+            file.write(details)
+    except OSError:
+        return ""
+    return f" (traceback: {file.name})"
+
+
 def fails_cleanly(command: F) -> F:
-    """Turn bad input into one line on stderr and exit status 2; Ctrl-C into exit 130."""
+    """Turn bad input, Ctrl-C and a run that fails into one line on stderr and exit
+    status 2 (a failed run's traceback goes to a file the line names)."""
 
     @functools.wraps(command)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -101,7 +118,10 @@ def fails_cleanly(command: F) -> F:
             raise typer.Exit(2) from None
         except SweepInterrupted as err:
             print(str(err), file=sys.stderr)
-            raise typer.Exit(130) from None
+            raise typer.Exit(2) from None
+        except RunFailed as err:
+            print(f"error: {err}{traceback_note(err.failure.details)}", file=sys.stderr)
+            raise typer.Exit(2) from None
         except BackendLost as err:  # Ray's threads may wait on it forever: leave at once
             leave_now(str(err))
         except OSError as err:  # a figure, a report or a store on a path that refuses it

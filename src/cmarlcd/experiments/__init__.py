@@ -23,14 +23,18 @@ from cmarlcd.experiments import (
     theorem,
     tournament,
 )
+from cmarlcd.plugins import note
 from cmarlcd.runs import Experiment, RunRecord, RunSpec
 
 _REGISTRY: dict[str, Experiment] = {}
 
 
 def register(experiment: Experiment) -> Experiment:
-    """Make ``experiment`` runnable by name (also inside forked worker processes)."""
+    """Make ``experiment`` runnable by name. Called at the top level of a module, it
+    registers it in the sweep's worker processes too, which import that module
+    (:mod:`cmarlcd.plugins`)."""
     _REGISTRY[experiment.name] = experiment
+    note("experiment", experiment.name)
     return experiment
 
 

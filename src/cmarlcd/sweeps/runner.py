@@ -19,12 +19,18 @@ one view can show every section and an overall ETA. A section's reported work re
 total exactly when its last run is stored, and never passes it: what a task reports is
 capped at the task's own work (a task Ray retries reports again), and the rest is added
 when its runs are stored. Ctrl-C stops the backend and keeps every finished run.
+
+**Failures.** A run that raises, or a worker process that dies, ends the sweep at once
+with one line naming the run (:class:`RunFailed`; a bad setting found in a worker, a
+:class:`~cmarlcd.errors.ConfigError`, as itself); the runs finished before it, in that
+task too, are stored first, so the same command resumes from there.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
+import multiprocessing
 import threading
 import time
 from collections import deque
@@ -34,14 +40,23 @@ from pathlib import Path
 from typing import Any
 
 from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, resolve
+from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import get_experiment, settings_of
 from cmarlcd.limits import check_gpu_tasks, check_seed_batch, check_workers
 from cmarlcd.runs import RunSpec
 from cmarlcd.sweeps.backends import check_backend, default_workers, make_backend
+from cmarlcd.sweeps.backends.tasks import Failure
 from cmarlcd.sweeps.claims import CLAIM_TIMEOUT, HEARTBEAT_SECONDS, Owner
 from cmarlcd.sweeps.store import ResultStore, RunKey, StoreWriteError
 
-__all__ = ["SweepInterrupted", "SweepObserver", "SweepResult", "default_workers", "run_sweep"]
+__all__ = [
+    "RunFailed",
+    "SweepInterrupted",
+    "SweepObserver",
+    "SweepResult",
+    "default_workers",
+    "run_sweep",
+]
 
 #: How often a sweep asks the store about runs another sweep holds, in seconds.
 WAIT_POLL_SECONDS = 1.0
@@ -114,11 +129,45 @@ class SweepInterrupted(RuntimeError):
 
     def __init__(self, result: SweepResult) -> None:
         self.result = result
-        stored = result.reused + result.computed + result.shared
-        super().__init__(
-            f"interrupted: {stored} of {result.total} runs are stored,"
-            f" {result.total - stored} left; run the same command again to resume"
-        )
+        super().__init__(f"interrupted: {_tally(result)}")
+
+
+class RunFailed(RuntimeError):
+    """A run raised, or the worker process computing it died: the sweep ended there.
+
+    The message is one line: the run (experiment, algorithm, run index, root seed and
+    config), its error, and how many runs are stored. ``failure`` holds the traceback
+    (:attr:`~cmarlcd.sweeps.backends.tasks.Failure.details`); the run's own exception is
+    the ``__cause__`` where it survived the trip from its worker."""
+
+    def __init__(self, result: SweepResult, failure: Failure) -> None:
+        self.result, self.failure = result, failure
+        what = f"{describe_runs(failure.runs)} failed: " if failure.runs else ""
+        super().__init__(f"{what}{failure.error}; {_tally(result)}")
+
+
+def _tally(result: SweepResult) -> str:
+    stored = result.reused + result.computed + result.shared
+    return (
+        f"{stored} of {result.total} runs are stored, {result.total - stored} left;"
+        " run the same command again to resume"
+    )
+
+
+def describe_runs(runs: Sequence[RunSpec]) -> str:
+    """Runs of one config in words: ``run 3 of dsn cmarl-cd (root seed 0, config {...})``."""
+    first = runs[0]
+    indices = sorted(spec.run_index for spec in runs)
+    which = f"run {indices[0]}" if len(indices) == 1 else f"runs {', '.join(map(str, indices))}"
+    return (
+        f"{which} of {first.experiment} {first.algorithm} (root seed {first.root_seed},"
+        f" config {first.config_json})"
+    )
+
+
+class _TaskFailed(Exception):
+    def __init__(self, failure: Failure) -> None:
+        self.failure = failure
 
 
 def work_of(spec: RunSpec) -> float:
@@ -167,6 +216,7 @@ def run_sweep(
     Runs of one config whose experiment can batch them are computed ``seed_batch`` at a
     time in one call (the results are the same as one by one).
     """
+    check_not_importing()
     check_backend(backend, address)
     if workers is None and not (backend == "ray" and address):
         workers = default_workers()
@@ -189,6 +239,17 @@ def run_sweep(
         return make_backend(backend, used, progress, address, device, gpu_tasks)
 
     return sweep.run(seed_batch, claim_timeout, start_backend)
+
+
+def check_not_importing() -> None:
+    """Refuse a sweep started while this process, a worker, imports the script that
+    started its own sweep: the script runs its sweep at import rather than under
+    ``if __name__ == "__main__":``, and each worker would start a sweep of its own."""
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        raise RuntimeError(
+            "a worker process, importing the script that started the sweep, was asked to "
+            "start a sweep too: start it under `if __name__ == '__main__':`"
+        )
 
 
 def kind_of(spec: RunSpec) -> str:
@@ -247,20 +308,23 @@ class _Sweep:
         self.batches = _batches(todo, seed_batch)
         self.claim_timeout = claim_timeout
         # connect first (a wrong Ray address fails before anything is shown); local
-        # workers start with the first task, after the warm-up they then inherit
+        # workers start with the first task, with the kernels prepared for them
         backend = backend_factory(self._progress, len(self.batches)) if todo else None
         self.observer.start(self._sections(missing))
         start = time.perf_counter()
         try:
             if backend is not None:
-                for name in {s.experiment for s in todo}:
-                    get_experiment(name).warm_up()
+                backend.prepare(todo)
                 self.queue = deque(self._tasks(backend.task_seconds))
                 with _Heartbeat(self.store.path, self.owner):
                     self._loop(backend)
         except KeyboardInterrupt:
             self.result.interrupted = True
             raise SweepInterrupted(self.result) from None
+        except _TaskFailed as stop:
+            self.result.interrupted = True
+            error = self._ended_by(stop.failure)
+            raise error from error.__cause__
         finally:
             if backend is not None:
                 backend.close(cancel=bool(self.inflight) or self.result.interrupted)
@@ -269,6 +333,18 @@ class _Sweep:
             self.result.wall_seconds = time.perf_counter() - start
             self.observer.finish()
         return self.result
+
+    def _ended_by(self, failure: Failure) -> Exception:
+        """What a failed task ends the sweep with: a Ctrl-C in its worker as the sweep's
+        own, a bad setting as itself, anything else as :class:`RunFailed` (its cause the
+        run's exception, where it came back)."""
+        if failure.interrupted:
+            return SweepInterrupted(self.result)
+        if isinstance(failure.exception, ConfigError):
+            return failure.exception
+        error = RunFailed(self.result, failure)
+        error.__cause__ = failure.exception
+        return error
 
     def _sections(self, missing: set[RunKey]) -> list[Section]:
         grouped: dict[str, list[RunSpec]] = {}
@@ -311,11 +387,17 @@ class _Sweep:
         next_poll = 0.0
         while self.queue or self.inflight or self.waiting:
             self._fill(backend)
-            for tag, outcomes in backend.poll(0.2 if self.inflight else WAIT_POLL_SECONDS):
-                del self.inflight[tag]
+            failures = []
+            for tag, outcomes, failure in backend.poll(0.2 if self.inflight else WAIT_POLL_SECONDS):
                 for outcome in outcomes:
                     self._commit(*outcome)
-                self._settle(tag)
+                if failure is not None:
+                    failures.append(failure)
+                else:
+                    del self.inflight[tag]
+                    self._settle(tag)
+            if failures:  # every run finished before is stored
+                raise _TaskFailed(failures[0])
             if self.waiting and time.monotonic() >= next_poll:
                 self._check_waiting()
                 next_poll = time.monotonic() + WAIT_POLL_SECONDS

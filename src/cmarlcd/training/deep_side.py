@@ -45,6 +45,7 @@ from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 from cmarlcd.learners.degree_model import DegreeModel
 from cmarlcd.learners.tabular import full_legal
 from cmarlcd.learners.value_decomposition import ValueDecomposition
+from cmarlcd.plugins import note
 from cmarlcd.training.deep_kernels import (
     GENERATION,
     GREEDY_CACHE_SLOTS,
@@ -79,8 +80,10 @@ def register_deep_learner(
     """Let the deep side play the learner whose config is a ``config_type`` (a
     :class:`~cmarlcd.learners.deep_config.DeepLearnerConfig`): a plug-in deep learner
     registers itself once, in its own module (its replay: a ring of transitions unless
-    it says otherwise)."""
+    it says otherwise). Called at the top level of a module, it registers the learner in
+    the sweep's worker processes too (:mod:`cmarlcd.plugins`)."""
     DEEP_LEARNERS[config_type] = (kernels, model, replay)
+    note("deep learner", f"{config_type.__module__}.{config_type.__qualname__}")
 
 
 def parts_of(config: DeepLearnerConfig) -> tuple[Callable, Callable, Any]:

@@ -10,9 +10,11 @@ from inside a run (:func:`cmarlcd.progress.report_progress`) reaches the
 writes to the store.
 
 - :class:`InlineBackend`: this process, one batch at a time (``--workers 1``).
-- :class:`ProcessBackend`: a pool of forked local processes. A worker whose parent dies
-  (``kill -9``, an out-of-memory kill) exits at once rather than holding the store open;
-  Ctrl-C stops the workers.
+- :class:`ProcessBackend`: local worker processes, started from a fork server that has
+  the package and the sweep's kernels loaded (never forked from the sweep's threads). A
+  worker whose parent dies (``kill -9``, an out-of-memory kill) exits at once rather
+  than holding the store open; a worker that raises or dies ends the sweep with one
+  line; Ctrl-C stops the workers.
 - :class:`~.ray_cluster.RayBackend`: tasks on a Ray cluster (the ``[ray]`` extra),
   imported only when chosen.
 """
@@ -20,10 +22,12 @@ writes to the store.
 from __future__ import annotations
 
 import importlib.util
+from collections.abc import Sequence
 from typing import Protocol
 
 from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, resolve
 from cmarlcd.errors import require
+from cmarlcd.runs import RunSpec
 from cmarlcd.sweeps.backends.local import InlineBackend, ProcessBackend, default_workers
 from cmarlcd.sweeps.backends.tasks import Finished, ProgressCallback, Task
 
@@ -61,12 +65,15 @@ class Backend(Protocol):
     task_seconds: float
     """Short batches are packed into tasks of about this many estimated seconds."""
 
+    def prepare(self, specs: Sequence[RunSpec]) -> None:
+        """Ready the kernels of ``specs``' experiments where the runs will compute."""
+
     def submit(self, tag: int, task: Task) -> None:
         """Start computing ``task``."""
 
     def poll(self, timeout: float) -> list[Finished]:
-        """The batches finished since the last call, waiting up to ``timeout`` seconds
-        for one."""
+        """The tasks finished since the last call, waiting up to ``timeout`` seconds for
+        one: each task's runs that finished, and why it stopped early, if it did."""
 
     def close(self, cancel: bool) -> None:
         """Release the workers; ``cancel`` drops batches not finished."""

@@ -37,11 +37,13 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from cmarlcd import devices
 from cmarlcd.errors import BackendLost, ConfigError, require
+from cmarlcd.plugins import Registrations, missing_message
+from cmarlcd.runs import RunSpec
 from cmarlcd.sweeps.backends.ray_address import (  # noqa: F401  (re-exported)
     KEEP_LOOPBACK_ENV,
     REACH_SECONDS,
@@ -58,8 +60,9 @@ from cmarlcd.sweeps.backends.tasks import (
     Finished,
     ProgressCallback,
     Task,
-    execute_reporting,
+    run_reporting,
     uses_device,
+    warm_up,
 )
 from cmarlcd.version import __version__
 
@@ -75,6 +78,8 @@ HEAD_CHECK_SECONDS = 2.0
 LOST_SECONDS = 20.0
 #: How a task on a node with another cmarl-cd version starts its error.
 VERSION_MISMATCH = "this Ray node runs cmarl-cd"
+#: How a task on a node without the sweep's plug-ins starts its error.
+PLUGINS_MISSING = "on a Ray node,"
 #: [choice] Memory for Ray's object store when this sweep starts a local Ray: results are
 #: small (a few kB a run), so the smallest store Ray accepts is plenty.
 LOCAL_OBJECT_STORE_BYTES = 80 * 1024**2
@@ -125,15 +130,21 @@ def cluster_device(device: str, gpus: float) -> str:
     return "cuda"
 
 
-def _compute(tag: int, task: Task, relay: Any, version: str, device: str) -> Finished:
-    """One task: its outcomes, its progress sent to ``relay`` on the way, its deep
-    learners on ``device`` as this node resolves it (a task given a GPU by Ray sees that
-    one as ``cuda:0``)."""
+def _compute(
+    tag: int, task: Task, relay: Any, version: str, device: str, plugins: Registrations
+) -> Finished:
+    """One task: its outcomes (and why it stopped, where a run failed), its progress sent
+    to ``relay`` on the way, its deep learners on ``device`` as this node resolves it (a
+    task given a GPU by Ray sees that one as ``cuda:0``), the sweep's ``plugins``
+    imported first (their modules must be importable on the node)."""
     if version != __version__:
         raise RuntimeError(
             f"{VERSION_MISMATCH} {__version__}, the sweep {version}: install the same "
             "version on every node"
         )
+    missing = missing_message(plugins)
+    if missing is not None:
+        raise RuntimeError(f"{PLUGINS_MISSING} {missing}")
     os.environ["OMP_NUM_THREADS"] = "1"
     try:
         import torch
@@ -142,7 +153,7 @@ def _compute(tag: int, task: Task, relay: Any, version: str, device: str) -> Fin
     except ImportError:
         pass
     resolved = devices.resolve(device)
-    return tag, execute_reporting(tag, task, lambda item: relay.add.remote(*item), resolved)
+    return run_reporting(tag, task, lambda item: relay.add.remote(*item), resolved)
 
 
 @contextlib.contextmanager
@@ -300,6 +311,7 @@ class RayBackend:
         self.relay_class = ray.remote(num_cpus=0)(_Relay)
         self.relay = self.relay_class.remote()
         self.pending: dict[Any, int] = {}
+        self.plugins = Registrations()
         self.on_gpu: set[Any] = set()
 
     def _connect(self, address: str | None, workers: int | None) -> None:
@@ -364,6 +376,13 @@ class RayBackend:
         finally:
             self.released.set()
 
+    def prepare(self, specs: Sequence[RunSpec]) -> None:
+        """Compile the kernels of ``specs`` here first, so that Ray's workers on this
+        machine load them from numba's cache rather than compile them each; the tasks
+        carry the plug-ins registered here."""
+        warm_up(specs)
+        self.plugins = Registrations.current()
+
     def _on_gpu(self, task: Task) -> bool:
         return self.device != devices.DEFAULT_DEVICE and uses_device(task)
 
@@ -380,9 +399,13 @@ class RayBackend:
         on_gpu = self._on_gpu(task)
         try:
             if on_gpu:
-                ref = self.gpu_task.remote(tag, task, self.relay, __version__, self.device)
+                ref = self.gpu_task.remote(
+                    tag, task, self.relay, __version__, self.device, self.plugins
+                )
             else:
-                ref = self.task.remote(tag, task, self.relay, __version__, devices.DEFAULT_DEVICE)
+                ref = self.task.remote(
+                    tag, task, self.relay, __version__, devices.DEFAULT_DEVICE, self.plugins
+                )
         except Exception as exc:  # the cluster went away as the task was sent
             raise self._went_away(exc, "as a task was sent") from None
         if on_gpu:
@@ -417,12 +440,14 @@ class RayBackend:
         return finished
 
     def _failure(self, exc: BaseException) -> BaseException:
-        """What a task's failure ends the sweep with: a run's own exception as it is (Ray
-        does not rerun those), another version of cmarl-cd on a node as one line, and a
-        task the cluster lost (its node died, after the retries) as :class:`BackendLost`."""
+        """What a task's failure ends the sweep with (a run's own error comes back as its
+        task's :class:`~.tasks.Failure`, not here): another version of cmarl-cd on a node,
+        or plug-ins it cannot import, as one line; another error of the task as it is;
+        and a task the cluster lost (its node died, after the retries) as
+        :class:`BackendLost`."""
         cause = getattr(exc, "cause", None)
         if isinstance(exc, self.ray.exceptions.RayTaskError) and cause is not None:
-            if str(cause).startswith(VERSION_MISMATCH):
+            if str(cause).startswith((VERSION_MISMATCH, PLUGINS_MISSING)):
                 return ConfigError("backend", str(cause))
             return cause
         self.lost = True
