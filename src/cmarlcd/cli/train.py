@@ -1,5 +1,6 @@
 """``cmarl-cd train``: any learner on any PettingZoo ``ParallelEnv`` with discrete actions
-(beyond the paper; :mod:`cmarlcd.experiments.environment`)."""
+(``--env``, :mod:`cmarlcd.experiments.environment`), or on a game of the compiled protocol
+(``--game``, :mod:`cmarlcd.experiments.foraging`), beyond the paper."""
 
 from __future__ import annotations
 
@@ -30,9 +31,31 @@ from cmarlcd.cli.sweeps import (
 )
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.experiments import environment as envs
+from cmarlcd.experiments import foraging
+from cmarlcd.experiments.sensor_network import SEED_BATCH
+from cmarlcd.games.foraging import Foraging
+from cmarlcd.limits import check_seed_batch
 from cmarlcd.reports.environment import environment_section
+from cmarlcd.reports.game_training import game_training_section
 
 DEFAULT_ALGORITHMS = "vdn,qmix,deep-cmarl-cd"
+#: The compiled games ``--game`` plays, by name: each turns the text after ``NAME:`` into
+#: its rules.
+GAMES = {"foraging": Foraging.from_name}
+
+
+def parse_game(text: str) -> Foraging:
+    """``foraging:8x8-2p-2f-coop,penalty=0.1`` -> that task's rules."""
+    name, sep, options = text.partition(":")
+    if name.strip() not in GAMES:
+        raise ConfigError(
+            "game", f"unknown game {name.strip()!r} (games: {', '.join(GAMES)}; e.g. "
+            "foraging:8x8-2p-2f-coop)"
+        )  # fmt: skip
+    require(
+        bool(sep and options.strip()), "game", f"{name}: name the task after ':' (got {text!r})"
+    )
+    return GAMES[name.strip()](options.strip())
 
 
 def parse_env_kwargs(text: str) -> envs.EnvKwargs:
@@ -52,17 +75,38 @@ def run_training(sweep: envs.EnvSweep, run: Execution, console: Console | None) 
     return {**doc, **run_counts(done, run.store, console)}
 
 
+def run_game_training(
+    sweep: foraging.ForagingSweep, run: Execution, console: Console | None, seed_batch: int
+) -> dict[str, Any]:
+    """Run (or resume) a study on a compiled game and report it; its JSON document."""
+    records, done = compute_runs(sweep.specs(), run, "train", seed_batch)
+    doc = present(game_training_section(records, run.figures, sweep.seed), console)
+    return {**doc, **run_counts(done, run.store, console)}
+
+
+#: The options that only ``--env`` reads, with their defaults.
+ENV_ONLY = {"env_kwargs": "{}", "reward": "sum", "inputs": "state", "envs": envs.DEFAULT_ENVS}
+
+
 @app.command(short_help="Beyond the paper: learners on any PettingZoo ParallelEnv.")
 @fails_cleanly
 @with_deep_execution
 def train(
     env: Annotated[
-        str,
+        str | None,
         typer.Option(
             help="The environment, MODULE:FACTORY returning a PettingZoo ParallelEnv with "
             "discrete actions, e.g. mpe2.simple_spread_v3:parallel_env."
         ),
-    ],
+    ] = None,
+    game: Annotated[
+        str | None,
+        typer.Option(
+            help="Instead of --env, a compiled game: foraging:TASK[,rule=value...] (Level-"
+            "Based Foraging, e.g. foraging:8x8-2p-2f-coop or foraging:2s-10x10-3p-3f), "
+            "played with no Python per step, deep learners seed-batched."
+        ),
+    ] = None,
     env_kwargs: Annotated[
         str,
         typer.Option(help="Keyword arguments of the factory, a JSON object, e.g. '{\"N\": 3}'."),
@@ -98,17 +142,46 @@ def train(
             "for all with one forward pass; 1: one at a time, as before 0.6.0).",
         ),
     ] = envs.DEFAULT_ENVS,
+    seed_batch: Annotated[
+        int,
+        typer.Option(help="With --game: seeds of a deep learner trained together in one model."),
+    ] = SEED_BATCH,
     seed: SeedOption = 0,
     settings: SetOption = "",
     *,
     run: Execution,
 ) -> None:
-    """Learn on any PettingZoo ParallelEnv with discrete actions: each learner's learning
-    curve (greedy return, mean over runs) beside a uniform random policy's, stored and
-    resumable; a table and a figure."""
+    """Learn on any PettingZoo ParallelEnv with discrete actions, or on a compiled game:
+    each learner's learning curve (greedy return, mean over runs) beside a uniform random
+    policy's, stored and resumable; a table and a figure."""
+    require(
+        (env is None) != (game is None),
+        "env",
+        "give one of --env MODULE:FACTORY and --game NAME:TASK (e.g. --game "
+        "foraging:8x8-2p-2f-coop)",
+    )
     names = parse_names(algorithms, "algorithms")
     configs = tuple(registry.require_learner(name) for name in names)
     require_torch_for(names)
+    if game is not None:
+        given = {"env_kwargs": env_kwargs, "reward": reward, "inputs": inputs, "envs": envs_per_run}
+        for name, value in given.items():
+            require(value == ENV_ONLY[name], name, "applies to --env only, not to --game")
+        check_seed_batch(seed_batch)
+        evaluated = parse_count(eval_episodes, "eval_episodes")
+        game_sweep = foraging.ForagingSweep(
+            learners=apply_settings(settings, configs),
+            episodes=(parse_count(episodes, "episodes"),),
+            runs=runs,
+            eval_episodes=evaluated,
+            seed=seed,
+            curve_points=curve_points,
+            curve_eval_episodes=evaluated,
+            options=foraging.task_options(parse_game(game)),
+        )
+        print_results(run, lambda console: run_game_training(game_sweep, run, console, seed_batch))
+        return
+    assert env is not None
     sweep = envs.EnvSweep(
         env=env,
         learners=apply_settings(settings, configs),

@@ -7,7 +7,8 @@
 * :mod:`~.theorem` -- Section IV-B, the numerical check of Theorem 1;
 * :mod:`~.compare` -- beyond the paper: CMARL-CD against the classic independent learners;
 * :mod:`~.scaling` -- beyond the paper: learners against the size of the sensor network;
-* :mod:`~.environment` -- beyond the paper: any learner on any PettingZoo ``ParallelEnv``.
+* :mod:`~.environment` -- beyond the paper: any learner on any PettingZoo ``ParallelEnv``;
+* :mod:`~.foraging` -- beyond the paper: any learner on Level-Based Foraging, compiled.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any
 from cmarlcd.experiments import (
     compare,
     environment,
+    foraging,
     repeated,
     scaling,
     sensor_network,
@@ -58,12 +60,14 @@ for _experiment in (
     compare.COMPARE,
     scaling.SCALING,
     environment.TRAIN,
+    foraging.FORAGING,
 ):
     register(_experiment)
 
 __all__ = [
     "compare",
     "environment",
+    "foraging",
     "get_experiment",
     "register",
     "repeated",

@@ -76,6 +76,11 @@ def _no_variants(game: EpisodicGame, options: Options) -> EpisodicGame:
     return game
 
 
+#: [choice] The largest greedy-policy table (states x agents) the protocol evaluates for
+#: a tabular learner: 50M int64 entries, 400 MB.
+MAX_POLICY_ENTRIES = 50_000_000
+
+
 def terminated_episodes(stats: EpisodeStats) -> np.ndarray:
     """An episode succeeds when it terminated (every goal met) within the step cap."""
     return stats.terminated

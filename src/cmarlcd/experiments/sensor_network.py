@@ -15,6 +15,7 @@ import numpy as np
 
 from cmarlcd.errors import require
 from cmarlcd.experiments.episodic import (
+    MAX_POLICY_ENTRIES,
     EpisodicGame,
     EpisodicSweep,
     Options,
@@ -49,9 +50,6 @@ def optimal_episodes(stats: EpisodeStats) -> np.ndarray:
 
 #: The options a larger sensor network takes (``cmarl-cd dsn --grid 3x4 --targets 3``).
 LAYOUT_OPTIONS = ("grid", "targets")
-#: [choice] The largest greedy-policy table (states x sensors) the protocol evaluates:
-#: 50M int64 entries, 400 MB.
-MAX_POLICY_ENTRIES = 50_000_000
 
 
 def layout_spec(options: Options) -> GameSpec:

@@ -1,7 +1,8 @@
-"""A fixed joint policy over state indices as one side of a game: how a learner's greedy
-policy, taken at a checkpoint, is evaluated (:mod:`cmarlcd.training.loop`).
+"""Fixed joint policies as one side of a game: a table over state indices, how a
+learner's greedy policy, taken at a checkpoint, is evaluated (:mod:`cmarlcd.training.loop`),
+and the uniform random policy, the floor a learner's return is read against.
 
-The side never learns; only its ``greedy`` kernel is ever called.
+Neither side learns; only its ``greedy`` kernel is ever called.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import numpy as np
 
 from cmarlcd.compiled import Unbound, specialise_kernel
 from cmarlcd.games.spec import GameSpec
+from cmarlcd.learners.policy import uniform_legal_action
 from cmarlcd.training.protocol import IDLE, Side
 
 game = Unbound("game")
@@ -60,4 +62,36 @@ class PolicySide(Side):
             np.zeros(spec.n_states, dtype=np.bool_),
             np.zeros((steps, counts.shape[0]), dtype=np.int64),
             np.zeros(steps),
+        )
+
+
+# ------------------------------------------------------------- the uniform random policy
+
+
+class UniformData(NamedTuple):
+    """The uniform random policy's arrays, as its kernel reads them."""
+
+    counts: np.ndarray
+    joints: np.ndarray
+    rewards: np.ndarray
+
+
+def uniform_greedy(side, env, team, offset, legal, rng, joint) -> None:
+    """Template: each agent a uniform legal action, drawn from ``rng`` (the side's
+    evaluation stream)."""
+    game.legal(env, legal)
+    for i in range(joint.shape[0]):
+        joint[i] = uniform_legal_action(legal[offset + i], side.counts[i], rng.random())
+
+
+class UniformSide(Side):
+    """Team ``team`` of ``spec`` playing uniform legal actions: the floor a learner's
+    return is read against."""
+
+    def __init__(self, spec: GameSpec, team: int) -> None:
+        counts = spec.action_counts[list(spec.teams[team])].copy()
+        steps = spec.max_steps
+        self.kernels = IDLE._replace(greedy=specialise_kernel(uniform_greedy, game=spec.kernels))
+        self.data = UniformData(
+            counts, np.zeros((steps, counts.shape[0]), dtype=np.int64), np.zeros(steps)
         )

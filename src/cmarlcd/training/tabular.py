@@ -21,7 +21,7 @@ import numpy as np
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.tabular import TabularConfig
 from cmarlcd.training.loop import Play
-from cmarlcd.training.policy_side import PolicySide
+from cmarlcd.training.policy_side import PolicySide, UniformSide
 from cmarlcd.training.tabular_side import TabularSide
 
 
@@ -40,6 +40,14 @@ def evaluate(spec: GameSpec, policy: np.ndarray, episodes: int, rng) -> EpisodeS
     action per state index), the game's randomness drawn from ``rng``."""
     spec.require_one_team("evaluate")
     outcome = Play(spec, [PolicySide(spec, 0, policy)], rng, [rng]).evaluate(episodes, rng)
+    return EpisodeStats(outcome.returns[:, 0].copy(), outcome.lengths, outcome.terminated)
+
+
+def evaluate_uniform(spec: GameSpec, episodes: int, rng) -> EpisodeStats:
+    """Play ``episodes`` episodes of ``spec`` with every agent's uniform legal action (the
+    random policy, the floor of a learning curve), all drawn from ``rng``."""
+    spec.require_one_team("evaluate")
+    outcome = Play(spec, [UniformSide(spec, 0)], rng, [rng]).evaluate(episodes, rng)
     return EpisodeStats(outcome.returns[:, 0].copy(), outcome.lengths, outcome.terminated)
 
 

@@ -1,0 +1,150 @@
+"""The report of ``cmarl-cd train --game``: learning curves on a compiled game beside the
+uniform random policy's return, a table of the final greedy returns and its JSON."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cmarlcd.experiments import foraging, settings_of
+from cmarlcd.experiments.episodic import STD_DDOF
+from cmarlcd.experiments.episodic_results import row_label
+from cmarlcd.reports.section import (
+    FigureBlock,
+    Section,
+    TableBlock,
+    TextBlock,
+    cells,
+    figure_name,
+    new_section,
+)
+from cmarlcd.runs import RunRecord
+
+RANDOM_LABEL = "random policy"
+
+
+@dataclass(frozen=True)
+class FinalRow:
+    """One learner's greedy evaluation after its whole budget, over its runs (or the
+    random policy's, one sample of ``runs`` episodes)."""
+
+    algorithm: str
+    label: str
+    runs: int
+    mean_return: float
+    std_return: float
+    success_rate: float
+    mean_steps: float
+    above_random: float
+
+    def to_dict(self) -> dict:
+        return self.__dict__.copy()
+
+
+def _groups(records: Sequence[RunRecord]) -> dict[str, list[RunRecord]]:
+    groups: dict[str, list[RunRecord]] = defaultdict(list)
+    for rec in sorted(records, key=lambda r: (r.key.algorithm, r.key.config)):
+        groups[row_label(settings_of(rec).learner)].append(rec)
+    return groups
+
+
+def _final(record: RunRecord) -> dict[str, float]:
+    points = record.metrics["checkpoints"]
+    return points[str(max(int(budget) for budget in points))]
+
+
+def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int) -> Section:
+    """The curves and final returns of one study on a foraging task, with the uniform
+    random policy's return over the same evaluation episodes as the floor."""
+    from cmarlcd.reports import figures as figs
+
+    first = settings_of(records[0])
+    rules = foraging.Foraging.from_name(dict(first.options)["task"])
+    budget, episodes = first.largest, first.eval_episodes
+    floor = foraging.uniform_floor(rules, episodes, seed)
+    floor_return = float(floor.returns.mean())
+    rows = [
+        FinalRow(
+            "random",
+            RANDOM_LABEL,
+            episodes,
+            floor_return,
+            float(floor.returns.std()),
+            float(floor.terminated.mean()),
+            float(floor.lengths.mean()),
+            0.0,
+        )
+    ]
+    curves: dict[str, np.ndarray] = {}
+    for label, runs in _groups(records).items():
+        finals = [_final(r) for r in runs]
+        returns = np.array([f["mean_return"] for f in finals])
+        rows.append(
+            FinalRow(
+                runs[0].key.algorithm,
+                label,
+                len(runs),
+                float(returns.mean()),
+                float(returns.std(ddof=STD_DDOF)),
+                float(np.mean([f["success_rate"] for f in finals])),
+                float(np.mean([f["mean_steps"] for f in finals])),
+                float(returns.mean()) - floor_return,
+            )
+        )
+        curves[label] = np.array([[[p[0], p[2], p[3]] for p in r.metrics["curve"]] for r in runs])
+    if curves:
+        x = next(iter(curves.values()))[0, :, 0]
+        flat = [[point, floor_return, floor.lengths.mean()] for point in x]
+        curves = {RANDOM_LABEL: np.array([flat]), **curves}
+    where = f"foraging {rules.name}"
+    protocol = (
+        f"L = {budget:,} episodes, greedy return over {episodes:,} episodes at the end and "
+        f"{first.curve_eval_episodes:,} at {first.curve_points} points of the curve, team "
+        f"reward = the sum of the agents', seed {seed}; the random policy: {episodes:,} "
+        "episodes of uniform legal actions"
+    )
+    group = sorted({(r.key.algorithm, r.key.config) for r in records})
+    path = figures / figure_name(f"train-{rules.name}-seed{seed}", group)
+    drawn = figs.environment_curves(curves, RANDOM_LABEL, where, path)
+    table = TableBlock(
+        f"Greedy return after L = {budget:,} episodes on {where}",
+        ["learner", "runs", "return", "vs random", "all food", "steps"],
+        [
+            cells(
+                r.label,
+                str(r.runs) if r.algorithm != "random" else "-",
+                f"{r.mean_return:.3f} ± {r.std_return:.3f}",
+                f"{r.above_random:+.3f}",
+                f"{100 * r.success_rate:.1f} %",
+                f"{r.mean_steps:.1f}",
+            )
+            for r in rows
+        ],
+        protocol,
+        layout="compact",
+    )
+    section = new_section(
+        f"Learning on {where} (beyond the paper)",
+        protocol,
+        records,
+        experiment=foraging.EXPERIMENT,
+        game=f"foraging:{rules.name}",
+        seed=seed,
+        rows=[r.to_dict() for r in rows],
+        curves={label: data.tolist() for label, data in curves.items()},
+        figures={"curves": str(drawn)},
+    )
+    section.add(
+        table,
+        TextBlock(
+            "Mean over runs; ± the spread over runs (population std; for the random policy, "
+            "over its episodes). all food: the evaluation episodes that collected every "
+            "food before the step cap."
+        ),
+        FigureBlock(drawn, "greedy return against learning episodes"),
+    )
+    return section

@@ -1,0 +1,107 @@
+"""``cmarl-cd train --game foraging:TASK`` (experiments/foraging.py, reports/game_training.py):
+end to end as a user runs it, bad input refused in one line, the random floor."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cmarlcd.errors import ConfigError
+from cmarlcd.experiments import foraging
+from cmarlcd.games.foraging import Foraging, ForagingEnv
+from cmarlcd.registry import LEARNERS
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "cmarlcd", "train", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=cwd,
+    )
+
+
+def test_train_on_a_foraging_task_end_to_end_and_resumed(tmp_path) -> None:
+    args = [
+        "--game", "foraging:5x5-2p-1f,penalty=0.1", "--algorithms", "cmarl-cd,vdn",
+        "--episodes", "300", "--runs", "2", "--eval-episodes", "50", "--curve-points", "3",
+        "--seed-batch", "2", "--workers", "2", "--no-progress", "--json",
+        "--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "f"),
+    ]  # fmt: skip
+    done = cli(*args, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    doc = json.loads(done.stdout)
+    assert doc["runs_computed"] == 4
+    section = doc
+    assert section["experiment"] == "foraging"
+    assert section["game"] == "foraging:5x5-2p-1f,penalty=0.1"
+    rows = {row["label"]: row for row in section["rows"]}
+    assert set(rows) == {"random policy", "CMARL-CD", "VDN"}
+    assert rows["CMARL-CD"]["runs"] == 2
+    floor = rows["random policy"]["mean_return"]
+    assert rows["VDN"]["above_random"] == pytest.approx(rows["VDN"]["mean_return"] - floor)
+    assert 0 <= rows["random policy"]["success_rate"] <= 1
+    assert Path(section["figures"]["curves"]).exists()
+    again = cli(*args, cwd=tmp_path)
+    assert again.returncode == 0, again.stderr[-3000:]
+    redone = json.loads(again.stdout)
+    assert redone["runs_computed"] == 0 and redone["runs_reused"] == 4
+    assert redone["rows"] == section["rows"]
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--game", "chess:8x8"], "unknown game 'chess'"),
+        (["--game", "foraging:9x9-2p"], "not a foraging task"),
+        (["--game", "foraging:8x8-2p-2f,speed=2"], "no rule 'speed'"),
+        (["--game", "foraging:"], "name the task"),
+        (["--game", "foraging:8x8-2p-2f", "--env", "tests.tiny_env:make"], "one of --env"),
+        ([], "one of --env"),
+        (["--game", "foraging:8x8-2p-2f", "--inputs", "observations"], "--env only"),
+        (["--game", "foraging:8x8-2p-2f", "--algorithms", "cmarl-cd"], "need a table"),
+        (["--game", "foraging:8x8-2p-2f", "--seed-batch", "0"], "seed"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(tmp_path, args, says) -> None:
+    done = cli(*args, "--store", str(tmp_path / "s.sqlite"), cwd=ROOT)
+    assert done.returncode == 2, done.stderr
+    (line,) = done.stderr.strip().splitlines()
+    assert says in line
+    assert not (tmp_path / "s.sqlite").exists()
+
+
+def test_tabular_learners_play_only_tasks_whose_table_fits() -> None:
+    assert foraging.tabular_fits(Foraging(5, 2, 1)) and foraging.tabular_fits(Foraging(8, 2, 1))
+    assert not foraging.tabular_fits(Foraging(8, 2, 2))
+    with pytest.raises(ConfigError, match="need a table"):
+        foraging.ForagingSweep(
+            learners=(LEARNERS["cmarl-cd"],),
+            options=foraging.task_options(Foraging.from_name("8x8-2p-2f-coop")),
+        )
+
+
+def test_the_random_floor_is_the_uniform_policy_s_return() -> None:
+    """The compiled uniform policy against one played through the ParallelEnv, on a task
+    where it often collects the food: the same mean within 4 standard errors."""
+    rules = Foraging(5, 2, 1)
+    ours = foraging.uniform_floor(rules, 20_000, seed=0).returns
+    env, rng, theirs = ForagingEnv(rules), np.random.default_rng(1), []
+    env.reset(seed=1)
+    for _ in range(1500):
+        total, _ = 0.0, env.reset()
+        while env.agents:
+            _, rewards, _, _, _ = env.step({a: int(rng.integers(6)) for a in env.agents})
+            total += rewards["agent_0"]
+        theirs.append(total)
+    error = np.sqrt(ours.var() / ours.size + np.var(theirs) / len(theirs))
+    assert abs(ours.mean() - np.mean(theirs)) < 4 * error
+    assert 0.2 < ours.mean() < 0.9  # a floor that is not trivially 0 or 1
