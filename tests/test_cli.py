@@ -985,3 +985,25 @@ def test_reproduce_refuses_a_setting_it_cannot_apply(paths, text, message) -> No
     result = invoke("reproduce", "--preset", "smoke", "--set", text, *paths[2])
     assert result.exit_code == 2 and result.stderr.startswith(message), result.stderr
     assert not paths[0].exists()  # refused before any run
+
+
+@pytest.mark.parametrize(
+    ("text", "value"),
+    [("50000", 50_000), ("100_000", 100_000), ("50k", 50_000), ("2.05M", 2_050_000),
+     ("2M", 2_000_000), ("1.5k", 1_500), (" 7 ", 7)],
+)  # fmt: skip
+def test_counts_with_suffixes(text, value) -> None:
+    from cmarlcd.cli.options import parse_count
+
+    assert parse_count(text, "steps") == value
+
+
+@pytest.mark.parametrize(
+    "text", ["0", "-5k", "0.5", "1.2345k", "2.0000005M", "abc", "nanM", "k", ""]
+)
+def test_counts_that_are_not_whole_or_positive_are_refused(text) -> None:
+    from cmarlcd.cli.options import parse_count
+    from cmarlcd.errors import ConfigError
+
+    with pytest.raises(ConfigError):
+        parse_count(text, "steps")

@@ -22,6 +22,9 @@ MAX_EPISODES = 100_000_000
 """Learning or evaluation episodes of one run (the paper's largest budget: 500,000). An
 evaluation keeps 16 bytes per episode, so the cap is 1.6 GB of memory per worker."""
 
+MAX_STEPS = 10_000_000_000
+"""Learning steps of one run counted in environment steps (EPyMARL's protocol: 2.05M)."""
+
 MAX_GAMES = 1_000_000_000
 """Games of one repeated-game run before it counts as a failure (default: 10,000,000)."""
 
@@ -66,6 +69,11 @@ def check_run_count(runs: int, parameter: str = "runs") -> None:
 def check_episodes(episodes: int, parameter: str) -> None:
     """A learning or evaluation budget within :data:`MAX_EPISODES`."""
     check_at_most(episodes, MAX_EPISODES, parameter)
+
+
+def check_steps(steps: int, parameter: str) -> None:
+    """A learning budget of environment steps within :data:`MAX_STEPS`."""
+    check_at_most(steps, MAX_STEPS, parameter)
 
 
 def check_seed(seed: int, parameter: str = "seed") -> None:

@@ -57,6 +57,22 @@ def test_train_on_a_foraging_task_end_to_end_and_resumed(tmp_path) -> None:
     assert redone["rows"] == section["rows"]
 
 
+def test_a_budget_of_steps_end_to_end(tmp_path) -> None:
+    args = [
+        "--game", "foraging:5x5-2p-1f", "--algorithms", "cmarl-cd,vdn", "--steps", "3k",
+        "--runs", "2", "--eval-episodes", "20", "--curve-points", "3", "--workers", "1",
+        "--no-progress", "--json", "--store", str(tmp_path / "s.sqlite"),
+        "--figures", str(tmp_path / "f"),
+    ]  # fmt: skip
+    done = cli(*args, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    doc = json.loads(done.stdout)
+    assert (doc["budget"], doc["unit"]) == (3000, "steps")
+    assert "3,000 environment steps" in doc["settings"]
+    vdn = doc["curves"]["VDN"]
+    assert [point[0] for point in vdn[0]] == [1000, 2000, 3000]
+
+
 @pytest.mark.parametrize(
     ("args", "says"),
     [
@@ -69,6 +85,8 @@ def test_train_on_a_foraging_task_end_to_end_and_resumed(tmp_path) -> None:
         (["--game", "foraging:8x8-2p-2f", "--inputs", "observations"], "--env only"),
         (["--game", "foraging:8x8-2p-2f", "--algorithms", "cmarl-cd"], "need a table"),
         (["--game", "foraging:8x8-2p-2f", "--seed-batch", "0"], "seed"),
+        (["--game", "foraging:8x8-2p-2f", "--steps", "0"], "--steps"),
+        (["--env", "tests.tiny_env:make", "--steps", "1000"], "--game only"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, says) -> None:

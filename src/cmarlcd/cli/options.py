@@ -14,6 +14,7 @@ import os
 import sys
 import tempfile
 from collections.abc import Callable
+from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
@@ -248,16 +249,27 @@ def parse_grid(text: str, parameter: str = "grid") -> tuple[int, int]:
     return shape
 
 
+#: The suffixes a count may end with, and what they multiply.
+COUNT_SUFFIXES = {"k": 1000, "m": 1_000_000}
+
+
 def parse_count(text: str, parameter: str) -> int:
-    """``"100000"``, ``"100_000"`` or ``"100k"`` -> 100000 (must be >= 1)."""
+    """``"100000"``, ``"100_000"`` or ``"100k"`` -> 100000, ``"2.05M"`` -> 2050000 (a
+    whole number once scaled; must be >= 1)."""
     part = text.replace("_", "").strip().lower()
-    scale = 1000 if part.endswith("k") else 1
+    scale = COUNT_SUFFIXES.get(part[-1:], 1)
+    digits = part[:-1] if scale > 1 else part
+    form = f"expected an integer such as 50000, 50k or 2.05M (got {text!r})"
     try:
-        value = int(part.removesuffix("k")) * scale
+        value = int(digits) * scale
     except ValueError:
-        raise ConfigError(
-            parameter, f"expected an integer such as 50000 or 50k (got {text!r})"
-        ) from None
+        try:  # a decimal before a suffix: exact in decimal, whole once scaled
+            scaled = Decimal(digits) * scale
+        except InvalidOperation:
+            raise ConfigError(parameter, form) from None
+        if scale == 1 or not scaled.is_finite() or scaled != scaled.to_integral_value():
+            raise ConfigError(parameter, form) from None
+        value = int(scaled)
     require(value >= 1, parameter, f"must be >= 1 (got {value})")
     return value
 

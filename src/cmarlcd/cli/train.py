@@ -117,6 +117,14 @@ def train(
     episodes: Annotated[
         str, typer.Option(help="Learning episodes of each run (10k allowed).")
     ] = "2000",
+    steps: Annotated[
+        str | None,
+        typer.Option(
+            help="With --game, instead of --episodes: the learning budget in environment "
+            "steps (2.05M allowed), to the end of the episode it is reached in; the curve's "
+            "points and ε's annealing count steps too."
+        ),
+    ] = None,
     runs: Annotated[int, typer.Option(help="Runs per learner.")] = 3,
     eval_episodes: Annotated[
         str, typer.Option(help="Greedy evaluation episodes at each point of the curve.")
@@ -169,9 +177,11 @@ def train(
             require(value == ENV_ONLY[name], name, "applies to --env only, not to --game")
         check_seed_batch(seed_batch)
         evaluated = parse_count(eval_episodes, "eval_episodes")
+        budget = parse_count(episodes, "episodes") if steps is None else parse_count(steps, "steps")
         game_sweep = foraging.ForagingSweep(
             learners=apply_settings(settings, configs),
-            episodes=(parse_count(episodes, "episodes"),),
+            episodes=(budget,),
+            unit="episodes" if steps is None else "steps",
             runs=runs,
             eval_episodes=evaluated,
             seed=seed,
@@ -182,6 +192,7 @@ def train(
         print_results(run, lambda console: run_game_training(game_sweep, run, console, seed_batch))
         return
     assert env is not None
+    require(steps is None, "steps", "counts the budget of --game only; with --env give --episodes")
     sweep = envs.EnvSweep(
         env=env,
         learners=apply_settings(settings, configs),

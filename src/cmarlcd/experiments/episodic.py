@@ -32,12 +32,14 @@ from cmarlcd.limits import (
     check_episodes,
     check_run_count,
     check_seed,
+    check_steps,
 )
 from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
 from cmarlcd.training.greedy import GreedyPolicy
+from cmarlcd.training.loop import BUDGET_UNITS
 from cmarlcd.training.tabular import EpisodeStats, TabularRun, evaluate
 
 #: [choice] Learning-curve resolution: greedy evaluations at this many evenly spaced
@@ -138,6 +140,9 @@ class EpisodicRun(Settings):
     curve_eval_episodes: int
     options: Options = ()
     """The game's options (stored under ``"game"`` only when there are some)."""
+    unit: str = "episodes"
+    """What the budgets count: learning episodes, or environment ``"steps"`` (stored
+    only then; a budget of steps ends at the end of the episode it is reached in)."""
 
     def to_config(self) -> dict[str, Any]:
         config = {
@@ -150,6 +155,8 @@ class EpisodicRun(Settings):
         }
         if self.options:
             config["game"] = dict(self.options)
+        if self.unit != "episodes":
+            config["unit"] = self.unit
         return config
 
     @classmethod
@@ -161,6 +168,7 @@ class EpisodicRun(Settings):
             config["curve_points"],
             config["curve_eval_episodes"],
             options_of(config.get("game", {})),
+            config.get("unit", "episodes"),
         )
 
     def stream(self) -> dict[str, Any]:
@@ -169,6 +177,8 @@ class EpisodicRun(Settings):
         stream: dict[str, Any] = {"algorithm": self.learner.name, "learner": identity(self.learner)}
         if self.options:
             stream["game"] = dict(self.options)
+        if self.unit != "episodes":
+            stream["unit"] = self.unit
         if anneals_over_budget(self.learner):
             stream["episodes"] = self.checkpoints[0]
         return stream
@@ -186,13 +196,19 @@ class EpisodicRun(Settings):
         )
         return sorted(curve | set(self.checkpoints) - {0})
 
-    def work(self) -> float:
-        """The episodes one run plays (learning and evaluation): its progress units."""
+    def work(self, max_steps: int = 1) -> float:
+        """The episodes one run plays (learning and evaluation): its progress units. A
+        budget of steps counts as episodes of ``max_steps`` steps (the game's cap)."""
         evaluated = self.schedule()
         if anneals_over_budget(self.learner):
             evaluated = [b for b in evaluated if b > 0]  # reached by playing, never at 0
         curve = self.curve_eval_episodes * len(evaluated)
-        return self.largest + curve + self.eval_episodes * len(self.checkpoints)
+        return self.learned(max_steps) + curve + self.eval_episodes * len(self.checkpoints)
+
+    def learned(self, max_steps: int) -> float:
+        """The learning budget in episodes (one of ``max_steps`` steps per episode where
+        it counts steps: the unit a run's progress reports its learning in)."""
+        return self.largest / max_steps if self.unit == "steps" else self.largest
 
 
 def options_of(options: Mapping[str, Any]) -> Options:
@@ -223,9 +239,12 @@ class EpisodicSweep:
     curve_eval_episodes: int = CURVE_EVAL_EPISODES
     options: Options = ()
     """The game's options (e.g. a larger DSN's ``grid`` and ``targets``)."""
+    unit: str = "episodes"
+    """What ``episodes`` counts: learning episodes, or environment ``"steps"``."""
 
     def __post_init__(self) -> None:
         spec = self.game.with_options(self.options).spec  # refuses options it does not take
+        require(self.unit in BUDGET_UNITS, "unit", f"must be one of {BUDGET_UNITS}")
         require(len(self.learners) > 0, "algorithms", "needs at least one algorithm")
         deep = [c.name for c in self.learners if is_deep(c)]
         require(
@@ -237,8 +256,12 @@ class EpisodicSweep:
         names = [config.name for config in self.learners]
         require(len(set(names)) == len(names), "algorithms", f"each at most once (got {names})")
         require(len(self.episodes) > 0, "episodes", "needs at least one budget")
-        require(min(self.episodes) >= 1, "episodes", f"must be >= 1 (got {min(self.episodes)})")
-        check_episodes(max(self.episodes), "episodes")
+        budget = "steps" if self.unit == "steps" else "episodes"
+        require(min(self.episodes) >= 1, budget, f"must be >= 1 (got {min(self.episodes)})")
+        if self.unit == "steps":
+            check_steps(max(self.episodes), "steps")
+        else:
+            check_episodes(max(self.episodes), "episodes")
         require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
         require(
             self.eval_episodes >= 1, "eval_episodes", f"must be >= 1 (got {self.eval_episodes})"
@@ -275,6 +298,7 @@ class EpisodicSweep:
             self.curve_points,
             self.curve_eval_episodes,
             self.options,
+            self.unit,
         )
 
     def specs(self) -> list[RunSpec]:
@@ -365,9 +389,15 @@ def run(game: EpisodicGame, settings: EpisodicRun, seed: np.random.SeedSequence)
     )
     record, trained = Recorder(game, settings, eval_seed), 0
     for budget in settings.schedule():
-        training.train(budget - trained)
+        if settings.unit == "steps":  # to the end of the episode the budget is reached in
+            before = training.turns
+            training.train_until_steps(budget)
+            learned = (training.turns - before) / spec.max_steps
+        else:
+            training.train(budget - trained)
+            learned = budget - trained
         with unit_cost(learn_seconds(learner) * record.scale):
-            report_progress(budget - trained)
+            report_progress(learned)
         trained = budget
         record(budget, GreedyPolicy(spec, table=training.greedy_policy()))
     return record.metrics()
@@ -384,7 +414,7 @@ def run_batch(
     records = [Recorder(game, settings, e) for e in eval_seeds]
     learner = settings.learner
     spec = game.with_options(settings.options).spec
-    batch = DeepBatch(spec, learner, train_seeds, settings.largest)
+    batch = DeepBatch(spec, learner, train_seeds, settings.largest, unit=settings.unit)
     with unit_cost(learn_seconds(learner) * records[0].scale):  # evaluations say their own
         batch.train(settings.schedule(), lambda k, budget, policy: records[k](budget, policy))
     return [r.metrics() for r in records]
@@ -436,8 +466,9 @@ def episode_scale(game: EpisodicGame, settings: EpisodicRun) -> float:
 def _cost(game: EpisodicGame, settings: EpisodicRun) -> float:
     """Estimated seconds of one run: its learning episodes and its evaluation episodes
     (what the run reports as it goes, :func:`cmarlcd.progress.unit_cost`)."""
-    learned = settings.largest
-    evaluated = settings.work() - learned
+    max_steps = game.with_options(settings.options).spec.max_steps
+    learned = settings.learned(max_steps)
+    evaluated = settings.work(max_steps) - learned
     per_episode = learn_seconds(settings.learner) * learned + SECONDS_PER_EPISODE * evaluated
     return per_episode * episode_scale(game, settings)
 
@@ -452,7 +483,7 @@ def experiment(game: EpisodicGame) -> Experiment:
         cost=lambda settings: _cost(game, settings),
         run_batch=lambda settings, seeds: run_batch(game, settings, seeds),
         batchable=lambda settings: is_deep(settings.learner),
-        work=EpisodicRun.work,
+        work=lambda settings: settings.work(game.with_options(settings.options).spec.max_steps),
         work_unit="episodes",
         uses_device=lambda settings: is_deep(settings.learner),
     )

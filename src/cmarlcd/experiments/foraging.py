@@ -36,6 +36,10 @@ from cmarlcd.registry import LearnerConfig
 from cmarlcd.training.tabular import EpisodeStats, evaluate_uniform
 
 EXPERIMENT = "foraging"
+#: [choice] Episodes of the uniform random policy a report's floor is read from, at least
+#: (more where the learners' evaluation has more): its return is noisy (a standard
+#: deviation of about 0.5 an episode on the small tasks), and it costs milliseconds.
+FLOOR_EPISODES = 10_000
 #: [choice] The task the experiment's kernels are compiled on before a sweep (every task
 #: shares them; this one's state table is small enough for the tabular learners).
 WARM_UP_TASK = Foraging(size=5, players=2, foods=1)
@@ -100,7 +104,7 @@ class ForagingSweep(EpisodicSweep):
 
 
 def uniform_floor(rules: Foraging, episodes: int, seed: int) -> EpisodeStats:
-    """The uniform random policy's episodes on ``rules``: the floor of a learning curve
-    (compiled, a few million steps a second; drawn from ``seed`` alone)."""
+    """``episodes`` episodes of the uniform random policy on ``rules``: the floor of a
+    learning curve (compiled, a few million steps a second; drawn from ``seed`` alone)."""
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(0x10BF,)))
     return evaluate_uniform(rules.spec(), episodes, rng)

@@ -77,6 +77,10 @@ class DeepLearnerConfig:
 
 #: Where every deep learner's schedule holds ``train_every`` (read by the pause kernel).
 TRAIN_EVERY_ENTRY = 5
+#: Where a deep side's schedule ends with what its learning stage counts (appended by the
+#: side after the learner's own entries): :data:`EPISODES_UNIT` or :data:`STEPS_UNIT`.
+BUDGET_UNIT_ENTRY = -1
+EPISODES_UNIT, STEPS_UNIT = 0.0, 1.0
 
 
 @dataclass(frozen=True)

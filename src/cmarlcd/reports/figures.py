@@ -112,20 +112,26 @@ def scaling_curves(series: dict[str, np.ndarray], title: str, path: Path) -> Pat
 
 
 def environment_curves(
-    curves: dict[str, np.ndarray], baseline: str, title: str, path: Path
+    curves: dict[str, np.ndarray],
+    baseline: str,
+    title: str,
+    path: Path,
+    unit: str = "episodes",
 ) -> Path:
     """Greedy return against learning episodes, mean over runs with a 10-90 % band, one
     line per learner; ``baseline`` (the random policy) dashed. ``curves[name]`` has shape
-    (runs, points, 3): [episodes, return, steps]."""
+    (runs, points, 3): [budget, return, steps], the budget in ``unit`` (learning
+    episodes or environment steps)."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     for name, data in curves.items():
         x, values = data[0, :, 0], data[:, :, 1]
         style = {"linestyle": "--", "color": "grey"} if name == baseline else {}
-        (line,) = ax.plot(x, values.mean(axis=0), label=f"{name} ({len(data)} runs)", **style)
+        label = name if name == baseline and len(data) == 1 else f"{name} ({len(data)} runs)"
+        (line,) = ax.plot(x, values.mean(axis=0), label=label, **style)
         lo, hi = np.percentile(values, [10, 90], axis=0)
         ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.15)
-    ax.set_xlabel("learning episodes")
+    ax.set_xlabel("learning episodes" if unit == "episodes" else "environment steps")
     ax.set_ylabel("return of the greedy policy (team)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)

@@ -65,13 +65,14 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
     first = settings_of(records[0])
     rules = foraging.Foraging.from_name(dict(first.options)["task"])
     budget, episodes = first.largest, first.eval_episodes
-    floor = foraging.uniform_floor(rules, episodes, seed)
+    floor_episodes = max(episodes, foraging.FLOOR_EPISODES)
+    floor = foraging.uniform_floor(rules, floor_episodes, seed)
     floor_return = float(floor.returns.mean())
     rows = [
         FinalRow(
             "random",
             RANDOM_LABEL,
-            episodes,
+            floor_episodes,
             floor_return,
             float(floor.returns.std()),
             float(floor.terminated.mean()),
@@ -101,17 +102,19 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         flat = [[point, floor_return, floor.lengths.mean()] for point in x]
         curves = {RANDOM_LABEL: np.array([flat]), **curves}
     where = f"foraging {rules.name}"
+    steps = first.unit == "steps"
+    learnt = f"{budget:,} environment steps" if steps else f"L = {budget:,} episodes"
     protocol = (
-        f"L = {budget:,} episodes, greedy return over {episodes:,} episodes at the end and "
+        f"{learnt}, greedy return over {episodes:,} episodes at the end and "
         f"{first.curve_eval_episodes:,} at {first.curve_points} points of the curve, team "
-        f"reward = the sum of the agents', seed {seed}; the random policy: {episodes:,} "
-        "episodes of uniform legal actions"
+        f"reward = the sum of the agents', seed {seed}; the random policy: "
+        f"{floor_episodes:,} episodes of uniform legal actions"
     )
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
     path = figures / figure_name(f"train-{rules.name}-seed{seed}", group)
-    drawn = figs.environment_curves(curves, RANDOM_LABEL, where, path)
+    drawn = figs.environment_curves(curves, RANDOM_LABEL, where, path, first.unit)
     table = TableBlock(
-        f"Greedy return after L = {budget:,} episodes on {where}",
+        f"Greedy return after {learnt} on {where}",
         ["learner", "runs", "return", "vs random", "all food", "steps"],
         [
             cells(
@@ -133,6 +136,8 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         records,
         experiment=foraging.EXPERIMENT,
         game=f"foraging:{rules.name}",
+        budget=budget,
+        unit=first.unit,
         seed=seed,
         rows=[r.to_dict() for r in rows],
         curves={label: data.tolist() for label, data in curves.items()},
@@ -145,6 +150,8 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
             "over its episodes). all food: the evaluation episodes that collected every "
             "food before the step cap."
         ),
-        FigureBlock(drawn, "greedy return against learning episodes"),
+        FigureBlock(
+            drawn, f"greedy return against {'environment steps' if steps else 'learning episodes'}"
+        ),
     )
     return section

@@ -32,10 +32,12 @@ Evaluator = Callable[[int, int, GreedyPolicy], None]
 
 
 class DeepBatch:
-    """B seeds of a deep learner learning one game for ``total_episodes`` episodes each,
-    reading the game's features where it has them, else its state indices (one-hot;
-    :func:`cmarlcd.training.deep_kernels.inputs_of`), its stacked model on ``device``
-    (default: this process's, :func:`cmarlcd.devices.current`)."""
+    """B seeds of a deep learner learning one game for ``total_episodes`` episodes each
+    (or as many environment steps, to the end of the episode in play, where ``unit`` is
+    ``"steps"``: ε then anneals over steps), reading the game's features where it has
+    them, else its state indices (one-hot; :func:`cmarlcd.training.deep_kernels.inputs_of`),
+    its stacked model on ``device`` (default: this process's,
+    :func:`cmarlcd.devices.current`)."""
 
     def __init__(
         self,
@@ -44,21 +46,22 @@ class DeepBatch:
         seeds: Sequence[np.random.SeedSequence],
         total_episodes: int,
         device: str | None = None,
+        unit: str = "episodes",
     ) -> None:
         spec.require_one_team("DeepBatch")
         init, env, act, replay = zip(*(s.spawn(4) for s in seeds), strict=True)
-        self.spec, self.config = spec, config
+        self.spec, self.config, self.unit = spec, config, unit
         self.total_episodes, self.n_seeds = int(total_episodes), len(seeds)
         replay_rngs = [np.random.default_rng(s) for s in replay]
         self.group = DeepGroup(
             spec, [0] * self.n_seeds, config, init, replay_rngs, self.total_episodes,
-            device=device,
+            device=device, unit=unit,
         )  # fmt: skip
         self.plays = [
             Play(spec, [view], np.random.default_rng(e), [np.random.default_rng(a)])
             for view, e, a in zip(self.group.views, env, act, strict=True)
         ]
-        self.batch = PlayBatch(self.plays, [self.group], self.total_episodes)
+        self.batch = PlayBatch(self.plays, [self.group], self.total_episodes, unit)
 
     @property
     def model(self):
@@ -96,24 +99,28 @@ class DeepBatch:
         return [GreedyPolicy(self.spec, play=play) for play in self.plays]
 
     def train(self, checkpoints: Sequence[int], evaluate: Evaluator) -> None:
-        """Learn until every seed has played ``total_episodes`` episodes, calling
-        ``evaluate`` as each seed reaches each checkpoint (in episodes) with the greedy
-        policy it had then (when the seeds next paused: the networks do not change in
-        between)."""
+        """Learn until every seed has played its learning stage, calling ``evaluate`` as
+        each seed reaches each checkpoint (in episodes, or environment steps) with the
+        greedy policy it had then (when the seeds next paused: the networks do not change
+        in between)."""
         points = sorted(set(checkpoints) | {self.total_episodes})
         evaluated = [0] * self.n_seeds
+        steps = self.unit == "steps"
+
+        def done(play: Play) -> int:
+            return play.turns if steps else play.finished
 
         def crossed() -> None:
             reached = [
                 (k, point)
                 for k, play in enumerate(self.plays)
                 for point in points
-                if evaluated[k] < point <= play.finished
+                if evaluated[k] < point <= done(play)
             ]
             if reached:
                 policies = self.greedy_policies()
                 for k, point in reached:
                     evaluate(k, point, policies[k])
-            evaluated[:] = [play.finished for play in self.plays]
+            evaluated[:] = [done(play) for play in self.plays]
 
         self.batch.learn(crossed)

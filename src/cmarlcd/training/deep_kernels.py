@@ -19,7 +19,7 @@ import numpy as np
 from cmarlcd.compiled import Unbound, kernel, specialise_kernel
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import TRAIN_EVERY_ENTRY
+from cmarlcd.learners.deep_config import STEPS_UNIT, TRAIN_EVERY_ENTRY
 from cmarlcd.learners.policy import (
     annealed_epsilon,
     epsilon_greedy,
@@ -152,9 +152,11 @@ def deep_pause(side) -> bool:
 
 @kernel
 def exploration(side) -> float:
-    """ε of the side's current learning episode (eq. 18)."""
+    """ε of the side's current learning episode (eq. 18), or of its current learning
+    turn where its learning stage counts environment steps (the schedule's last entry)."""
     s = side.schedule
-    return annealed_epsilon(side.counters[EPISODES] + 1, int(s[4]), s[0], s[1], s[2], s[3])
+    done = side.counters[TURNS] if s[s.shape[0] - 1] == STEPS_UNIT else side.counters[EPISODES]
+    return annealed_epsilon(done + 1, int(s[4]), s[0], s[1], s[2], s[3])
 
 
 # ---------------------------------------------------------- feature inputs

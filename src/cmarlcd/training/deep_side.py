@@ -40,7 +40,13 @@ import torch
 from cmarlcd import devices
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import DeepConfig, DeepLearnerConfig, scheduled_work
+from cmarlcd.learners.deep_config import (
+    EPISODES_UNIT,
+    STEPS_UNIT,
+    DeepConfig,
+    DeepLearnerConfig,
+    scheduled_work,
+)
 from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 from cmarlcd.learners.degree_model import DegreeModel
 from cmarlcd.learners.tabular import full_legal
@@ -62,7 +68,7 @@ from cmarlcd.training.deep_kernels import (
 )
 from cmarlcd.training.deep_replay import KEYED, RING
 from cmarlcd.training.degree_kernels import degree_kernels
-from cmarlcd.training.loop import Group
+from cmarlcd.training.loop import BUDGET_UNITS, Group
 from cmarlcd.training.protocol import Side, SideKernels
 
 # ------------------------------------------------------------------ learners
@@ -142,7 +148,9 @@ class DeepGroup(Group):
         learn_episodes: int,
         inputs: str | None = None,
         device: str | None = None,
+        unit: str = "episodes",
     ) -> None:
+        require(unit in BUDGET_UNITS, "unit", f"must be one of {BUDGET_UNITS} (got {unit!r})")
         inputs = inputs_of(spec) if inputs is None else inputs
         require(inputs in INPUTS, "inputs", f"must be one of {', '.join(INPUTS)} (got {inputs!r})")
         counts = spec.action_counts[list(spec.teams[teams[0]])].copy()
@@ -176,7 +184,9 @@ class DeepGroup(Group):
             """The states each seed has met."""
             self.model.set_state_legal(torch.from_numpy(self.legal))  # on a CPU: shared
         kernels = new_kernels(spec, inputs, config)
-        self.views = [DeepSide(self, b, counts, kernels, learn_episodes) for b in range(len(teams))]
+        self.views = [
+            DeepSide(self, b, counts, kernels, learn_episodes, unit) for b in range(len(teams))
+        ]
         self._copy_weights()
         self.replay_kind.refresh(self.ring, self.model, inputs)
 
@@ -255,13 +265,15 @@ class DeepSide(Side):
         counts: np.ndarray,
         kernels: SideKernels,
         learn_episodes: int,
+        unit: str = "episodes",
     ) -> None:
         config, spec = group.config, group.spec
         n, width, steps = counts.shape[0], int(counts.max()), spec.max_steps
         self.group, self.index, self.kernels, self.frozen = group, index, kernels, False
         replay = group.replay_kind.view(group.ring, index)
         counters = np.zeros(GENERATION + 1, np.int64)  # every entry up to the last
-        schedule = np.array(config.schedule(learn_episodes), np.float64)
+        counted = STEPS_UNIT if unit == "steps" else EPISODES_UNIT
+        schedule = np.array([*config.schedule(learn_episodes), counted], np.float64)
         joints, rewards = np.zeros((steps, n), np.int64), np.zeros(steps)
         self.data: FeatureData | IndexData
         if group.inputs == "features":

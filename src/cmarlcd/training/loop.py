@@ -46,6 +46,8 @@ second = Unbound("second")
 CHUNK_EPISODES = 2000
 #: The most teams a game may have: the loop is compiled for a first and a second side.
 MAX_TEAMS = 2
+#: What a learning budget counts: episodes, or environment steps (turns).
+BUDGET_UNITS = ("episodes", "steps")
 
 
 def learn_turns(env, a, b, width, episodes, max_steps, env_rng, rng_a, rng_b, clock) -> None:
@@ -243,6 +245,27 @@ class Play:
             self.advance(goal)
             self.require_alone()
 
+    def learned_turns(self, goal: int) -> bool:
+        """Whether ``goal`` learning turns are played and the episode they end in is
+        done: a budget of environment steps ends at the end of the episode in which it is
+        reached (as EPyMARL's ``t_max`` does)."""
+        return self.turns >= goal and self.clock[LENGTH] < 0
+
+    def episode_goal(self, turns: int) -> int:
+        """How many episodes the loop may finish, at most, before the first episode end
+        at or after ``turns`` learning turns: each episode lasts at most ``max_steps``
+        turns, so fewer episodes than this cannot reach ``turns`` (at least one more,
+        where ``turns`` is reached inside the episode in play)."""
+        left = max(turns - self.turns, 1)
+        return self.episodes + -(-left // self._max_steps)
+
+    def learn_turns_until(self, goal: int) -> None:
+        """Call the loop until ``goal`` learning turns are played, and the episode they
+        end in (:meth:`learned_turns`); whatever the calls, the play stops at the same
+        turn, with the same streams."""
+        while not self.learned_turns(goal):
+            self.learn_until(self.episode_goal(goal))
+
     def require_alone(self) -> None:
         """Refuse to go on when a side waits for its group's step: a play whose deep
         sides learn in a group learns through its :class:`PlayBatch`."""
@@ -306,26 +329,51 @@ class PlayBatch:
         learn_episodes: each play's learning stage.
     """
 
-    def __init__(self, plays: Sequence[Play], groups: Sequence[Group], learn_episodes: int) -> None:
+    def __init__(
+        self,
+        plays: Sequence[Play],
+        groups: Sequence[Group],
+        learn_episodes: int,
+        unit: str = "episodes",
+    ) -> None:
+        require(unit in BUDGET_UNITS, "unit", f"must be one of {BUDGET_UNITS} (got {unit!r})")
         self.plays, self.groups = list(plays), list(groups)
-        self.learn_episodes = int(learn_episodes)
+        self.learn_episodes, self.unit = int(learn_episodes), unit
+
+    def _learned(self, play: Play) -> bool:
+        if self.unit == "steps":
+            return play.learned_turns(self.learn_episodes)
+        return play.episodes >= self.learn_episodes
+
+    def _progress(self, play: Play) -> float:
+        """The play's learning so far in episodes (in episodes of ``max_steps`` steps
+        where the stage counts steps)."""
+        if self.unit == "steps":
+            return play.turns / play._max_steps
+        return float(play.episodes)
+
+    def _goal(self, play: Play) -> int:
+        """The episodes the play's next call may reach."""
+        if self.unit == "steps":
+            return min(play.episode_goal(self.learn_episodes), play.episodes + CHUNK_EPISODES)
+        return min(self.learn_episodes, play.episodes + CHUNK_EPISODES)
 
     def learn(self, paused: Callable[[], None] | None = None) -> None:
-        """Every play learns for its whole learning stage, progress reported as episodes
-        finish; ``paused()`` is called each time all plays have paused, before the
-        groups' step."""
-        total = self.learn_episodes
+        """Every play learns for its whole learning stage (``learn_episodes`` episodes,
+        or as many environment steps where ``unit`` is ``"steps"``, to the end of the
+        episode in play), progress reported as episodes finish; ``paused()`` is called
+        each time all plays have paused, before the groups' step."""
         learning = list(self.plays)
         while learning:
-            before = sum(play.episodes for play in learning)
+            before = sum(self._progress(play) for play in learning)
             for play in learning:
-                while play.episodes < total and not play.due():
-                    play.advance(min(total, play.episodes + CHUNK_EPISODES))
-                if play.episodes >= total:
+                while not self._learned(play) and not play.due():
+                    play.advance(self._goal(play))
+                if self._learned(play):
                     for side in play.sides:
                         side.freeze()
-            report_progress(float(sum(play.episodes for play in learning) - before))
-            learning = [play for play in learning if play.episodes < total]
+            report_progress(sum(self._progress(play) for play in learning) - before)
+            learning = [play for play in learning if not self._learned(play)]
             if paused is not None:
                 paused()
             for group in self.groups:

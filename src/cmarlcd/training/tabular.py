@@ -90,6 +90,18 @@ class TabularRun:
         self.play.learn_until(self.play.episodes + int(episodes))
         return self.play.turns - before
 
+    @property
+    def turns(self) -> int:
+        """Environment steps learnt so far."""
+        return self.play.turns
+
+    def train_until_steps(self, steps: int) -> int:
+        """Learn until ``steps`` environment steps in all, to the end of the episode in
+        play; returns the episodes taken."""
+        before = self.play.episodes
+        self.play.learn_turns_until(int(steps))
+        return self.play.episodes - before
+
     def greedy_policy(self) -> np.ndarray:
         """The greedy joint action of every state index: (n_states, n_agents)."""
         return self.side.greedy_policy()
