@@ -1,14 +1,15 @@
-"""Benchmark: a game's random steps a second, the ``lbforaging`` package's against the
-compiled Level-Based Foraging game, on one core, measured in one run.
+"""Benchmark: a game's random steps a second, the package's against the compiled game's,
+on one core, measured in one run: Level-Based Foraging (``lbforaging`` 2.0.0) and MPE's
+simple_spread (``mpe2`` 1.1.1, discrete actions, its parallel API).
 
 Both play uniform random actions and reset when an episode ends; each step makes every
-agent's observation (the package always does; the compiled game writes them into one
-buffer, as a learner reading features has them made). The package is timed over
+agent's observation (the packages always do; the compiled game writes them into one
+buffer, as a learner reading features has them made). A package is timed over
 ``--package-steps`` steps, the compiled game (compiled first, outside the clock) over
-``--steps``.
+``--steps``. Tasks: ``foraging:TASK`` or ``simple_spread:OPTIONS``.
 
-Usage: python benchmarks/bench_envs.py [--tasks 8x8-2p-2f-coop ...] [--steps 5000000]
-           [--package-steps 50000] [--json]
+Usage: python benchmarks/bench_envs.py [--tasks foraging:8x8-2p-2f-coop ...]
+           [--steps 5000000] [--package-steps 50000] [--json]
 """
 
 from __future__ import annotations
@@ -21,53 +22,91 @@ import time
 from datetime import date
 
 import numpy as np
-from numba import njit
 
+from cmarlcd.compiled import specialise
 from cmarlcd.games.foraging import Foraging
-from cmarlcd.games.foraging import kernels as k
-from cmarlcd.testing.foraging import package_env
+from cmarlcd.games.spec import GameSpec
+from cmarlcd.games.spread import SimpleSpread
+from cmarlcd.testing import foraging as foraging_check
+from cmarlcd.testing import spread as spread_check
 
-TASKS = ("8x8-2p-2f-coop", "2s-10x10-3p-3f", "15x15-4p-5f")
+TASKS = (
+    "foraging:8x8-2p-2f-coop",
+    "foraging:2s-10x10-3p-3f",
+    "foraging:15x15-4p-5f",
+    "simple_spread:N=3",
+    "simple_spread:N=5",
+)
+
+game = None  # bound by specialise
 
 
-@njit(cache=True)
-def random_steps(env, rng, steps: int, joint, team, features) -> int:
-    """``steps`` steps of uniform random actions, resetting at each episode's end; the
-    episodes played."""
-    episodes = 0
-    k.forage_reset(env, rng)
-    k.forage_features(env, 0, features)
+def random_steps(env, rng, steps, max_steps, counts, joint, team, features) -> int:
+    """Template: ``steps`` steps of uniform random actions, resetting at each episode's
+    end (the game's or the cap's); the episodes played."""
+    episodes, length = 0, 0
+    game.reset(env, rng)
+    game.features(env, 0, features)
     for _ in range(steps):
         for i in range(joint.shape[0]):
-            joint[i] = int(k.N_ACTIONS * rng.random())
-        k.forage_step(env, joint, rng, team)
-        k.forage_features(env, 0, features)
-        if k.forage_done(env):
-            episodes += 1
-            k.forage_reset(env, rng)
-            k.forage_features(env, 0, features)
+            joint[i] = int(counts[i] * rng.random())
+        game.step(env, joint, rng, team)
+        game.features(env, 0, features)
+        length += 1
+        if game.done(env) or length == max_steps:
+            episodes, length = episodes + 1, 0
+            game.reset(env, rng)
+            game.features(env, 0, features)
     return episodes
 
 
-def compiled_rate(rules: Foraging, steps: int) -> float:
-    env, rng = rules.new_env(), np.random.default_rng(0)
-    joint, team = np.zeros(rules.players, np.int64), np.zeros(1)
-    features = np.zeros(rules.spec().n_features, np.float32)
-    random_steps(env, rng, 100, joint, team, features)  # compiled outside the clock
+def compiled_rate(spec: GameSpec, steps: int) -> float:
+    play = specialise(random_steps, game=spec.kernels)
+    env, rng = spec.new_env(), np.random.default_rng(0)
+    joint, team = np.zeros(spec.n_agents, np.int64), np.zeros(1)
+    features = np.zeros(spec.n_features, np.float32)
+    args = (spec.max_steps, spec.action_counts, joint, team, features)
+    play(env, rng, 100, *args)  # compiled outside the clock
     start = time.perf_counter()
-    random_steps(env, rng, steps, joint, team, features)
+    play(env, rng, steps, *args)
     return steps / (time.perf_counter() - start)
 
 
-def package_rate(rules: Foraging, steps: int) -> float:
-    env, rng = package_env(rules), np.random.default_rng(0)
+def foraging_rate(rules: Foraging, steps: int) -> float:
+    env, rng = foraging_check.package_env(rules), np.random.default_rng(0)
     env.reset(seed=0)
     start = time.perf_counter()
     for _ in range(steps):
-        _, _, done, _, _ = env.step(rng.integers(k.N_ACTIONS, size=rules.players).tolist())
+        _, _, done, _, _ = env.step(rng.integers(6, size=rules.players).tolist())
         if done:
             env.reset()
     return steps / (time.perf_counter() - start)
+
+
+def spread_rate(rules: SimpleSpread, steps: int) -> float:
+    env, rng = spread_check.package_env(rules), np.random.default_rng(0)
+    env.reset(seed=0)
+    start = time.perf_counter()
+    for _ in range(steps):
+        actions = {agent: int(rng.integers(5)) for agent in env.agents}
+        env.step(actions)
+        if not env.agents:
+            env.reset()
+    return steps / (time.perf_counter() - start)
+
+
+def rates(task: str, steps: int, package_steps: int) -> tuple[str, float, float]:
+    """The task's name, the package's random steps a second and the compiled game's."""
+    kind, _, options = task.partition(":")
+    if kind == "foraging":
+        rules = Foraging.from_name(options)
+        theirs = foraging_rate(rules, package_steps)
+        return f"foraging:{rules.name}", theirs, compiled_rate(rules.spec(), steps)
+    if kind == "simple_spread":
+        spread = SimpleSpread.from_name(options)
+        theirs = spread_rate(spread, package_steps)
+        return f"simple_spread:N={spread.N}", theirs, compiled_rate(spread.spec(), steps)
+    raise SystemExit(f"error: --tasks: {task!r} is not foraging:TASK or simple_spread:OPTIONS")
 
 
 def main() -> None:
@@ -79,12 +118,10 @@ def main() -> None:
     args = parser.parse_args()
     rows = []
     for task in args.tasks:
-        rules = Foraging.from_name(task)
-        theirs = package_rate(rules, args.package_steps)
-        ours = compiled_rate(rules, args.steps)
+        name, theirs, ours = rates(task, args.steps, args.package_steps)
         rows.append(
             {
-                "task": rules.name,
+                "task": name,
                 "package_steps_per_second": round(theirs),
                 "compiled_steps_per_second": round(ours),
                 "ratio": round(ours / theirs, 1),
@@ -96,9 +133,9 @@ def main() -> None:
         print(json.dumps({**about, "python": platform.python_version(), "rows": rows}, indent=2))
         return
     print(f"{machine}, Python {platform.python_version()}, {date.today()}, one core")
-    print(f"{'task':26} {'lbforaging':>12} {'compiled':>12} {'ratio':>8}")
+    print(f"{'task':34} {'package':>12} {'compiled':>12} {'ratio':>8}")
     for r in rows:
-        print(f"{r['task']:26} {r['package_steps_per_second']:>10,}/s "
+        print(f"{r['task']:34} {r['package_steps_per_second']:>10,}/s "
               f"{r['compiled_steps_per_second']:>10,}/s {r['ratio']:>7.1f}x")  # fmt: skip
 
 
