@@ -1,6 +1,6 @@
 """``cmarl-cd train``: any learner on any PettingZoo ``ParallelEnv`` with discrete actions
 (``--env``, :mod:`cmarlcd.experiments.environment`), or on a game of the compiled protocol
-(``--game``, :mod:`cmarlcd.experiments.foraging`), beyond the paper."""
+(``--game``, :mod:`cmarlcd.experiments.games`), beyond the paper."""
 
 from __future__ import annotations
 
@@ -31,31 +31,13 @@ from cmarlcd.cli.sweeps import (
 )
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.experiments import environment as envs
-from cmarlcd.experiments import foraging
+from cmarlcd.experiments import games
 from cmarlcd.experiments.sensor_network import SEED_BATCH
-from cmarlcd.games.foraging import Foraging
 from cmarlcd.limits import check_seed_batch
 from cmarlcd.reports.environment import environment_section
 from cmarlcd.reports.game_training import game_training_section
 
 DEFAULT_ALGORITHMS = "vdn,qmix,deep-cmarl-cd"
-#: The compiled games ``--game`` plays, by name: each turns the text after ``NAME:`` into
-#: its rules.
-GAMES = {"foraging": Foraging.from_name}
-
-
-def parse_game(text: str) -> Foraging:
-    """``foraging:8x8-2p-2f-coop,penalty=0.1`` -> that task's rules."""
-    name, sep, options = text.partition(":")
-    if name.strip() not in GAMES:
-        raise ConfigError(
-            "game", f"unknown game {name.strip()!r} (games: {', '.join(GAMES)}; e.g. "
-            "foraging:8x8-2p-2f-coop)"
-        )  # fmt: skip
-    require(
-        bool(sep and options.strip()), "game", f"{name}: name the task after ':' (got {text!r})"
-    )
-    return GAMES[name.strip()](options.strip())
 
 
 def parse_env_kwargs(text: str) -> envs.EnvKwargs:
@@ -76,7 +58,7 @@ def run_training(sweep: envs.EnvSweep, run: Execution, console: Console | None) 
 
 
 def run_game_training(
-    sweep: foraging.ForagingSweep, run: Execution, console: Console | None, seed_batch: int
+    sweep: games.GameSweep, run: Execution, console: Console | None, seed_batch: int
 ) -> dict[str, Any]:
     """Run (or resume) a study on a compiled game and report it; its JSON document."""
     records, done = compute_runs(sweep.specs(), run, "train", seed_batch)
@@ -103,8 +85,9 @@ def train(
         str | None,
         typer.Option(
             help="Instead of --env, a compiled game: foraging:TASK[,rule=value...] (Level-"
-            "Based Foraging, e.g. foraging:8x8-2p-2f-coop or foraging:2s-10x10-3p-3f), "
-            "played with no Python per step, deep learners seed-batched."
+            "Based Foraging, e.g. foraging:8x8-2p-2f-coop or foraging:2s-10x10-3p-3f) or "
+            "simple_spread[:N=3,local_ratio=0.5,max_cycles=25] (MPE), played with no Python "
+            "per step, deep learners seed-batched."
         ),
     ] = None,
     env_kwargs: Annotated[
@@ -178,7 +161,9 @@ def train(
         check_seed_batch(seed_batch)
         evaluated = parse_count(eval_episodes, "eval_episodes")
         budget = parse_count(episodes, "episodes") if steps is None else parse_count(steps, "steps")
-        game_sweep = foraging.ForagingSweep(
+        family, rules = games.parse_game(game)
+        game_sweep = games.GameSweep(
+            game=family.game,
             learners=apply_settings(settings, configs),
             episodes=(budget,),
             unit="episodes" if steps is None else "steps",
@@ -187,7 +172,7 @@ def train(
             seed=seed,
             curve_points=curve_points,
             curve_eval_episodes=evaluated,
-            options=foraging.task_options(parse_game(game)),
+            options=family.options(rules),
         )
         print_results(run, lambda console: run_game_training(game_sweep, run, console, seed_batch))
         return

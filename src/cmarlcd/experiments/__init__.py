@@ -8,7 +8,8 @@
 * :mod:`~.compare` -- beyond the paper: CMARL-CD against the classic independent learners;
 * :mod:`~.scaling` -- beyond the paper: learners against the size of the sensor network;
 * :mod:`~.environment` -- beyond the paper: any learner on any PettingZoo ``ParallelEnv``;
-* :mod:`~.foraging` -- beyond the paper: any learner on Level-Based Foraging, compiled.
+* :mod:`~.games` -- beyond the paper: any learner on Level-Based Foraging or MPE's
+  simple_spread, compiled.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any
 from cmarlcd.experiments import (
     compare,
     environment,
-    foraging,
+    games,
     repeated,
     scaling,
     sensor_network,
@@ -60,14 +61,14 @@ for _experiment in (
     compare.COMPARE,
     scaling.SCALING,
     environment.TRAIN,
-    foraging.FORAGING,
+    *(family.experiment for family in games.FAMILIES.values()),
 ):
     register(_experiment)
 
 __all__ = [
     "compare",
     "environment",
-    "foraging",
+    "games",
     "get_experiment",
     "register",
     "repeated",

@@ -3,6 +3,7 @@ uniform random policy's return, a table of the final greedy returns and its JSON
 
 from __future__ import annotations
 
+import re
 from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -10,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cmarlcd.experiments import foraging, settings_of
+from cmarlcd.experiments import games, settings_of
 from cmarlcd.experiments.episodic import STD_DDOF
 from cmarlcd.experiments.episodic_results import row_label
 from cmarlcd.reports.section import (
@@ -58,15 +59,16 @@ def _final(record: RunRecord) -> dict[str, float]:
 
 
 def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int) -> Section:
-    """The curves and final returns of one study on a foraging task, with the uniform
-    random policy's return over the same evaluation episodes as the floor."""
+    """The curves and final returns of one study on a task of a compiled game, with the
+    uniform random policy's return as the floor."""
     from cmarlcd.reports import figures as figs
 
     first = settings_of(records[0])
-    rules = foraging.Foraging.from_name(dict(first.options)["task"])
+    family = games.FAMILIES[records[0].key.experiment]
+    rules = family.rules_of(first.options)
     budget, episodes = first.largest, first.eval_episodes
-    floor_episodes = max(episodes, foraging.FLOOR_EPISODES)
-    floor = foraging.uniform_floor(rules, floor_episodes, seed)
+    floor_episodes = max(episodes, games.FLOOR_EPISODES)
+    floor = games.uniform_floor(rules, floor_episodes, seed)
     floor_return = float(floor.returns.mean())
     rows = [
         FinalRow(
@@ -101,7 +103,7 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         x = next(iter(curves.values()))[0, :, 0]
         flat = [[point, floor_return, floor.lengths.mean()] for point in x]
         curves = {RANDOM_LABEL: np.array([flat]), **curves}
-    where = f"foraging {rules.name}"
+    where = f"{family.name} {rules.name}"
     steps = first.unit == "steps"
     learnt = f"{budget:,} environment steps" if steps else f"L = {budget:,} episodes"
     protocol = (
@@ -111,18 +113,21 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         f"{floor_episodes:,} episodes of uniform legal actions"
     )
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
-    path = figures / figure_name(f"train-{rules.name}-seed{seed}", group)
+    stem = re.sub(r"[^A-Za-z0-9.-]+", "_", f"train-{family.name}-{rules.name}-seed{seed}")
+    path = figures / figure_name(stem, group)
     drawn = figs.environment_curves(curves, RANDOM_LABEL, where, path, first.unit)
+    success = family.success
+    columns = ["learner", "runs", "return", "vs random", *([success] if success else []), "steps"]
     table = TableBlock(
         f"Greedy return after {learnt} on {where}",
-        ["learner", "runs", "return", "vs random", "all food", "steps"],
+        columns,
         [
             cells(
                 r.label,
                 str(r.runs) if r.algorithm != "random" else "-",
                 f"{r.mean_return:.3f} ± {r.std_return:.3f}",
                 f"{r.above_random:+.3f}",
-                f"{100 * r.success_rate:.1f} %",
+                *([f"{100 * r.success_rate:.1f} %"] if success else []),
                 f"{r.mean_steps:.1f}",
             )
             for r in rows
@@ -134,8 +139,8 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         f"Learning on {where} (beyond the paper)",
         protocol,
         records,
-        experiment=foraging.EXPERIMENT,
-        game=f"foraging:{rules.name}",
+        experiment=family.name,
+        game=f"{family.name}:{rules.name}",
         budget=budget,
         unit=first.unit,
         seed=seed,
@@ -147,8 +152,12 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         table,
         TextBlock(
             "Mean over runs; ± the spread over runs (population std; for the random policy, "
-            "over its episodes). all food: the evaluation episodes that collected every "
-            "food before the step cap."
+            "over its episodes)."
+            + (
+                f" {success}: the evaluation episodes that ended before the step cap."
+                if success
+                else ""
+            )
         ),
         FigureBlock(
             drawn, f"greedy return against {'environment steps' if steps else 'learning episodes'}"

@@ -1,5 +1,6 @@
-"""``cmarl-cd train --game foraging:TASK`` (experiments/foraging.py, reports/game_training.py):
-end to end as a user runs it, bad input refused in one line, the random floor."""
+"""``cmarl-cd train --game NAME:TASK`` (experiments/games.py, reports/game_training.py) on
+Level-Based Foraging and simple_spread: end to end as a user runs it, bad input refused in
+one line, the random floor."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import numpy as np
 import pytest
 
 from cmarlcd.errors import ConfigError
-from cmarlcd.experiments import foraging
+from cmarlcd.experiments import games
 from cmarlcd.games.foraging import Foraging, ForagingEnv
 from cmarlcd.registry import LEARNERS
 
@@ -73,10 +74,31 @@ def test_a_budget_of_steps_end_to_end(tmp_path) -> None:
     assert [point[0] for point in vdn[0]] == [1000, 2000, 3000]
 
 
+def test_train_on_simple_spread_end_to_end(tmp_path) -> None:
+    args = [
+        "--game", "simple_spread:N=2,local_ratio=0", "--algorithms", "vdn", "--steps", "2k",
+        "--runs", "2", "--eval-episodes", "10", "--curve-points", "2", "--seed-batch", "2",
+        "--workers", "1", "--no-progress", "--json", "--store", str(tmp_path / "s.sqlite"),
+        "--figures", str(tmp_path / "f"),
+    ]  # fmt: skip
+    done = cli(*args, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    doc = json.loads(done.stdout)
+    assert doc["experiment"] == "simple_spread"
+    assert doc["game"] == "simple_spread:N=2,local_ratio=0,max_cycles=25"
+    rows = {row["label"]: row for row in doc["rows"]}
+    assert set(rows) == {"random policy", "VDN"} and rows["VDN"]["runs"] == 2
+    assert rows["random policy"]["mean_steps"] == 25.0  # never terminates: the cap
+    assert Path(doc["figures"]["curves"]).exists()
+
+
 @pytest.mark.parametrize(
     ("args", "says"),
     [
         (["--game", "chess:8x8"], "unknown game 'chess'"),
+        (["--game", "simple_spread:N=0"], "N"),
+        (["--game", "simple_spread:speed=2"], "takes N, local_ratio"),
+        (["--game", "simple_spread", "--algorithms", "la-oca"], "no state index"),
         (["--game", "foraging:9x9-2p"], "not a foraging task"),
         (["--game", "foraging:8x8-2p-2f,speed=2"], "no rule 'speed'"),
         (["--game", "foraging:"], "name the task"),
@@ -98,12 +120,12 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, args, says) -> None:
 
 
 def test_tabular_learners_play_only_tasks_whose_table_fits() -> None:
-    assert foraging.tabular_fits(Foraging(5, 2, 1)) and foraging.tabular_fits(Foraging(8, 2, 1))
-    assert not foraging.tabular_fits(Foraging(8, 2, 2))
+    fits = games.FORAGING.tabular_fits
+    assert fits(Foraging(5, 2, 1)) and fits(Foraging(8, 2, 1)) and not fits(Foraging(8, 2, 2))
     with pytest.raises(ConfigError, match="need a table"):
-        foraging.ForagingSweep(
+        games.GameSweep(
             learners=(LEARNERS["cmarl-cd"],),
-            options=foraging.task_options(Foraging.from_name("8x8-2p-2f-coop")),
+            options=games.FORAGING.options(Foraging.from_name("8x8-2p-2f-coop")),
         )
 
 
@@ -111,7 +133,7 @@ def test_the_random_floor_is_the_uniform_policy_s_return() -> None:
     """The compiled uniform policy against one played through the ParallelEnv, on a task
     where it often collects the food: the same mean within 4 standard errors."""
     rules = Foraging(5, 2, 1)
-    ours = foraging.uniform_floor(rules, 20_000, seed=0).returns
+    ours = games.uniform_floor(rules, 20_000, seed=0).returns
     env, rng, theirs = ForagingEnv(rules), np.random.default_rng(1), []
     env.reset(seed=1)
     for _ in range(1500):
