@@ -85,3 +85,27 @@ def test_runs_of_another_budget_are_not_mixed_in(tmp_path: Path) -> None:
     assert done.returncode == 2 and done.stderr.count("\n") == 1
     assert "another budget" in done.stderr
     assert "runs already" not in done.stdout
+
+
+def test_the_compiled_command_makes_the_runs_of_the_compiled_side() -> None:
+    """``cmarl-cd train --game`` given the printed command builds the very settings (so
+    the seeds) the compiled side runs."""
+    import shlex
+
+    from cmarlcd import registry
+    from cmarlcd.cli.options import apply_settings
+    from cmarlcd.experiments import games
+
+    module = anchor()
+    words = shlex.split(module.compiled_command(1_020_000, 102_000, 50))
+    option = {words[k]: words[k + 1] for k in range(2, len(words) - 1, 2)}
+    family, rules = games.parse_game(option["--game"])
+    configs = tuple(registry.require_learner(n) for n in ("vdn", "qmix"))
+    learners = dict(zip(("vdn", "qmix"), apply_settings(option["--set"], configs), strict=True))
+    for name, learner in learners.items():
+        ours = module.compiled_settings(name, 1_020_000, 102_000, 50)
+        assert ours.learner == learner
+        assert ours.options == family.options(rules, option["--inputs"])
+        assert ours.checkpoints == (int(option["--episodes"]),) == (40_800,)
+        assert (ours.curve_points, ours.eval_episodes) == (10, 50)
+        assert (int(option["--curve-points"]), int(option["--eval-episodes"])) == (10, 50)

@@ -5,7 +5,11 @@ actions) with the same hyper-parameters (:data:`SHARED`, printed with every run)
 same frame budget and the same seeds count, and are evaluated greedily at the same frame
 counts. A frame is one environment step (every agent acts once); a return is the mean
 over agents of each agent's summed reward (BenchMARL's "episode reward mean"; cmarl-cd's
-team reward with ``reward="mean"``).
+team reward with ``reward="mean"``). A third side, ``cmarl-cd-compiled``
+(``--sides benchmarl,cmarl-cd,cmarl-cd-compiled``), runs cmarl-cd's with the same settings
+on its compiled simple_spread (``train --game simple_spread:reward=mean --inputs
+own-observations``), one copy of the game per seed; its time is not split into
+collection and training.
 
 It needs its own environment (BenchMARL 1.5.2 and torchrl, never the package's
 dependencies): ``bash benchmarks/anchors/install.sh VENV``. Each (side, algorithm, seed)
@@ -29,8 +33,12 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-SIDES = ("benchmarl", "cmarl-cd")
-SIDE_NAMES = {"benchmarl": "BenchMARL 1.5.2", "cmarl-cd": "cmarl-cd"}
+SIDES = ("benchmarl", "cmarl-cd", "cmarl-cd-compiled")
+SIDE_NAMES = {
+    "benchmarl": "BenchMARL 1.5.2",
+    "cmarl-cd": "cmarl-cd",
+    "cmarl-cd-compiled": "cmarl-cd, compiled game",
+}
 ALGORITHMS = ("vdn", "qmix")
 STEPS_PER_EPISODE = 25
 COLLECTED_PER_BATCH = 6_000
@@ -90,6 +98,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+    unknown = [side for side in args.sides.split(",") if side not in SIDES]
+    if unknown:
+        print(
+            f"error: --sides: unknown side {unknown[0]!r} (sides: {', '.join(SIDES)})",
+            file=sys.stderr,
+        )
+        return 2
     out = Path(args.out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     if args.job:  # one run, in a process of its own (see below)
@@ -142,7 +157,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--eval-episodes", type=int, default=50, help="episodes per evaluation")
     p.add_argument("--seeds", type=int, default=3, help="seeds per side and algorithm")
     p.add_argument("--algorithms", default="vdn,qmix", help="comma list of vdn, qmix")
-    p.add_argument("--sides", default=",".join(SIDES), help="comma list of benchmarl, cmarl-cd")
+    p.add_argument(
+        "--sides",
+        default="benchmarl,cmarl-cd",
+        help="comma list of benchmarl, cmarl-cd (mpe2) and cmarl-cd-compiled (cmarl-cd on "
+        "its compiled simple_spread)",
+    )
     p.add_argument("--out", default="results/anchor", help="folder of runs, table and figure")
     p.add_argument("--job", help=argparse.SUPPRESS)  # SIDE:ALGORITHM:SEED, one run
     p.add_argument(
@@ -352,7 +372,70 @@ def equivalent_command(frames: int, eval_every: int, episodes: int) -> str:
     )
 
 
-JOBS: dict[str, Callable] = {"benchmarl": benchmarl_run, "cmarl-cd": ours_run}
+def compiled_settings(algorithm: str, frames: int, eval_every: int, episodes: int):
+    """The settings of a cmarl-cd run on its compiled simple_spread (those of
+    :func:`compiled_command`): the cmarl-cd side's, each agent on its own observation and
+    the mean reward, on one copy of the game per seed."""
+    from cmarlcd.experiments import games
+    from cmarlcd.experiments.episodic import EpisodicRun
+    from cmarlcd.games.spread import SimpleSpread
+    from cmarlcd.learners.deep_config import DeepConfig
+
+    options = games.SIMPLE_SPREAD.options(SimpleSpread(reward="mean"), "own-observations")
+    return EpisodicRun(
+        DeepConfig(mixer=algorithm, **OURS), (frames // STEPS_PER_EPISODE,), episodes,
+        frames // eval_every, episodes, options,
+    )  # fmt: skip
+
+
+def compiled_run(algorithm: str, seed: int, frames: int, eval_every: int, episodes: int):
+    """One cmarl-cd run on the compiled simple_spread, exactly as ``cmarl-cd train --game``
+    makes run ``seed`` of root seed 0 (:func:`compiled_command`); one clock for all of it
+    (the compiled loop does not split collection from training)."""
+    import torch
+
+    import cmarlcd
+    from cmarlcd.experiments import games
+    from cmarlcd.experiments.episodic import run_batch
+    from cmarlcd.runs import RunSpec
+
+    torch.set_num_threads(1)
+    settings = compiled_settings(algorithm, frames, eval_every, episodes)
+    family = games.SIMPLE_SPREAD
+    spec = RunSpec.make(family.name, algorithm, settings, 0, seed)
+    started = time.perf_counter()
+    (result,) = run_batch(family.game, settings, [spec.seed_sequence()])
+    total = time.perf_counter() - started
+    unsplit = float("nan")
+    return {
+        "curve": [[point[0] * STEPS_PER_EPISODE, point[2]] for point in result["curve"]],
+        "seconds": {
+            "training": unsplit,
+            "evaluation": unsplit,
+            "collection": unsplit,
+            "total": total,
+        },
+        "versions": {"cmarl-cd": cmarlcd.__version__},
+        "command": compiled_command(frames, eval_every, episodes),
+    }
+
+
+def compiled_command(frames: int, eval_every: int, episodes: int) -> str:
+    """The ``cmarl-cd train`` command that stores the runs of the compiled side."""
+    sets = ",".join(f"{a}.{k}={v}" for a in ALGORITHMS for k, v in OURS.items())
+    return (
+        "cmarl-cd train --game simple_spread:reward=mean --inputs own-observations "
+        f"--algorithms vdn,qmix --episodes {frames // STEPS_PER_EPISODE} "
+        f"--eval-episodes {episodes} --curve-points {frames // eval_every} --seed-batch 1 "
+        f"--seed 0 --set {sets}"
+    )
+
+
+JOBS: dict[str, Callable] = {
+    "benchmarl": benchmarl_run,
+    "cmarl-cd": ours_run,
+    "cmarl-cd-compiled": compiled_run,
+}
 
 
 def check_task(episodes: int = 20) -> str:
@@ -459,7 +542,7 @@ def figure(summary: dict, path: Path) -> None:
 
     fig, axes = plt.subplots(1, len(ALGORITHMS), figsize=(10, 3.6), sharey=True)
     for ax, algorithm in zip(axes, ALGORITHMS, strict=True):
-        for side, colour in zip(SIDES, ("tab:gray", "tab:blue"), strict=True):
+        for side, colour in zip(SIDES, ("tab:gray", "tab:blue", "tab:green"), strict=True):
             c = summary["cells"].get(f"{side}/{algorithm}")
             if not c:
                 continue

@@ -92,6 +92,21 @@ def test_train_on_simple_spread_end_to_end(tmp_path) -> None:
     assert Path(doc["figures"]["curves"]).exists()
 
 
+def test_vdn_and_qmix_on_their_own_observations_end_to_end(tmp_path) -> None:
+    args = [
+        "--game", "simple_spread:N=2,reward=mean", "--inputs", "own-observations",
+        "--algorithms", "vdn,qmix", "--episodes", "60", "--runs", "1", "--eval-episodes", "5",
+        "--curve-points", "2", "--workers", "1", "--no-progress", "--json",
+        "--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "f"),
+    ]  # fmt: skip
+    done = cli(*args, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    doc = json.loads(done.stdout)
+    assert doc["inputs"] == "own-observations" and "each agent its own" in doc["settings"]
+    assert "the mean of the agents'" in doc["settings"]
+    assert {row["label"] for row in doc["rows"]} == {"random policy", "VDN", "QMIX"}
+
+
 @pytest.mark.parametrize(
     ("args", "says"),
     [
@@ -104,7 +119,9 @@ def test_train_on_simple_spread_end_to_end(tmp_path) -> None:
         (["--game", "foraging:"], "name the task"),
         (["--game", "foraging:8x8-2p-2f", "--env", "tests.tiny_env:make"], "one of --env"),
         ([], "one of --env"),
-        (["--game", "foraging:8x8-2p-2f", "--inputs", "observations"], "--env only"),
+        (["--game", "foraging:8x8-2p-2f", "--reward", "mean"], "--env only"),
+        (["--game", "simple_spread", "--inputs", "own-observations"], "vdn and qmix only"),
+        (["--game", "simple_spread", "--inputs", "pixels"], "inputs"),
         (["--game", "foraging:8x8-2p-2f", "--algorithms", "cmarl-cd"], "need a table"),
         (["--game", "foraging:8x8-2p-2f", "--seed-batch", "0"], "seed"),
         (["--game", "foraging:8x8-2p-2f", "--steps", "0"], "--steps"),

@@ -72,6 +72,13 @@ def test_rewards_weigh_the_global_and_the_own_by_local_ratio() -> None:
     assert env[4].tolist() == pytest.approx([-0.8, -0.8])
 
 
+def test_the_team_reward_is_the_mean_where_the_rules_say_so() -> None:
+    rules = SimpleSpread(N=2, reward="mean")
+    env = place(rules, [(0.0, 0.0), (0.2, 0.0)], [(0.0, 0.0), (1.0, 0.0)])
+    assert step(env, NONE, NONE) == pytest.approx(-0.9)
+    assert rules.name.endswith(",reward=mean") and SimpleSpread.from_name(rules.name) == rules
+
+
 def test_observation_layout() -> None:
     rules = SimpleSpread(N=2)
     env = place(rules, [(0.5, -0.5), (0.0, 0.25)], [(1.0, 1.0), (-1.0, 0.0)])
@@ -106,7 +113,8 @@ def test_task_names(text, expected) -> None:
 
 
 @pytest.mark.parametrize(
-    "text", ["N=0", "N=2.5", "local_ratio=2", "speed=1", "N", "local_ratio=x", "N=17"]
+    "text",
+    ["N=0", "N=2.5", "local_ratio=2", "speed=1", "N", "local_ratio=x", "N=17", "reward=max"],
 )
 def test_bad_names_are_refused(text) -> None:
     with pytest.raises(ConfigError):

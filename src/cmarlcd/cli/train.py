@@ -67,7 +67,10 @@ def run_game_training(
 
 
 #: The options that only ``--env`` reads, with their defaults.
-ENV_ONLY = {"env_kwargs": "{}", "reward": "sum", "inputs": "state", "envs": envs.DEFAULT_ENVS}
+ENV_ONLY = {"env_kwargs": "{}", "reward": "sum", "envs": envs.DEFAULT_ENVS}
+#: ``--inputs`` with ``--game``: a compiled game's features are every agent's observation
+#: joined, its "state" (:data:`cmarlcd.experiments.games.GAME_INPUTS`).
+GAME_INPUTS = {"state": "observations"}
 
 
 @app.command(short_help="Beyond the paper: learners on any PettingZoo ParallelEnv.")
@@ -122,7 +125,8 @@ def train(
         str,
         typer.Option(
             help="What the learners read: state (the env's state()), observations (joined), or "
-            "own-observations (VDN, QMIX: each agent its own, the mixer the state)."
+            "own-observations (VDN, QMIX: each agent its own, the mixer the state). With "
+            "--game, state and observations are every agent's observation joined."
         ),
     ] = "state",
     envs_per_run: Annotated[
@@ -155,7 +159,7 @@ def train(
     configs = tuple(registry.require_learner(name) for name in names)
     require_torch_for(names)
     if game is not None:
-        given = {"env_kwargs": env_kwargs, "reward": reward, "inputs": inputs, "envs": envs_per_run}
+        given = {"env_kwargs": env_kwargs, "reward": reward, "envs": envs_per_run}
         for name, value in given.items():
             require(value == ENV_ONLY[name], name, "applies to --env only, not to --game")
         check_seed_batch(seed_batch)
@@ -172,7 +176,7 @@ def train(
             seed=seed,
             curve_points=curve_points,
             curve_eval_episodes=evaluated,
-            options=family.options(rules),
+            options=family.options(rules, GAME_INPUTS.get(inputs, inputs)),
         )
         print_results(run, lambda console: run_game_training(game_sweep, run, console, seed_batch))
         return

@@ -39,6 +39,7 @@ from cmarlcd.experiments.episodic import (
     terminated_episodes,
 )
 from cmarlcd.games.foraging import Foraging
+from cmarlcd.games.observations import own_observations
 from cmarlcd.games.spread import SimpleSpread
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment
@@ -92,20 +93,39 @@ class GameFamily:
     def rules_of(self, options: Options) -> Any:
         """The rules of the task ``options`` name."""
         given = dict(options)
-        unknown = sorted(set(given) - {"task"})
+        unknown = sorted(set(given) - {"task", "inputs"})
         require(not unknown, unknown[0] if unknown else "game", f"is no option of {self.name}")
         return self.parse(str(given.get("task", self.warm_up.name)))
 
     @staticmethod
-    def options(rules: Any) -> Options:
-        """The options of a task's runs: its full name, always."""
-        return (("task", rules.name),)
+    def options(rules: Any, inputs: str = "observations") -> Options:
+        """The options of a task's runs: its full name, always, and what the learners
+        read where it is not every observation joined."""
+        require(inputs in GAME_INPUTS, "inputs", f"must be one of {', '.join(GAME_INPUTS)}")
+        return (("inputs", inputs),) * (inputs != GAME_INPUTS[0]) + (("task", rules.name),)
+
+    def spec_of(self, options: Options) -> Any:
+        """The game the options name: the task's, with each agent's own observation laid
+        out for it where ``inputs`` says so."""
+        rules = self.rules_of(options)
+        if dict(options).get("inputs", GAME_INPUTS[0]) == "own-observations":
+            return own_observations(rules.spec(), rules.observation_size)
+        return rules.spec()
+
+
+#: [choice] What the deep learners read of a compiled game: every agent's observation
+#: joined (``observations``, the default), or ``own-observations``: VDN's and QMIX's
+#: agents each their own, QMIX's mixer the joined ones (decentralised execution, as
+#: EPyMARL and BenchMARL run them; :func:`cmarlcd.games.observations.own_observations`).
+GAME_INPUTS = ("observations", "own-observations")
+#: The learners that can read ``own-observations``.
+OWN_OBSERVATION_LEARNERS = ("vdn", "qmix")
 
 
 @functools.lru_cache(maxsize=64)
 def _task_game(game: EpisodicGame, options: Options) -> EpisodicGame:
-    rules = FAMILIES[game.experiment].rules_of(options)
-    return EpisodicGame(game.experiment, rules.spec(), terminated_episodes, 0)
+    spec = FAMILIES[game.experiment].spec_of(options)
+    return EpisodicGame(game.experiment, spec, terminated_episodes, 0)
 
 
 def foraging_tabular_fits(rules: Foraging) -> bool:
@@ -164,6 +184,14 @@ class GameSweep(EpisodicSweep):
     def __post_init__(self) -> None:
         super().__post_init__()
         family, rules = self.family, self.rules
+        if dict(self.options).get("inputs") == "own-observations":
+            others = [c.name for c in self.learners if c.name not in OWN_OBSERVATION_LEARNERS]
+            require(
+                not others,
+                "inputs",
+                f"own-observations is read by {' and '.join(OWN_OBSERVATION_LEARNERS)} only "
+                f"(not {', '.join(others)})",
+            )
         tabular = [c.name for c in self.learners if not is_deep(c)]
         if tabular and not family.tabular_fits(rules):
             spec = rules.spec()

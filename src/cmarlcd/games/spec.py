@@ -70,6 +70,11 @@ class GameSpec:
             state while its weights stay the same
             (:data:`cmarlcd.training.deep_kernels.GREEDY_CACHE_SLOTS`). Declare it only
             where it holds: a side would act on another state's actions otherwise.
+        own_dim: where the features end with each agent's own observation, this many
+            numbers each (``[s, o_1, ..., o_n]``, e.g.
+            :func:`cmarlcd.games.observations.own_observations`), so that VDN's and
+            QMIX's agent networks read their own and QMIX's mixer ``s``; 0: every
+            network reads the whole feature vector.
     """
 
     name: str
@@ -82,6 +87,7 @@ class GameSpec:
     teams: tuple[tuple[int, ...], ...]
     n_features: int = 0
     state_determines_features: bool = False
+    own_dim: int = 0
 
     def __post_init__(self) -> None:
         counts = np.array(self.action_counts, dtype=np.int64)
@@ -92,6 +98,11 @@ class GameSpec:
         require(len(self.agents) == counts.size, "agents", "needs one name per action count")
         require(self.n_states >= 1, "n_states", f"must be >= 1 (got {self.n_states})")
         require(self.max_steps >= 1, "max_steps", f"must be >= 1 (got {self.max_steps})")
+        require(
+            self.own_dim >= 0 and counts.size * self.own_dim <= self.n_features,
+            "own_dim",
+            f"must fit the features: n_agents x own_dim <= {self.n_features} (got {self.own_dim})",
+        )
         members = sorted(a for team in self.teams for a in team)
         require(
             members == list(range(counts.size)),

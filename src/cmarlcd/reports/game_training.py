@@ -106,10 +106,17 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
     where = f"{family.name} {rules.name}"
     steps = first.unit == "steps"
     learnt = f"{budget:,} environment steps" if steps else f"L = {budget:,} episodes"
+    inputs = dict(first.options).get("inputs", "observations")
+    read = (
+        "each agent its own observation"
+        if inputs == "own-observations"
+        else "every agent's observation"
+    )
+    team = "mean" if getattr(rules, "reward", "sum") == "mean" else "sum"
     protocol = (
-        f"{learnt}, greedy return over {episodes:,} episodes at the end and "
-        f"{first.curve_eval_episodes:,} at {first.curve_points} points of the curve, team "
-        f"reward = the sum of the agents', seed {seed}; the random policy: "
+        f"{learnt}, deep learners reading {read}, greedy return over {episodes:,} episodes "
+        f"at the end and {first.curve_eval_episodes:,} at {first.curve_points} points of the "
+        f"curve, team reward = the {team} of the agents', seed {seed}; the random policy: "
         f"{floor_episodes:,} episodes of uniform legal actions"
     )
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
@@ -141,6 +148,7 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         records,
         experiment=family.name,
         game=f"{family.name}:{rules.name}",
+        inputs=inputs,
         budget=budget,
         unit=first.unit,
         seed=seed,

@@ -107,6 +107,9 @@ class FeatureData(NamedTuple):
     """(2, width) floats a learner's kernels may use as they like."""
     cache: GreedyCache
     """The greedy actions computed so far (VDN and QMIX)."""
+    starts: np.ndarray
+    """(n_agents,) int64: the first feature each agent's network reads (0 where it reads
+    them all; its own observation's where the game lays them out, ``GameSpec.own_dim``)."""
 
 
 class IndexData(NamedTuple):
@@ -164,8 +167,16 @@ def exploration(side) -> float:
 
 @kernel
 def hidden_layer(weights, agent: int, x, hidden) -> None:
-    """``hidden`` := ReLU(x W1 + b1) of agent ``agent``, in float32 as the networks
-    compute it (``hidden`` is a float32 scratch).
+    """``hidden`` := ReLU(x W1 + b1) of agent ``agent`` (:func:`hidden_layer_at` the
+    whole of ``x``)."""
+    hidden_layer_at(weights, agent, x, 0, hidden)
+
+
+@kernel
+def hidden_layer_at(weights, agent: int, x, lo: int, hidden) -> None:
+    """``hidden`` := ReLU(x[lo : lo + d] W1 + b1) of agent ``agent`` (``d``: its
+    network's inputs, the whole feature vector or its own observation), in float32 as
+    the networks compute it (``hidden`` is a float32 scratch).
 
     Each unit's sum runs over the features in their order, as before, but the units
     are summed side by side, so that the inner loop (over units, along W1's rows)
@@ -176,8 +187,8 @@ def hidden_layer(weights, agent: int, x, hidden) -> None:
     units = hidden.shape[0]
     for h in range(units):
         hidden[h] = b1[agent, h]
-    for f in range(x.shape[0]):
-        value = x[f]
+    for f in range(w1.shape[1]):
+        value = x[lo + f]
         if value == 0.0:
             continue
         for h in range(units):
@@ -201,7 +212,13 @@ def output_unit(weights, agent: int, hidden, a: int) -> float:
 @kernel
 def greedy_agent(weights, agent: int, x, legal_row, count: int, hidden) -> int:
     """The agent's legal action of largest Q at ``x`` (lowest index on ties)."""
-    hidden_layer(weights, agent, x, hidden)
+    return greedy_agent_at(weights, agent, x, 0, legal_row, count, hidden)
+
+
+@kernel
+def greedy_agent_at(weights, agent: int, x, lo: int, legal_row, count: int, hidden) -> int:
+    """:func:`greedy_agent`, the agent's network reading ``x`` from feature ``lo``."""
+    hidden_layer_at(weights, agent, x, lo, hidden)
     best, best_q = -1, 0.0
     for a in range(count):
         if not legal_row[a]:
@@ -249,11 +266,12 @@ def cache_slot(side, s: int) -> int:
 def cached_greedy(side, slot: int, agent: int, x, legal_row, count: int) -> int:
     """:func:`greedy_agent` at ``x``, read from cache slot ``slot`` once computed there
     (``slot`` -1: computed every time)."""
+    lo = side.starts[agent]
     if slot < 0:
-        return greedy_agent(side.weights, agent, x, legal_row, count, side.hidden)
+        return greedy_agent_at(side.weights, agent, x, lo, legal_row, count, side.hidden)
     action = side.cache.actions[slot, agent]
     if action < 0:
-        action = greedy_agent(side.weights, agent, x, legal_row, count, side.hidden)
+        action = greedy_agent_at(side.weights, agent, x, lo, legal_row, count, side.hidden)
         side.cache.actions[slot, agent] = action
     return action
 

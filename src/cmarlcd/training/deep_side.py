@@ -92,6 +92,14 @@ def register_deep_learner(
     note("deep learner", f"{config_type.__module__}.{config_type.__qualname__}")
 
 
+def own_starts(n_features: int, n: int, own_dim: int) -> np.ndarray:
+    """The first feature each of ``n`` agents' networks reads: its own observation's,
+    the last ``n * own_dim`` features in agent order, or 0 (all of them)."""
+    if not own_dim:
+        return np.zeros(n, np.int64)
+    return np.array([n_features - (n - i) * own_dim for i in range(n)], np.int64)
+
+
 def parts_of(config: DeepLearnerConfig) -> tuple[Callable, Callable, Any]:
     """The side kernels, the model and the replay kind of ``config``'s learner."""
     for config_type, (kernels, model, replay) in DEEP_LEARNERS.items():
@@ -164,13 +172,20 @@ class DeepGroup(Group):
         than when its batch says (:class:`cmarlcd.training.loop.PlayBatch`)."""
         new_kernels, new_model, self.replay_kind = parts_of(config)
         device = devices.current() if device is None else device
-        self.model = new_model(counts, features or spec.n_states, config, init_seeds, device)
+        # VDN's and QMIX's agents read their own observation where the game lays the
+        # features out so (GameSpec.own_dim); other learners read them whole
+        own = spec.own_dim if features and isinstance(config, DeepConfig) else 0
+        self.own_dim = own
+        mine = {"own_dim": own} if own else {}
+        self.model = new_model(
+            counts, features or spec.n_states, config, init_seeds, device, **mine
+        )
         self.replay_rngs = list(replay_rngs)
         self.ring = self.replay_kind.new(config, seeds, counts, spec, features)
         """Every seed's replay (a ring of transitions, or a learner's own kind)."""
         if inputs == "features":
             self.weights = Weights(
-                np.zeros((seeds * n, features, config.hidden), np.float32),
+                np.zeros((seeds * n, own or features, config.hidden), np.float32),
                 np.zeros((seeds * n, config.hidden), np.float32),
                 np.zeros((seeds * n, config.hidden, width), np.float32),
                 np.zeros((seeds * n, width), np.float32),
@@ -291,6 +306,7 @@ class DeepSide(Side):
                 schedule,
                 np.zeros((2, width)),
                 new_greedy_cache(spec, n),
+                own_starts(spec.n_features, n, group.own_dim),
             )
         else:
             self.data = IndexData(

@@ -55,8 +55,9 @@ X, Y, VX, VY = range(4)
     RADIUS,
     SENSITIVITY,
     MASS,
-) = range(8)
-N_PARAMS = 8
+    TEAM_MEAN,
+) = range(9)
+N_PARAMS = 9
 #: The package's world and agents.
 PACKAGE_PARAMS = {
     DT: 0.1,
@@ -71,7 +72,7 @@ PACKAGE_PARAMS = {
 SPAWN = 1.0
 
 
-def new_env(agents: int, local_ratio: float) -> tuple[np.ndarray, ...]:
+def new_env(agents: int, local_ratio: float, team_mean: bool = False) -> tuple[np.ndarray, ...]:
     """The state arrays of one game:
 
     * ``agents`` (N, 4) float64: each agent's position and velocity (X, Y, VX, VY);
@@ -84,6 +85,7 @@ def new_env(agents: int, local_ratio: float) -> tuple[np.ndarray, ...]:
     for entry, value in PACKAGE_PARAMS.items():
         params[entry] = value
     params[LOCAL_RATIO] = local_ratio
+    params[TEAM_MEAN] = float(team_mean)
     return (
         np.zeros((agents, 4), dtype=np.float64),
         np.zeros((agents, 2), dtype=np.float64),
@@ -166,7 +168,7 @@ def spread_step(env, joint, rng, team_rewards) -> None:
                 own -= 1.0
         rewards[i] = covered * (1 - ratio) + own * ratio
         total += rewards[i]
-    team_rewards[0] = total
+    team_rewards[0] = total / n if params[TEAM_MEAN] else total
 
 
 @kernel

@@ -27,6 +27,9 @@ class SimpleSpread:
     """The weight of each agent's own (collision) reward; the global one has 1 - it."""
     max_cycles: int = 25
     """Steps of an episode."""
+    reward: str = "sum"
+    """[choice] The team's reward from the agents': their ``sum`` (as ``train --env``'s
+    default) or their ``mean`` (BenchMARL's, the anchor's)."""
 
     def __post_init__(self) -> None:
         require(
@@ -45,6 +48,9 @@ class SimpleSpread:
             "max_cycles",
             f"must be a whole number >= 1 (got {self.max_cycles!r})",
         )
+        require(
+            self.reward in ("sum", "mean"), "reward", f"must be sum or mean (got {self.reward!r})"
+        )
         object.__setattr__(self, "N", int(self.N))
         object.__setattr__(self, "local_ratio", float(ratio))
         object.__setattr__(self, "max_cycles", int(self.max_cycles))
@@ -59,12 +65,15 @@ class SimpleSpread:
                 continue
             name, sep, value = item.partition("=")
             name = name.strip()
-            if not sep or name not in ("N", "local_ratio", "max_cycles"):
+            if not sep or name not in ("N", "local_ratio", "max_cycles", "reward"):
                 raise ConfigError(
                     "game",
-                    "simple_spread takes N, local_ratio and max_cycles as name=value "
+                    "simple_spread takes N, local_ratio, max_cycles and reward as name=value "
                     f"(got {item!r})",
                 )
+            if name == "reward":
+                given[name] = value.strip()
+                continue
             try:
                 number = float(value)
             except ValueError:
@@ -82,8 +91,10 @@ class SimpleSpread:
 
     @property
     def name(self) -> str:
-        """``N=3,local_ratio=0.5,max_cycles=25``: every setting, so that a name says it all."""
-        return f"N={self.N},local_ratio={self.local_ratio:g},max_cycles={self.max_cycles}"
+        """``N=3,local_ratio=0.5,max_cycles=25``: every setting (``reward`` where it is
+        not the sum), so that a name says it all."""
+        name = f"N={self.N},local_ratio={self.local_ratio:g},max_cycles={self.max_cycles}"
+        return name if self.reward == "sum" else f"{name},reward={self.reward}"
 
     @property
     def observation_size(self) -> int:
@@ -91,7 +102,7 @@ class SimpleSpread:
         return 4 + 2 * self.N + 4 * (self.N - 1)
 
     def new_env(self) -> tuple[np.ndarray, ...]:
-        return k.new_env(self.N, self.local_ratio)
+        return k.new_env(self.N, self.local_ratio, self.reward == "mean")
 
     def spec(self) -> GameSpec:
         """The game protocol: one team of N agents of five actions, no state index, every
