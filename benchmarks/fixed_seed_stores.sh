@@ -31,5 +31,11 @@ run train train --env tests.tiny_env:make --algorithms vdn,qmix,deep-cmarl-cd \
   --episodes 600 --runs 2 --eval-episodes 5 --curve-points 3 --seed 11
 run readings readings --algorithms cmarl-cd,la-oca --rounds 2 --learn-episodes 2000 \
   --eval-episodes 1000 --hit-rates 0.8,1 --gammas 0,0.3 --seed 2
+# the compiled field games (since 0.7): LBF with every kind of learner, simple_spread
+# with a budget of steps and each agent on its own observation
+run foraging train --game foraging:5x5-2p-1f,penalty=0.1 --algorithms cmarl-cd,vdn,qmix \
+  --episodes 400 --runs 2 --eval-episodes 20 --curve-points 2 --seed 7
+run spread train --game simple_spread:N=3 --inputs own-observations --algorithms vdn,qmix \
+  --steps 5k --runs 2 --eval-episodes 10 --curve-points 2 --seed 9
 echo "stores in $out (figures in $figures)" >&2
 
