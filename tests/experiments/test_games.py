@@ -56,6 +56,14 @@ def test_train_on_a_foraging_task_end_to_end_and_resumed(tmp_path) -> None:
     redone = json.loads(again.stdout)
     assert redone["runs_computed"] == 0 and redone["runs_reused"] == 4
     assert redone["rows"] == section["rows"]
+    report = subprocess.run(
+        [sys.executable, "-m", "cmarlcd", "report", "--store", str(tmp_path / "s.sqlite"),
+         "--figures", str(tmp_path / "r")],
+        capture_output=True, text=True, timeout=300, cwd=tmp_path,
+    )  # fmt: skip
+    assert report.returncode == 0, report.stderr[-3000:]
+    assert "Learning on foraging 5x5-2p-1f,penalty=0.1" in report.stdout
+    assert "random policy" in report.stdout and "CMARL-CD" in report.stdout
 
 
 def test_a_budget_of_steps_end_to_end(tmp_path) -> None:

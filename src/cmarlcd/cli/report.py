@@ -25,7 +25,7 @@ from cmarlcd.cli.theory import theorem_sections
 from cmarlcd.errors import require
 from cmarlcd.experiments import compare as cmp
 from cmarlcd.experiments import environment as envs
-from cmarlcd.experiments import episodic_results, scaling, theorem
+from cmarlcd.experiments import episodic_results, games, scaling, theorem
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import sensor_network as dsn_exp
 from cmarlcd.experiments import tournament as tour
@@ -33,6 +33,7 @@ from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.reports.compare import compare_section
 from cmarlcd.reports.environment import environment_section
 from cmarlcd.reports.environment import protocol_key as env_key
+from cmarlcd.reports.game_training import game_training_section
 from cmarlcd.reports.render import say, show_section
 from cmarlcd.reports.scaling import scaling_section
 from cmarlcd.reports.section import Section, version_warning
@@ -133,6 +134,9 @@ def _report_groups(
             found.append(("scaling", scaling_section, records))
         for records in _groups(db.records(envs.EXPERIMENT), env_key).values():
             found.append(("train", environment_section, records))
+        for family in games.FAMILIES.values():  # train --game
+            for records in _groups(db.records(family.name), _game_key).values():
+                found.append(("train", _game_section, records))
     return [g for g in found if seed in (None, g[2][0].key.root_seed)]
 
 
@@ -150,6 +154,16 @@ def _battlefield_groups(records: list[RunRecord]) -> list[tuple[str, Renderer, l
         every = list({rec.key: rec for o in study for rec in o.records}.values())
         found.append(("readings", stored_readings_section, every))
     return found
+
+
+def _game_key(rec: RunRecord) -> tuple:
+    """Runs of one study on a compiled game: same task, seed, evaluation and budget."""
+    settings = episodic_results.run_of(rec)
+    return (*episodic_results.protocol_key(rec), str(settings.checkpoints), settings.unit)
+
+
+def _game_section(records: Sequence[RunRecord], figures: Path) -> Section:
+    return game_training_section(records, figures, records[0].key.root_seed)
 
 
 def _seed_key(rec: RunRecord) -> int:
