@@ -188,3 +188,43 @@ class KernelParallelEnv(pettingzoo.ParallelEnv):
 
     def close(self) -> None:
         """Nothing to release."""
+
+
+class ObservationsParallelEnv(KernelParallelEnv):
+    """The ``ParallelEnv`` of a game whose features are every agent's observation joined
+    in agent order (LBF, simple_spread): each agent observes its own ``Box`` of float32
+    (bounds ``low``, ``high``), ``state()`` is all of them joined, and the masks are asked
+    every step (a game without a state index reads 0 everywhere, so they cannot be
+    cached by it)."""
+
+    def __init__(
+        self, spec: GameSpec, low: np.ndarray, high: np.ndarray, render_mode: str | None = None
+    ) -> None:
+        super().__init__(spec, render_mode)
+        low, high = np.asarray(low, np.float32), np.asarray(high, np.float32)
+        self._width = low.size
+        self._observation_spaces = {  # type: ignore[assignment]
+            agent: gymnasium.spaces.Box(low, high, (self._width,), np.float32)
+            for agent in self.possible_agents
+        }
+        n = spec.n_agents
+        self.state_space = gymnasium.spaces.Box(  # type: ignore[assignment]
+            np.tile(low, n), np.tile(high, n), dtype=np.float32
+        )
+        self._features = np.zeros(n * self._width, dtype=np.float32)
+
+    def observation_space(self, agent: str) -> gymnasium.spaces.Box:  # type: ignore[override]
+        return self._observation_spaces[self._check_agent(agent)]
+
+    def state(self) -> np.ndarray:  # type: ignore[override]
+        """Every agent's observation joined, in agent order (a new array)."""
+        self.spec.kernels.features(self.env, 0, self._features)
+        return self._features.copy()
+
+    def _observations(self, states: tuple[int, ...]) -> dict[str, np.ndarray]:  # type: ignore[override]
+        joined, width = self.state(), self._width
+        return {agent: joined[i * width : (i + 1) * width] for i, agent in enumerate(self.agents)}
+
+    def _masks(self, states: tuple[int, ...]) -> list[np.ndarray]:
+        self.spec.kernels.legal(self.env, self._legal)
+        return [self._legal[i, :count].astype(np.int8) for i, count in enumerate(self._counts)]

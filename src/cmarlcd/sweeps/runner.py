@@ -31,12 +31,10 @@ from __future__ import annotations
 import contextlib
 import math
 import multiprocessing
-import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, resolve
@@ -46,7 +44,9 @@ from cmarlcd.limits import check_gpu_tasks, check_seed_batch, check_workers
 from cmarlcd.runs import RunSpec
 from cmarlcd.sweeps.backends import check_backend, default_workers, make_backend
 from cmarlcd.sweeps.backends.tasks import Failure
-from cmarlcd.sweeps.claims import CLAIM_TIMEOUT, HEARTBEAT_SECONDS, Owner
+from cmarlcd.sweeps.claims import CLAIM_TIMEOUT, Owner
+from cmarlcd.sweeps.heartbeat import Heartbeat
+from cmarlcd.sweeps.outcome import RunFailed, SweepInterrupted, SweepResult
 from cmarlcd.sweeps.store import ResultStore, RunKey, StoreWriteError
 
 __all__ = [
@@ -106,63 +106,6 @@ class SweepObserver:
 
     def finish(self) -> None:
         """The sweep has ended (finished or interrupted)."""
-
-
-@dataclass
-class SweepResult:
-    """How a sweep went: runs computed here, found in the store at the start, and stored
-    meanwhile by another sweep on the same store."""
-
-    total: int
-    computed: int = 0
-    reused: int = 0
-    shared: int = 0
-    duplicates: int = 0
-    """Runs computed here that another sweep had stored first (its result was kept)."""
-    wall_seconds: float = 0.0
-    interrupted: bool = False
-    run_seconds: list[float] = field(default_factory=list)
-
-
-class SweepInterrupted(RuntimeError):
-    """The sweep was stopped (Ctrl-C); finished runs are in the store."""
-
-    def __init__(self, result: SweepResult) -> None:
-        self.result = result
-        super().__init__(f"interrupted: {_tally(result)}")
-
-
-class RunFailed(RuntimeError):
-    """A run raised, or the worker process computing it died: the sweep ended there.
-
-    The message is one line: the run (experiment, algorithm, run index, root seed and
-    config), its error, and how many runs are stored. ``failure`` holds the traceback
-    (:attr:`~cmarlcd.sweeps.backends.tasks.Failure.details`); the run's own exception is
-    the ``__cause__`` where it survived the trip from its worker."""
-
-    def __init__(self, result: SweepResult, failure: Failure) -> None:
-        self.result, self.failure = result, failure
-        what = f"{describe_runs(failure.runs)} failed: " if failure.runs else ""
-        super().__init__(f"{what}{failure.error}; {_tally(result)}")
-
-
-def _tally(result: SweepResult) -> str:
-    stored = result.reused + result.computed + result.shared
-    return (
-        f"{stored} of {result.total} runs are stored, {result.total - stored} left;"
-        " run the same command again to resume"
-    )
-
-
-def describe_runs(runs: Sequence[RunSpec]) -> str:
-    """Runs of one config in words: ``run 3 of dsn cmarl-cd (root seed 0, config {...})``."""
-    first = runs[0]
-    indices = sorted(spec.run_index for spec in runs)
-    which = f"run {indices[0]}" if len(indices) == 1 else f"runs {', '.join(map(str, indices))}"
-    return (
-        f"{which} of {first.experiment} {first.algorithm} (root seed {first.root_seed},"
-        f" config {first.config_json})"
-    )
 
 
 class _TaskFailed(Exception):
@@ -316,7 +259,7 @@ class _Sweep:
             if backend is not None:
                 backend.prepare(todo)
                 self.queue = deque(self._tasks(backend.task_seconds))
-                with _Heartbeat(self.store.path, self.owner):
+                with Heartbeat(self.store.path, self.owner):
                     self._loop(backend)
         except KeyboardInterrupt:
             self.result.interrupted = True
@@ -540,27 +483,3 @@ def _batches(todo: list[RunSpec], seed_batch: int) -> list[list[RunSpec]]:
         limit = seed_batch if batchable else 1
         batches += [specs[i : i + limit] for i in range(0, len(specs), limit)]
     return sorted(batches, key=lambda batch: -sum(map(cost_of, batch)))
-
-
-class _Heartbeat:
-    """A thread that refreshes ``owner``'s claims every :data:`HEARTBEAT_SECONDS`, on a
-    connection of its own."""
-
-    def __init__(self, path: Path, owner: Owner) -> None:
-        self.path, self.owner = path, owner
-        self.stop = threading.Event()
-        self.thread = threading.Thread(target=self._beat, name="claim-heartbeat", daemon=True)
-
-    def __enter__(self) -> _Heartbeat:
-        self.thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop.set()
-        self.thread.join()
-
-    def _beat(self) -> None:
-        with contextlib.suppress(Exception), ResultStore(self.path) as store:
-            while not self.stop.wait(HEARTBEAT_SECONDS):
-                with contextlib.suppress(StoreWriteError):
-                    store.heartbeat(self.owner)

@@ -28,6 +28,7 @@ from scipy import stats
 from cmarlcd.errors import ConfigError
 from cmarlcd.games.foraging import kernels as k
 from cmarlcd.games.foraging.rules import Foraging
+from cmarlcd.testing.resets import ResetReport
 
 #: [choice] The chance that an agent of the check's random policy tries LOAD (otherwise a
 #: uniform action of the six): loads are what the rules are mostly about, and a uniform
@@ -187,25 +188,6 @@ def _compiled_resets(rules: Foraging, count: int, seed: int):
     for _ in range(count):
         k.forage_reset(env, rng)
         yield env[0].copy(), env[1].copy()
-
-
-@dataclass
-class ResetReport:
-    """What :func:`compare_resets` found: each statistic's chi-square p-value."""
-
-    task: str
-    resets: int
-    p_values: dict[str, float]
-    alpha: float
-
-    @property
-    def smallest(self) -> float:
-        return min(self.p_values.values())
-
-    @property
-    def equal(self) -> bool:
-        """No statistic differs at ``alpha``, Bonferroni-corrected over the statistics."""
-        return self.smallest >= self.alpha / len(self.p_values)
 
 
 def compare_resets(rules: Foraging, count: int, seed: int = 0, alpha: float = 0.001) -> ResetReport:

@@ -23,6 +23,7 @@ from scipy import stats
 from cmarlcd.errors import ConfigError
 from cmarlcd.games.spread import kernels as k
 from cmarlcd.games.spread.rules import SimpleSpread
+from cmarlcd.testing.resets import ResetReport
 
 #: The largest difference the check accepts, per number and step.
 TOLERANCE = 1e-5
@@ -106,24 +107,6 @@ def compare_steps(
             copy_state(package, env)
             report.episodes, length = report.episodes + 1, 0
     return report
-
-
-@dataclass
-class ResetReport:
-    """What :func:`compare_resets` found: each coordinate's KS p-value."""
-
-    task: str
-    resets: int
-    p_values: dict[str, float]
-    alpha: float
-
-    @property
-    def smallest(self) -> float:
-        return min(self.p_values.values())
-
-    @property
-    def equal(self) -> bool:
-        return self.smallest >= self.alpha / len(self.p_values)
 
 
 def compare_resets(

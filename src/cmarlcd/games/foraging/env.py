@@ -4,16 +4,15 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-import gymnasium
 import numpy as np
 
-from cmarlcd.games.env import KernelParallelEnv
+from cmarlcd.games.env import ObservationsParallelEnv
 from cmarlcd.games.foraging import kernels as k
 from cmarlcd.games.foraging.render import render_text
 from cmarlcd.games.foraging.rules import Foraging
 
 
-class ForagingEnv(KernelParallelEnv):
+class ForagingEnv(ObservationsParallelEnv):
     """One LBF task (:class:`~cmarlcd.games.foraging.rules.Foraging`) as a ``ParallelEnv``
     of ``agent_0`` ... ``agent_{P-1}``.
 
@@ -33,40 +32,13 @@ class ForagingEnv(KernelParallelEnv):
 
     def __init__(self, rules: Foraging | str = "8x8-2p-2f", render_mode: str | None = None) -> None:
         rules = Foraging.from_name(rules) if isinstance(rules, str) else rules
-        super().__init__(rules.spec(), render_mode)
-        self.rules = rules
-        size, width = rules.size, rules.observation_size
+        size = rules.size
         foods = [[-1, -1, 0], [size - 1, size - 1, rules.food_levels]]
         people = [[-1, -1, 0], [size - 1, size - 1, rules.max_player_level]]
-        low = np.array(foods[0] * rules.foods + people[0] * rules.players, dtype=np.float32)
-        high = np.array(foods[1] * rules.foods + people[1] * rules.players, dtype=np.float32)
-        self._observation_spaces = {
-            agent: gymnasium.spaces.Box(low, high, (width,), np.float32)
-            for agent in self.possible_agents
-        }
-        self.state_space = gymnasium.spaces.Box(
-            np.tile(low, rules.players), np.tile(high, rules.players), dtype=np.float32
-        )
-        self._features = np.zeros(rules.players * width, dtype=np.float32)
-
-    def observation_space(self, agent: str) -> gymnasium.spaces.Box:  # type: ignore[override]
-        return self._observation_spaces[self._check_agent(agent)]
-
-    def state(self) -> np.ndarray:  # type: ignore[override]
-        """Every agent's observation joined, in agent order (a new array)."""
-        self.spec.kernels.features(self.env, 0, self._features)
-        return self._features.copy()
-
-    def _observations(self, states: tuple[int, ...]) -> dict[str, np.ndarray]:
-        joined = self.state()
-        width = self.rules.observation_size
-        return {agent: joined[i * width : (i + 1) * width] for i, agent in enumerate(self.agents)}
-
-    def _masks(self, states: tuple[int, ...]) -> list[np.ndarray]:
-        """Each agent's legal actions now (asked every step: the state index does not
-        always say them, a task without one reads 0 everywhere)."""
-        self.spec.kernels.legal(self.env, self._legal)
-        return [self._legal[i, : k.N_ACTIONS].astype(np.int8) for i in range(self.rules.players)]
+        low = foods[0] * rules.foods + people[0] * rules.players
+        high = foods[1] * rules.foods + people[1] * rules.players
+        super().__init__(rules.spec(), np.array(low), np.array(high), render_mode)
+        self.rules = rules
 
     @property
     def players(self) -> np.ndarray:

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-import gymnasium
 import numpy as np
 
-from cmarlcd.games.env import KernelParallelEnv
+from cmarlcd.games.env import ObservationsParallelEnv
 from cmarlcd.games.spread import kernels as k
 from cmarlcd.games.spread.rules import SimpleSpread
 
 
-class SimpleSpreadEnv(KernelParallelEnv):
+class SimpleSpreadEnv(ObservationsParallelEnv):
     """One simple_spread task (:class:`~cmarlcd.games.spread.rules.SimpleSpread`) as a
     ``ParallelEnv`` of ``agent_0`` ... ``agent_{N-1}``, as mpe2's ``parallel_env`` with
     discrete actions: each agent observes mpe2's vector (float32) and receives its own
@@ -27,27 +26,9 @@ class SimpleSpreadEnv(KernelParallelEnv):
 
     def __init__(self, rules: SimpleSpread | str = "", render_mode: str | None = None) -> None:
         rules = SimpleSpread.from_name(rules) if isinstance(rules, str) else rules
-        super().__init__(rules.spec(), render_mode)
+        bound = np.full(rules.observation_size, np.inf)
+        super().__init__(rules.spec(), -bound, bound, render_mode)
         self.rules = rules
-        width = rules.observation_size
-        self._observation_spaces = {
-            agent: gymnasium.spaces.Box(-np.inf, np.inf, (width,), np.float32)
-            for agent in self.possible_agents
-        }
-        self.state_space = gymnasium.spaces.Box(-np.inf, np.inf, (rules.N * width,), np.float32)
-        self._features = np.zeros(rules.N * width, dtype=np.float32)
-
-    def observation_space(self, agent: str) -> gymnasium.spaces.Box:  # type: ignore[override]
-        return self._observation_spaces[self._check_agent(agent)]
-
-    def state(self) -> np.ndarray:  # type: ignore[override]
-        """Every agent's observation joined, in agent order (a new array)."""
-        self.spec.kernels.features(self.env, 0, self._features)
-        return self._features.copy()
-
-    def _observations(self, states: tuple[int, ...]) -> dict[str, np.ndarray]:
-        joined, width = self.state(), self.rules.observation_size
-        return {agent: joined[i * width : (i + 1) * width] for i, agent in enumerate(self.agents)}
 
     def step(self, actions):
         observations, team, terminations, truncations, infos = super().step(actions)
