@@ -18,12 +18,16 @@ import argparse
 import json
 import os
 import platform
+import sys
 import time
+from collections.abc import Callable
 from datetime import date
+from typing import Any
 
 import numpy as np
 
 from cmarlcd.compiled import specialise
+from cmarlcd.errors import ConfigError
 from cmarlcd.games.foraging import Foraging
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.games.spread import SimpleSpread
@@ -95,18 +99,16 @@ def spread_rate(rules: SimpleSpread, steps: int) -> float:
     return steps / (time.perf_counter() - start)
 
 
-def rates(task: str, steps: int, package_steps: int) -> tuple[str, float, float]:
-    """The task's name, the package's random steps a second and the compiled game's."""
+def parse(task: str) -> tuple[str, Any, Callable[[Any, int], float]]:
+    """The task's name, its rules and the function timing its package."""
     kind, _, options = task.partition(":")
     if kind == "foraging":
         rules = Foraging.from_name(options)
-        theirs = foraging_rate(rules, package_steps)
-        return f"foraging:{rules.name}", theirs, compiled_rate(rules.spec(), steps)
+        return f"foraging:{rules.name}", rules, foraging_rate
     if kind == "simple_spread":
         spread = SimpleSpread.from_name(options)
-        theirs = spread_rate(spread, package_steps)
-        return f"simple_spread:N={spread.N}", theirs, compiled_rate(spread.spec(), steps)
-    raise SystemExit(f"error: --tasks: {task!r} is not foraging:TASK or simple_spread:OPTIONS")
+        return f"simple_spread:N={spread.N}", spread, spread_rate
+    raise ConfigError("tasks", f"{task!r} is not foraging:TASK or simple_spread:OPTIONS")
 
 
 def main() -> None:
@@ -117,8 +119,9 @@ def main() -> None:
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     rows = []
-    for task in args.tasks:
-        name, theirs, ours = rates(task, args.steps, args.package_steps)
+    for name, rules, package_rate in [parse(task) for task in args.tasks]:  # all checked first
+        theirs = package_rate(rules, args.package_steps)
+        ours = compiled_rate(rules.spec(), args.steps)
         rows.append(
             {
                 "task": name,
@@ -140,4 +143,8 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except ConfigError as err:  # a bad task: one line
+        print(f"error: {err}", file=sys.stderr)
+        sys.exit(2)

@@ -25,6 +25,7 @@ import sys
 import time
 from datetime import date
 
+from cmarlcd.errors import ConfigError
 from cmarlcd.games.foraging import Foraging
 from cmarlcd.testing.foraging import compare_resets, compare_steps
 
@@ -47,9 +48,9 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
+    tasks = [Foraging.from_name(task) for task in args.tasks]  # every name checked first
     rows = []
-    for task in args.tasks:
-        rules = Foraging.from_name(task)
+    for rules in tasks:
         start = time.perf_counter()
         steps = compare_steps(rules, args.steps, args.seed)
         stepped = time.perf_counter() - start
@@ -93,4 +94,8 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except ConfigError as err:  # a bad task name: one line
+        print(f"error: {err}", file=sys.stderr)
+        sys.exit(2)

@@ -22,6 +22,7 @@ import sys
 import time
 from datetime import date
 
+from cmarlcd.errors import ConfigError
 from cmarlcd.games.spread import SimpleSpread
 from cmarlcd.testing.spread import TOLERANCE, compare_resets, compare_steps
 
@@ -36,9 +37,9 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
+    tasks = [SimpleSpread.from_name(task) for task in args.tasks]  # every name checked first
     rows = []
-    for task in args.tasks:
-        rules = SimpleSpread.from_name(task)
+    for rules in tasks:
         start = time.perf_counter()
         steps = compare_steps(rules, args.steps, args.seed)
         resets = compare_resets(rules, args.resets, args.seed)
@@ -79,4 +80,8 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except ConfigError as err:  # a bad task name: one line
+        print(f"error: {err}", file=sys.stderr)
+        sys.exit(2)
