@@ -35,9 +35,9 @@ import numpy as np
 
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games import battlefield
-from cmarlcd.learners.automata import LAOCA
-from cmarlcd.learners.coordination import CMARLCDStochastic
-from cmarlcd.learners.deep_config import STEPS
+from cmarlcd.learners.deep.config import STEPS
+from cmarlcd.learners.tabular.automata import LAOCA
+from cmarlcd.learners.tabular.coordination import CMARLCDStochastic
 from cmarlcd.sweeps.runner import default_workers
 from cmarlcd.training.deep_kernels import GENERATION, GREEDY_CACHE_SLOTS
 from cmarlcd.training.match import Match, MatchBatch

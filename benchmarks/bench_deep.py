@@ -20,8 +20,8 @@ import numpy as np
 import torch
 
 from cmarlcd.games import sensor_network as dsn
-from cmarlcd.learners.deep_agent import DeepAgent
-from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.learners.deep.agent import DeepAgent
+from cmarlcd.learners.deep.config import DeepConfig
 from cmarlcd.training.deep import DeepBatch
 from cmarlcd.training.episodes import play_episodes
 

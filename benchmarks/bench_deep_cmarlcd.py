@@ -23,8 +23,8 @@ import numpy as np
 import torch
 
 from cmarlcd.games import sensor_network as dsn
-from cmarlcd.learners.deep_config import DeepConfig
-from cmarlcd.learners.deep_coordination import REPLAYED_DEEP_CMARLCD, DeepCMARLCDConfig
+from cmarlcd.learners.deep.config import DeepConfig
+from cmarlcd.learners.deep.coordination import REPLAYED_DEEP_CMARLCD, DeepCMARLCDConfig
 from cmarlcd.training.deep import DeepBatch
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from cmarlcd.experiments import sensor_network as sn
 from cmarlcd.games import sensor_network as dsn
-from cmarlcd.learners.coordination import CMARLCDStochastic, StochasticConfig
+from cmarlcd.learners.tabular.coordination import CMARLCDStochastic, StochasticConfig
 from cmarlcd.sweeps.runner import default_workers, run_sweep
 from cmarlcd.sweeps.store import ResultStore
 from cmarlcd.training import TabularRun, play_episodes

@@ -33,9 +33,9 @@ import torch
 
 from cmarlcd.games import battlefield
 from cmarlcd.games import sensor_network as dsn
-from cmarlcd.learners import fused_step
-from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig
-from cmarlcd.learners.value_decomposition import ValueDecomposition
+from cmarlcd.learners.deep.config import BATTLEFIELD_DEEP, DeepConfig
+from cmarlcd.learners.deep.fused import step as fused_step
+from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
 from cmarlcd.training.deep import DeepBatch
 
 

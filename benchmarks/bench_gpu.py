@@ -52,8 +52,8 @@ from cmarlcd import devices
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games import battlefield
 from cmarlcd.games import sensor_network as dsn
-from cmarlcd.learners.deep_config import DeepConfig
-from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.config import DeepConfig
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.training import deep_side
 from cmarlcd.training.deep import DeepBatch
 from cmarlcd.training.match import Match, MatchBatch

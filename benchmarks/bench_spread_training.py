@@ -30,7 +30,7 @@ from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments import games
 from cmarlcd.experiments.episodic import EpisodicRun, run_batch
 from cmarlcd.games.spread import SimpleSpread
-from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.learners.deep.config import DeepConfig
 
 MPE = "mpe2.simple_spread_v3:parallel_env"
 STEPS_PER_EPISODE = SimpleSpread().max_cycles

@@ -16,7 +16,7 @@ the table's tolerance. They differ in what the degree network is regressed to:
   met (fitted targets, as in neural fitted Q): replaying a visit converges to its
   target instead of adding to it.
 * ``keyed``: the package's keyed update (``update="keyed"``,
-  :mod:`cmarlcd.learners.degree_memory`) under the table's rule for first visits
+  :mod:`cmarlcd.learners.deep.degree_memory`) under the table's rule for first visits
   (``unseen_record="first-visit"``): the same targets, but folded onto the state's
   entry in a keyed memory (the network's degrees only for a state not in it), and the
   network regressed to the memory, every kept state alike. With one-hot states the
@@ -59,11 +59,11 @@ from cmarlcd.errors import ConfigError
 from cmarlcd.experiments.sensor_network import optimal_episodes
 from cmarlcd.games.sensor_network import SensorNetworkEnv
 from cmarlcd.learners import CMARLCDStochastic, DeepCMARLCDConfig, StochasticConfig
-from cmarlcd.learners.coordination import coordination_rule
-from cmarlcd.learners.deep_config import scheduled_work
-from cmarlcd.learners.deep_coordination import REPLAYED_DEEP_CMARLCD
-from cmarlcd.learners.degree_agent import DegreeAgent
+from cmarlcd.learners.deep.config import scheduled_work
+from cmarlcd.learners.deep.coordination import REPLAYED_DEEP_CMARLCD
+from cmarlcd.learners.deep.degree_agent import DegreeAgent
 from cmarlcd.learners.max_return import RECORD, TIE, compare_return
+from cmarlcd.learners.tabular.coordination import coordination_rule
 from cmarlcd.testing.streams import Stream
 from cmarlcd.training.episodes import play_episodes
 

@@ -42,9 +42,9 @@ import torch
 from cmarlcd import registry
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.games import battlefield, sensor_network
-from cmarlcd.learners.degree_model import DegreeModel
-from cmarlcd.learners.fused_step import FusedDegreeStep, FusedStep
-from cmarlcd.learners.value_decomposition import ValueDecomposition
+from cmarlcd.learners.deep.degree_model import DegreeModel
+from cmarlcd.learners.deep.fused.step import FusedDegreeStep, FusedStep
+from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
 from cmarlcd.training.deep import DeepBatch
 from cmarlcd.training.match import Match
 

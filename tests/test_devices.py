@@ -98,8 +98,8 @@ def _td_batch(seeds: int, visits: int, agents: int, integer: bool, device: str) 
 
 
 def _value_decomposition(mixer: str, device: str):
-    from cmarlcd.learners.deep_config import DeepConfig
-    from cmarlcd.learners.value_decomposition import ValueDecomposition
+    from cmarlcd.learners.deep.config import DeepConfig
+    from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
 
     seeds = [np.random.SeedSequence(k) for k in range(2)]
     model = ValueDecomposition([3, 3, 2], 5, DeepConfig(mixer=mixer), seeds, device)
@@ -108,8 +108,8 @@ def _value_decomposition(mixer: str, device: str):
 
 
 def _degree_model(share: bool, device: str, update: str = "keyed"):
-    from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
-    from cmarlcd.learners.degree_model import DegreeModel
+    from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+    from cmarlcd.learners.deep.degree_model import DegreeModel
 
     seeds = [np.random.SeedSequence(k) for k in range(2)]
     config = DeepCMARLCDConfig(share=share, update=update)

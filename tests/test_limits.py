@@ -10,8 +10,8 @@ from cmarlcd import limits
 from cmarlcd.cli import app
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import compare, repeated, sensor_network, tournament
-from cmarlcd.learners.coordination import StochasticConfig
-from cmarlcd.learners.deep_config import DeepConfig
+from cmarlcd.learners.deep.config import DeepConfig
+from cmarlcd.learners.tabular.coordination import StochasticConfig
 from cmarlcd.runs import RunSpec
 
 HUGE = "99999999999"

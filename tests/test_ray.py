@@ -10,7 +10,7 @@ from cmarlcd.experiments import repeated as rep
 from cmarlcd.experiments import theorem
 from cmarlcd.experiments.sensor_network import DsnSweep
 from cmarlcd.experiments.tournament import Tournament, battlefield_learners
-from cmarlcd.learners.coordination import RepeatedConfig
+from cmarlcd.learners.tabular.coordination import RepeatedConfig
 from cmarlcd.registry import LEARNERS
 from cmarlcd.sweeps.runner import run_sweep
 from cmarlcd.sweeps.store import ResultStore

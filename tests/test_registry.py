@@ -52,7 +52,7 @@ def test_learners_are_found_by_their_own_names() -> None:
 
 def test_each_learner_is_registered_once_under_the_name_of_every_form_it_takes() -> None:
     from cmarlcd.experiments.tournament import paper_learners
-    from cmarlcd.learners.deep_config import DeepLearnerConfig
+    from cmarlcd.learners.deep.config import DeepLearnerConfig
 
     for name, learner in registry.REGISTRY.items():
         forms = [learner.stochastic, learner.repeated, *learner.presets.values()]

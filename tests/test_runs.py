@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cmarlcd.learners.deep_coordination import BATTLEFIELD_DEEP_CMARLCD, DeepCMARLCDConfig
+from cmarlcd.learners.deep.coordination import BATTLEFIELD_DEEP_CMARLCD, DeepCMARLCDConfig
 from cmarlcd.runs import RunSpec, Settings, added_setting, as_stored, identity
 
 

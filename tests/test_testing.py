@@ -15,12 +15,12 @@ from cmarlcd.games.battlefield import BattlefieldEnv
 from cmarlcd.games.env import KernelParallelEnv
 from cmarlcd.games.matrix import MatrixGameEnv, climbing_game
 from cmarlcd.games.sensor_network import SensorNetworkEnv
-from cmarlcd.learners.coordination import (
+from cmarlcd.learners.tabular.coordination import (
     StochasticConfig,
     coordination_end_episode,
     coordination_init,
 )
-from cmarlcd.learners.tabular import TabularKernels, no_step_update
+from cmarlcd.learners.tabular.protocol import TabularKernels, no_step_update
 from cmarlcd.testing import CHAIN, DUEL, check_game, check_learner
 from cmarlcd.testing.envs import check_observations
 

@@ -55,7 +55,7 @@ def test_bad_checkpoints_are_refused(checkpoints) -> None:
 @pytest.mark.skipif(not HAS_TORCH, reason="needs the [deep] extra (torch)")
 def test_deep_cmarl_cd_is_compared_on_every_visited_state() -> None:
     from cmarlcd.learners import DeepCMARLCDConfig
-    from cmarlcd.learners.degree_agent import DegreeAgent
+    from cmarlcd.learners.deep.degree_agent import DegreeAgent
 
     env = SensorNetworkEnv()
     reference = CMARLCDStochastic(counts(env), seed=0)
@@ -78,8 +78,8 @@ def test_deep_cmarl_cd_s_keyed_memory_holds_the_table_and_its_network_follows() 
     stream; the replayed update: 0 %; at the default step per 200 the network has taken
     about 20 steps by then and agrees on none yet)."""
     from cmarlcd.learners import DeepCMARLCDConfig
-    from cmarlcd.learners.degree_agent import DegreeAgent
-    from cmarlcd.learners.degree_memory import find
+    from cmarlcd.learners.deep.degree_agent import DegreeAgent
+    from cmarlcd.learners.deep.degree_memory import find
     from cmarlcd.testing.streams import Stream
 
     env = SensorNetworkEnv()

@@ -309,7 +309,7 @@ def ours_run(algorithm: str, seed: int, frames: int, eval_every: int, episodes: 
     import torch
 
     from cmarlcd.experiments import environment as envs
-    from cmarlcd.learners.deep_agent import DeepAgent
+    from cmarlcd.learners.deep.agent import DeepAgent
     from cmarlcd.runs import RunSpec
 
     torch.set_num_threads(1)
@@ -341,7 +341,7 @@ def ours_run(algorithm: str, seed: int, frames: int, eval_every: int, episodes: 
 def ours_settings(algorithm: str, frames: int, eval_every: int, episodes: int):
     """The settings of a cmarl-cd run (those of :func:`equivalent_command`)."""
     from cmarlcd.experiments import environment as envs
-    from cmarlcd.learners.deep_config import DeepConfig
+    from cmarlcd.learners.deep.config import DeepConfig
 
     return envs.EnvRun(
         ENV, ENV_KWARGS, DeepConfig(mixer=algorithm, **OURS), frames // STEPS_PER_EPISODE,
@@ -379,7 +379,7 @@ def compiled_settings(algorithm: str, frames: int, eval_every: int, episodes: in
     from cmarlcd.experiments import games
     from cmarlcd.experiments.episodic import EpisodicRun
     from cmarlcd.games.spread import SimpleSpread
-    from cmarlcd.learners.deep_config import DeepConfig
+    from cmarlcd.learners.deep.config import DeepConfig
 
     options = games.SIMPLE_SPREAD.options(SimpleSpread(reward="mean"), "own-observations")
     return EpisodicRun(

@@ -2,7 +2,8 @@
 
 A mkdocs hook (``hooks:`` in mkdocs.yml), standard library only. It parses every module
 of ``src/cmarlcd`` with :mod:`ast`, groups the modules by top-level module or subpackage
-(``registry.py`` is one group, ``training/`` with all its modules another), and draws one
+(``registry.py`` is one group, ``training/`` with all its modules another; the learners,
+grouped by kind, are split by :data:`SUBGROUPS`), and draws one
 box per group in the rows of :data:`LAYERS`, with an arrow from each group to every group
 it imports. An import that points up the layers is drawn in red and listed under the
 diagram. The picture is written into the built site as an SVG (no script, nothing fetched
@@ -36,6 +37,22 @@ IMAGE = "architecture-imports.svg"
 #: The group of the package's own ``__init__.py``.
 ROOT = "__init__"
 
+#: Groups finer than a top-level subpackage: a file whose path (relative to the package)
+#: starts with a key is in that key's group, the longest key that matches winning. The
+#: learners are split by kind: the tabular learners and the deep ones import nothing of
+#: each other; the fused step imports nothing of the deep learners that call it; the
+#: rules both kinds share (the package's own modules) import neither; and the package's
+#: ``__init__`` (its public names) stands above them all.
+SUBGROUPS: dict[str, str] = {
+    "learners/__init__.py": "learners",
+    "learners/": "learners/shared",
+    "learners/tabular/": "learners/tabular",
+    "learners/deep/": "learners/deep",
+    "learners/deep/fused/": "learners/deep/fused",
+}
+#: How a group of :data:`SUBGROUPS` is labelled where its name is no folder of the code.
+SUBGROUP_LABELS = {"learners": "learners/__init__", "learners/shared": "learners/*.py"}
+
 #: The layers, top to bottom, each a title and the groups in it: a group may import groups
 #: of its own layer and of the layers below. A group is a top-level module (without
 #: ``.py``) or subpackage of the package; names the code does not have are skipped.
@@ -47,7 +64,8 @@ LAYERS: list[tuple[str, list[str]]] = [
     ("experiments", ["experiments", "testing"]),
     ("registry", ["registry"]),
     ("training", ["training"]),
-    ("learners, games", ["learners", "games"]),
+    ("learners, games", ["learners", "learners/tabular", "learners/deep", "games"]),
+    ("the learners' parts", ["learners/deep/fused", "learners/shared"]),
     (
         "foundations",
         ["runs", "theory", "progress", "limits", "devices", "compiled", "paper", "version"],
@@ -70,6 +88,8 @@ class Group:
 
     @property
     def label(self) -> str:
+        if self.name in SUBGROUP_LABELS:
+            return SUBGROUP_LABELS[self.name]
         return f"{self.name}/" if self.package else self.name
 
 
@@ -117,15 +137,12 @@ def build_graph(source: Path, layers: list[tuple[str, list[str]]] = LAYERS) -> G
         if parts[-1] == "__init__":
             parts.pop()
         modules[".".join(parts)] = relative.as_posix()
-        name = relative.parts[0] if len(relative.parts) > 1 else relative.stem
+        name = group_of_file(relative)
         group = groups.setdefault(name, Group(name, package=len(relative.parts) > 1))
         group.modules.append(relative.as_posix())
 
     def group_of(module: str) -> str:
-        parts = module.split(".")
-        if len(parts) == 1:
-            return ROOT
-        return parts[1]
+        return group_of_file(Path(modules[module]))
 
     edges: dict[tuple[str, str], Edge] = {}
     for module, file in modules.items():
@@ -157,6 +174,17 @@ def build_graph(source: Path, layers: list[tuple[str, list[str]]] = LAYERS) -> G
         log.info("import graph: no layer names %s; drawn in a row of their own", ", ".join(rest))
         placed.append((UNLAYERED, rest))
     return Graph(groups, edges, placed)
+
+
+def group_of_file(relative: Path) -> str:
+    """The group of the package's file at ``relative`` (a path inside the package)."""
+    path = relative.as_posix()
+    matches = [prefix for prefix in SUBGROUPS if path.startswith(prefix)]
+    if matches:
+        return SUBGROUPS[max(matches, key=len)]
+    if len(relative.parts) > 1:
+        return relative.parts[0]
+    return relative.stem  # a top-level module (``__init__`` is :data:`ROOT`)
 
 
 def imports_of(tree: ast.Module, package: str):

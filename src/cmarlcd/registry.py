@@ -34,21 +34,25 @@ from cmarlcd.games.matrix.stochastic import (
     partially_stochastic_climbing_game,
 )
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.automata import AutomatonConfig
-from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD, RepeatedConfig, StochasticConfig
-from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig, DeepLearnerConfig
-from cmarlcd.learners.deep_coordination import (
+from cmarlcd.learners.deep.config import BATTLEFIELD_DEEP, DeepConfig, DeepLearnerConfig
+from cmarlcd.learners.deep.coordination import (
     BATTLEFIELD_DEEP_CMARLCD,
     REPEATED_DEEP_CMARLCD,
     DeepCMARLCDConfig,
 )
-from cmarlcd.learners.distributed_q import DistributedQConfig, DistributedQStochasticConfig
-from cmarlcd.learners.fmq import FMQConfig
-from cmarlcd.learners.hysteretic import HystereticConfig, HystereticStochasticConfig
-from cmarlcd.learners.joint_action import CentralQConfig, JointActionConfig
-from cmarlcd.learners.lenient import LenientConfig, LenientStochasticConfig
-from cmarlcd.learners.q_learning import IQLConfig, IQLStochasticConfig
-from cmarlcd.learners.tabular import TabularConfig
+from cmarlcd.learners.tabular.automata import AutomatonConfig
+from cmarlcd.learners.tabular.coordination import (
+    BATTLEFIELD_CMARLCD,
+    RepeatedConfig,
+    StochasticConfig,
+)
+from cmarlcd.learners.tabular.distributed_q import DistributedQConfig, DistributedQStochasticConfig
+from cmarlcd.learners.tabular.fmq import FMQConfig
+from cmarlcd.learners.tabular.hysteretic import HystereticConfig, HystereticStochasticConfig
+from cmarlcd.learners.tabular.joint_action import CentralQConfig, JointActionConfig
+from cmarlcd.learners.tabular.lenient import LenientConfig, LenientStochasticConfig
+from cmarlcd.learners.tabular.protocol import TabularConfig
+from cmarlcd.learners.tabular.q_learning import IQLConfig, IQLStochasticConfig
 from cmarlcd.paper import TABLE_ACTIONS, TABLE_AGENTS
 from cmarlcd.plugins import note
 from cmarlcd.runs import as_stored

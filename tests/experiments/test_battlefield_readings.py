@@ -18,8 +18,8 @@ from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments import tournament_results as match_results
 from cmarlcd.games import battlefield
 from cmarlcd.games.battlefield import GUNNER, MARINE, Unit
-from cmarlcd.learners.automata import LAOCA, AutomatonConfig
-from cmarlcd.learners.coordination import CMARLCDStochastic, StochasticConfig
+from cmarlcd.learners.tabular.automata import LAOCA, AutomatonConfig
+from cmarlcd.learners.tabular.coordination import CMARLCDStochastic, StochasticConfig
 from cmarlcd.sweeps.store import RunKey, RunRecord
 from cmarlcd.training.tabular_side import TabularSide
 

@@ -19,8 +19,8 @@ from cmarlcd.experiments.compare import (
     summarize,
 )
 from cmarlcd.games.matrix import climbing_game
-from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
-from cmarlcd.learners.q_learning import IQLConfig
+from cmarlcd.learners.tabular.coordination import CMARLCD, RepeatedConfig
+from cmarlcd.learners.tabular.q_learning import IQLConfig
 from cmarlcd.registry import REPEATED_LEARNERS
 from cmarlcd.runs import RunSpec
 from cmarlcd.sweeps.store import RunRecord

@@ -17,8 +17,8 @@ from cmarlcd.experiments import settings_of
 from cmarlcd.experiments import tournament as tour
 from cmarlcd.experiments import tournament_claims as claim_checks
 from cmarlcd.experiments.tournament import Readings, Unit
-from cmarlcd.learners.automata import LAOCA
-from cmarlcd.learners.coordination import CMARLCDStochastic
+from cmarlcd.learners.tabular.automata import LAOCA
+from cmarlcd.learners.tabular.coordination import CMARLCDStochastic
 from cmarlcd.reports.readings import _pointed_text, _pointed_to, margin_text
 
 LEARNERS = tour.battlefield_learners()

@@ -12,8 +12,8 @@ from cmarlcd.experiments import episodic, settings_of  # noqa: E402
 from cmarlcd.experiments import sensor_network as sn  # noqa: E402
 from cmarlcd.games import sensor_network as dsn  # noqa: E402
 from cmarlcd.games.spec import GameKernels, GameSpec  # noqa: E402
-from cmarlcd.learners.deep_agent import DeepAgent  # noqa: E402
-from cmarlcd.learners.deep_config import DeepConfig  # noqa: E402
+from cmarlcd.learners.deep.agent import DeepAgent  # noqa: E402
+from cmarlcd.learners.deep.config import DeepConfig  # noqa: E402
 from cmarlcd.training.deep import DeepBatch  # noqa: E402
 from cmarlcd.training.episodes import play_episodes  # noqa: E402
 

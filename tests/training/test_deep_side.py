@@ -12,9 +12,9 @@ torch = pytest.importorskip("torch")
 from cmarlcd.compiled import kernel  # noqa: E402
 from cmarlcd.errors import ConfigError  # noqa: E402
 from cmarlcd.games import battlefield  # noqa: E402
-from cmarlcd.learners.automata import AutomatonConfig  # noqa: E402
-from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD  # noqa: E402
-from cmarlcd.learners.deep_config import BATTLEFIELD_DEEP, DeepConfig  # noqa: E402
+from cmarlcd.learners.deep.config import BATTLEFIELD_DEEP, DeepConfig  # noqa: E402
+from cmarlcd.learners.tabular.automata import AutomatonConfig  # noqa: E402
+from cmarlcd.learners.tabular.coordination import BATTLEFIELD_CMARLCD  # noqa: E402
 from cmarlcd.training import deep_kernels, loop, match  # noqa: E402
 from cmarlcd.training.match import Match  # noqa: E402
 from cmarlcd.training.protocol import SideKernels  # noqa: E402

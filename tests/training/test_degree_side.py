@@ -11,10 +11,10 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from cmarlcd.learners.automata import AutomatonConfig  # noqa: E402
-from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig  # noqa: E402
-from cmarlcd.learners.degree_agent import DegreeAgent  # noqa: E402
-from cmarlcd.learners.degree_memory import features_key, find  # noqa: E402
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig  # noqa: E402
+from cmarlcd.learners.deep.degree_agent import DegreeAgent  # noqa: E402
+from cmarlcd.learners.deep.degree_memory import features_key, find  # noqa: E402
+from cmarlcd.learners.tabular.automata import AutomatonConfig  # noqa: E402
 from cmarlcd.testing import CHAIN, DUEL  # noqa: E402
 from cmarlcd.training.match import Match  # noqa: E402
 

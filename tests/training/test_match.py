@@ -7,8 +7,8 @@ import pytest
 
 from cmarlcd.errors import ConfigError
 from cmarlcd.games import battlefield, sensor_network
-from cmarlcd.learners.automata import LAOCA, AutomatonConfig
-from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD, CMARLCDStochastic
+from cmarlcd.learners.tabular.automata import LAOCA, AutomatonConfig
+from cmarlcd.learners.tabular.coordination import BATTLEFIELD_CMARLCD, CMARLCDStochastic
 from cmarlcd.training import tabular_side as sides_module
 from cmarlcd.training.match import Match
 

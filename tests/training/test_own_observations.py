@@ -13,7 +13,7 @@ from cmarlcd.errors import ConfigError  # noqa: E402
 from cmarlcd.games.foraging import Foraging  # noqa: E402
 from cmarlcd.games.observations import own_observations  # noqa: E402
 from cmarlcd.games.spread import SimpleSpread  # noqa: E402
-from cmarlcd.learners.deep_config import DeepConfig  # noqa: E402
+from cmarlcd.learners.deep.config import DeepConfig  # noqa: E402
 from cmarlcd.training import deep_kernels  # noqa: E402
 from cmarlcd.training.deep import DeepBatch  # noqa: E402
 

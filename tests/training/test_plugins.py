@@ -16,10 +16,10 @@ import pytest
 from numba import njit
 
 from cmarlcd.games.env import KernelParallelEnv
-from cmarlcd.learners.automata import AutomatonConfig
-from cmarlcd.learners.coordination import StochasticConfig
 from cmarlcd.learners.policy import greedy_action
-from cmarlcd.learners.tabular import TabularConfig, TabularKernels, no_episode_update
+from cmarlcd.learners.tabular.automata import AutomatonConfig
+from cmarlcd.learners.tabular.coordination import StochasticConfig
+from cmarlcd.learners.tabular.protocol import TabularConfig, TabularKernels, no_episode_update
 from cmarlcd.testing import CHAIN, check_learner
 from cmarlcd.testing.games import CHAIN_TARGET
 from cmarlcd.training import TabularRun, evaluate
@@ -125,7 +125,7 @@ def test_tabular_learners_solve_the_chain(config) -> None:
 
 def test_vdn_learns_the_chain_through_the_seed_batched_loop() -> None:
     pytest.importorskip("torch")
-    from cmarlcd.learners.deep_config import DeepConfig
+    from cmarlcd.learners.deep.config import DeepConfig
     from cmarlcd.training.deep import DeepBatch
 
     config = DeepConfig(buffer_size=2_000, batch_size=64, train_every=8, target_every=64)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cmarlcd.learners.replay import compact_int, new_ring, push, push_row, sample, seed_view
+from cmarlcd.learners.deep.replay import compact_int, new_ring, push, push_row, sample, seed_view
 
 
 def test_the_ring_keeps_the_latest_transitions() -> None:

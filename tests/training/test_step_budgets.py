@@ -8,8 +8,8 @@ import pytest
 
 from cmarlcd.experiments.episodic import EpisodicRun
 from cmarlcd.games.foraging import Foraging
-from cmarlcd.learners.coordination import StochasticConfig
 from cmarlcd.learners.policy import annealed_epsilon
+from cmarlcd.learners.tabular.coordination import StochasticConfig
 from cmarlcd.training import TabularRun
 
 SPEC = Foraging(5, 2, 1).spec()
@@ -61,7 +61,7 @@ def test_a_run_of_steps_is_another_run_and_an_episode_run_keeps_its_key() -> Non
 
 def test_deep_exploration_anneals_over_steps_where_the_budget_counts_steps() -> None:
     pytest.importorskip("torch")
-    from cmarlcd.learners.deep_config import DeepConfig
+    from cmarlcd.learners.deep.config import DeepConfig
     from cmarlcd.training.deep import DeepBatch
     from cmarlcd.training.deep_kernels import EPISODES, TURNS, exploration
 
@@ -82,7 +82,7 @@ def test_deep_exploration_anneals_over_steps_where_the_budget_counts_steps() -> 
 
 def test_deep_seeds_learn_to_the_step_budget() -> None:
     pytest.importorskip("torch")
-    from cmarlcd.learners.deep_config import DeepConfig
+    from cmarlcd.learners.deep.config import DeepConfig
     from cmarlcd.training.deep import DeepBatch
 
     config = DeepConfig(buffer_size=500, batch_size=16, train_every=20, target_every=40)

@@ -7,9 +7,9 @@ import pytest
 
 from cmarlcd.experiments.sensor_network import optimal_episodes
 from cmarlcd.games import sensor_network as dsn
-from cmarlcd.learners.automata import LAOCA, AutomatonConfig
-from cmarlcd.learners.coordination import CMARLCDStochastic, StochasticConfig
-from cmarlcd.learners.tabular import greedy_policy
+from cmarlcd.learners.tabular.automata import LAOCA, AutomatonConfig
+from cmarlcd.learners.tabular.coordination import CMARLCDStochastic, StochasticConfig
+from cmarlcd.learners.tabular.protocol import greedy_policy
 from cmarlcd.training import TabularRun, evaluate, play_episodes
 
 

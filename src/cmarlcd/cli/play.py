@@ -40,7 +40,7 @@ def play(
     import numpy as np
 
     from cmarlcd.games.matrix import load_payoffs
-    from cmarlcd.learners.coordination import CMARLCD as Learner
+    from cmarlcd.learners.tabular.coordination import CMARLCD as Learner
     from cmarlcd.training import fit
 
     config = replace(ALGORITHM, temperature=temperature, delta=delta, max_games=max_games)

@@ -25,7 +25,7 @@ from cmarlcd.cli.sweeps import (
 from cmarlcd.errors import require
 from cmarlcd.experiments import repeated as rep
 from cmarlcd.games.matrix import MAX_JOINT_ACTIONS
-from cmarlcd.learners.coordination import RepeatedConfig
+from cmarlcd.learners.tabular.coordination import RepeatedConfig
 from cmarlcd.sweeps.store import RunRecord
 
 #: Agents and actions a repeated-game sweep may ask for (2 actions each: 2^26 < 10^8).

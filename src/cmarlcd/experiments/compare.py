@@ -34,8 +34,8 @@ from cmarlcd.compiled import specialise
 from cmarlcd.errors import require
 from cmarlcd.experiments import episodic, episodic_results
 from cmarlcd.experiments.sensor_network import DSN_GAME, DsnSweep
-from cmarlcd.learners import joint_action
-from cmarlcd.learners.deep_config import DeepLearnerConfig
+from cmarlcd.learners.deep.config import DeepLearnerConfig
+from cmarlcd.learners.tabular import joint_action
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.greedy import GreedyPolicy

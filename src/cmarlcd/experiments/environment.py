@@ -39,7 +39,7 @@ from cmarlcd.experiments.env_inputs import (
     wrapped,
 )
 from cmarlcd.experiments.episodic import options_of
-from cmarlcd.learners.deep_config import DeepLearnerConfig
+from cmarlcd.learners.deep.config import DeepLearnerConfig
 from cmarlcd.limits import check_at_most, check_episodes, check_run_count, check_seed
 from cmarlcd.progress import report_progress
 from cmarlcd.registry import LearnerConfig
@@ -144,9 +144,9 @@ def new_learner(
     if config is None:
         return RandomPolicy(counts, seed)
     if isinstance(config, DeepLearnerConfig):
-        from cmarlcd.learners.deep_agent import DeepAgent  # needs the [deep] extra
-        from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
-        from cmarlcd.learners.degree_agent import DegreeAgent
+        from cmarlcd.learners.deep.agent import DeepAgent  # needs the [deep] extra
+        from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+        from cmarlcd.learners.deep.degree_agent import DegreeAgent
 
         kind = DegreeAgent if isinstance(config, DeepCMARLCDConfig) else DeepAgent
         inputs = {"n_states": shape.n_states} if shape.n_states else {"state_dim": shape.dim}
@@ -154,7 +154,7 @@ def new_learner(
             check_reads_own_observations(config.name, "own-observations")
             inputs["own_dim"] = shape.own_dim
         return kind(counts, config, total, **inputs, seed=seed)
-    from cmarlcd.learners.tabular import TabularLearner
+    from cmarlcd.learners.tabular.protocol import TabularLearner
 
     require(
         shape.dim is None,

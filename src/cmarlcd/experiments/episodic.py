@@ -25,7 +25,7 @@ import numpy as np
 from cmarlcd import registry
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import DeepLearnerConfig
+from cmarlcd.learners.deep.config import DeepLearnerConfig
 from cmarlcd.limits import (
     MAX_CURVE_POINTS,
     check_at_most,

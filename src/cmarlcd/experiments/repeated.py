@@ -18,7 +18,7 @@ import numpy as np
 from cmarlcd import paper
 from cmarlcd.errors import require
 from cmarlcd.games.matrix import MatrixGame, check_size, climbing_game, random_game
-from cmarlcd.learners.coordination import CMARLCD, RepeatedConfig
+from cmarlcd.learners.tabular.coordination import CMARLCD, RepeatedConfig
 from cmarlcd.limits import check_run_count, check_seed
 from cmarlcd.paper import repeated_success
 from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings

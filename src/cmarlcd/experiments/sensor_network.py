@@ -25,8 +25,8 @@ from cmarlcd.experiments.episodic import (
 from cmarlcd.games import sensor_network as dsn
 from cmarlcd.games.sensor_network import sized
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.automata import AutomatonConfig
-from cmarlcd.learners.coordination import StochasticConfig
+from cmarlcd.learners.tabular.automata import AutomatonConfig
+from cmarlcd.learners.tabular.coordination import StochasticConfig
 from cmarlcd.paper import DSN_EPISODES, dsn_value
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.training.tabular import EpisodeStats

@@ -38,7 +38,7 @@ from cmarlcd import registry
 from cmarlcd.errors import check_discount, check_tolerance, require
 from cmarlcd.games import battlefield
 from cmarlcd.games.battlefield import GUNNER, MARINE, Battlefield, Unit
-from cmarlcd.learners.coordination import BATTLEFIELD_CMARLCD
+from cmarlcd.learners.tabular.coordination import BATTLEFIELD_CMARLCD
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings

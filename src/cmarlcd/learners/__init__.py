@@ -1,25 +1,31 @@
-"""Learners: CMARL-CD (coordination degree) and the paper's baselines, one file each.
+"""Learners: CMARL-CD (coordination degree), the paper's baselines and the classic
+coordination learners, grouped by kind.
 
-* :mod:`~.coordination` -- CMARL-CD, Algorithms 1 and 2;
-* :mod:`~.automata` -- the LA-OCA stand-in;
-* :mod:`~.deep_config`, :mod:`~.value_decomposition`, :mod:`~.deep_agent` -- VDN and QMIX
-  (the networks and the agent need the ``[deep]`` extra);
-* :mod:`~.deep_coordination`, :mod:`~.degree_model` -- deep CMARL-CD, Algorithm 2 with
-  networks (beyond the paper; the model needs the ``[deep]`` extra);
+* :mod:`~.tabular` -- the tabular learners, one readable file each: CMARL-CD
+  (Algorithms 1 and 2), the LA-OCA stand-in, the classic coordination learners, and the
+  protocol they share;
+* :mod:`~.deep` -- VDN, QMIX and deep CMARL-CD, B seeds in one model (the networks need
+  the ``[deep]`` extra), with the fused CPU step in :mod:`~.deep.fused`;
 
-and what they share: the tabular protocol and object API (:mod:`~.tabular`), the
-max-return indicator (:mod:`~.max_return`) and acting from tables (:mod:`~.policy`).
+and the rules both kinds share, free of either: the coordination-degree rules
+(:mod:`~.degree_rules`, eqs. 2-3 and 14-15), the max-return indicator
+(:mod:`~.max_return`, eqs. 1 and 16) and acting from per-agent values with the ε
+schedule of eq. (18) (:mod:`~.policy`).
+
+The names below are the learners' configs and classes; the 0.6 module paths
+(``cmarlcd.learners.coordination``, ``cmarlcd.learners.fused_step``, ...) still import
+for one release, with a :class:`DeprecationWarning` naming the new place.
 """
 
-from cmarlcd.learners.automata import LAOCA, AutomatonConfig
-from cmarlcd.learners.coordination import (
+from cmarlcd.learners.deep.config import DeepConfig
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.tabular.automata import LAOCA, AutomatonConfig
+from cmarlcd.learners.tabular.coordination import (
     CMARLCD,
     CMARLCDStochastic,
     RepeatedConfig,
     StochasticConfig,
 )
-from cmarlcd.learners.deep_config import DeepConfig
-from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
 
 __all__ = [
     "CMARLCD",

@@ -14,11 +14,9 @@ parameters.
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from cmarlcd.errors import check_discount, check_tolerance
-from cmarlcd.learners.tabular import TabularLearner
 
 BELOW, TIE, RECORD = 0, 1, 2
 
@@ -57,12 +55,3 @@ def visit(r_max, params, s: int, reward: float, later_return: float) -> tuple[fl
     if outcome == RECORD:
         r_max[s] = g
     return g, outcome
-
-
-class MaxReturnLearner(TabularLearner):
-    """The object API of a learner driven by the max-return indicator."""
-
-    def max_return(self, state) -> float:
-        """``R_max(state)``: the best discounted return seen from it (``-inf`` if unseen)."""
-        row = self._lookup(state)
-        return -np.inf if row is None else float(self.tables.r_max[row])

@@ -4,15 +4,16 @@ games of :mod:`cmarlcd.testing.games`.
 :func:`check_learner` takes a learner's config, as the registry holds it, and runs the
 checks of its kind (it raises ``AssertionError`` at the first failure):
 
-* a repeated-game learner (a config with :class:`~cmarlcd.learners.tabular.RepeatedKernels`):
-  the object API learns exactly what the compiled loop learns from the same stream; the
-  same seed gives the same run; it finds the optimum of a trivial game in 9 runs of 10;
-* a tabular learner for stochastic games (:class:`~cmarlcd.learners.tabular.TabularConfig`):
-  the compiled loop learns exactly what the object API learns on the game's
-  ``ParallelEnv``; the same seeds give the same tables; its greedy policy keeps to the
-  legal actions, whatever numbers its tables hold; it plays either side of a two-team
-  game, learning and evaluating;
-* a deep learner (:class:`~cmarlcd.learners.deep_config.DeepConfig`, the ``[deep]`` extra):
+* a repeated-game learner (a config with
+  :class:`~cmarlcd.learners.tabular.protocol.RepeatedKernels`): the object API learns
+  exactly what the compiled loop learns from the same stream; the same seed gives the
+  same run; it finds the optimum of a trivial game in 9 runs of 10;
+* a tabular learner for stochastic games
+  (:class:`~cmarlcd.learners.tabular.protocol.TabularConfig`): the compiled loop learns
+  exactly what the object API learns on the game's ``ParallelEnv``; the same seeds give
+  the same tables; its greedy policy keeps to the legal actions, whatever numbers its
+  tables hold; it plays either side of a two-team game, learning and evaluating;
+* a deep learner (:class:`~cmarlcd.learners.deep.config.DeepConfig`, the ``[deep]`` extra):
   a seed trained in a stacked batch learns what it learns alone; its greedy policy keeps
   to the legal actions; it plays either side of a two-team game from state features.
 """
@@ -27,9 +28,9 @@ import numpy as np
 from cmarlcd.games.env import KernelParallelEnv
 from cmarlcd.games.matrix import from_payoffs
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import DeepConfig, DeepLearnerConfig
-from cmarlcd.learners.independent import RepeatedLearner
-from cmarlcd.learners.tabular import (
+from cmarlcd.learners.deep.config import DeepConfig, DeepLearnerConfig
+from cmarlcd.learners.tabular.independent import RepeatedLearner
+from cmarlcd.learners.tabular.protocol import (
     RepeatedKernels,
     TabularConfig,
     TabularLearner,

@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import DeepLearnerConfig
+from cmarlcd.learners.deep.config import DeepLearnerConfig
 from cmarlcd.training.deep_side import DeepGroup
 from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.loop import Play, PlayBatch

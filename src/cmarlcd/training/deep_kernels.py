@@ -19,14 +19,14 @@ import numpy as np
 from cmarlcd.compiled import Unbound, kernel, specialise_kernel
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import STEPS_UNIT, TRAIN_EVERY_ENTRY
+from cmarlcd.learners.deep.config import STEPS_UNIT, TRAIN_EVERY_ENTRY
+from cmarlcd.learners.deep.replay import Replay, push, push_row
 from cmarlcd.learners.policy import (
     annealed_epsilon,
     epsilon_greedy,
     greedy_action,
     uniform_legal_action,
 )
-from cmarlcd.learners.replay import Replay, push, push_row
 from cmarlcd.training.protocol import SideKernels
 
 game = Unbound("game")

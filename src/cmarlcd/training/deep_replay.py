@@ -2,8 +2,8 @@
 the part of :class:`cmarlcd.training.deep_side.DeepGroup` that differs with it.
 
 * :data:`RING`: a ring of transitions (VDN and QMIX; deep CMARL-CD's ``replayed``
-  update, a ring of visits), :mod:`cmarlcd.learners.replay`;
-* :data:`KEYED`: deep CMARL-CD's keyed memory (:mod:`cmarlcd.learners.degree_memory`)
+  update, a ring of visits), :mod:`cmarlcd.learners.deep.replay`;
+* :data:`KEYED`: deep CMARL-CD's keyed memory (:mod:`cmarlcd.learners.deep.degree_memory`)
   with what its compiled side needs to fold an episode in (:class:`KeyedReplay`): each
   visit's key, the network's degrees and record estimate at it, and a copy of the record
   network to estimate with.
@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.degree_memory import (
+from cmarlcd.learners.deep.degree_memory import (
     DegreeMemory,
     KeyedParams,
     keyed_params,
@@ -30,7 +30,7 @@ from cmarlcd.learners.degree_memory import (
     new_memory,
     sample_memory,
 )
-from cmarlcd.learners.replay import new_ring, sample, seed_view
+from cmarlcd.learners.deep.replay import new_ring, sample, seed_view
 from cmarlcd.training.deep_kernels import Weights
 
 
@@ -57,7 +57,7 @@ class KeyedReplay(NamedTuple):
 
 
 class RingKind:
-    """A ring of transitions or visits (:mod:`cmarlcd.learners.replay`)."""
+    """A ring of transitions or visits (:mod:`cmarlcd.learners.deep.replay`)."""
 
     def new(self, config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int):
         n, width = counts.shape[0], int(counts.max())

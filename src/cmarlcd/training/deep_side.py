@@ -1,6 +1,6 @@
 """A deep learner as one side of a game (:mod:`cmarlcd.training.loop`; ``[deep]``
 extra): VDN or QMIX, or deep CMARL-CD. What differs between them is behind their config
-(:class:`cmarlcd.learners.deep_config.DeepLearnerConfig`): its compiled side kernels (how
+(:class:`cmarlcd.learners.deep.config.DeepLearnerConfig`): its compiled side kernels (how
 it acts and what it stores in its replay ring) and its stacked model (what a gradient
 step does); the rest, written here once, is the same for every deep learner.
 
@@ -18,9 +18,9 @@ Either way it acts with its learner's kernels (VDN and QMIX ε-greedily, eq. 18,
 turn appended to the replay ring; deep CMARL-CD by softmax over its degrees, each
 episode's visits stored when it ends). Every ``train_every`` turns it pauses the loop,
 and its :class:`DeepGroup` takes the gradient step and target copy the schedule asks for
-(:func:`cmarlcd.learners.deep_config.scheduled_work`) on the learner's stacked model
-(:class:`~cmarlcd.learners.value_decomposition.ValueDecomposition`,
-:class:`~cmarlcd.learners.degree_model.DegreeModel`), then copies the new weights (or
+(:func:`cmarlcd.learners.deep.config.scheduled_work`) on the learner's stacked model
+(:class:`~cmarlcd.learners.deep.value_decomposition.ValueDecomposition`,
+:class:`~cmarlcd.learners.deep.degree_model.DegreeModel`), then copies the new weights (or
 tables) back for the loop. The networks change only there, so acting with
 the copy is acting with the networks.
 
@@ -40,17 +40,17 @@ import torch
 from cmarlcd import devices
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_config import (
+from cmarlcd.learners.deep.config import (
     EPISODES_UNIT,
     STEPS_UNIT,
     DeepConfig,
     DeepLearnerConfig,
     scheduled_work,
 )
-from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
-from cmarlcd.learners.degree_model import DegreeModel
-from cmarlcd.learners.tabular import full_legal
-from cmarlcd.learners.value_decomposition import ValueDecomposition
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.degree_model import DegreeModel
+from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
+from cmarlcd.learners.tabular.protocol import full_legal
 from cmarlcd.plugins import note
 from cmarlcd.training.deep_kernels import (
     GENERATION,
@@ -84,7 +84,7 @@ def register_deep_learner(
     config_type: type, kernels: Callable, model: Callable, replay: Callable = lambda config: RING
 ) -> None:
     """Let the deep side play the learner whose config is a ``config_type`` (a
-    :class:`~cmarlcd.learners.deep_config.DeepLearnerConfig`): a plug-in deep learner
+    :class:`~cmarlcd.learners.deep.config.DeepLearnerConfig`): a plug-in deep learner
     registers itself once, in its own module (its replay: a ring of transitions unless
     it says otherwise). Called at the top level of a module, it registers the learner in
     the sweep's worker processes too (:mod:`cmarlcd.plugins`)."""

@@ -25,10 +25,10 @@ import numpy as np
 
 from cmarlcd.compiled import kernel, specialise_kernel
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep_coordination import DeepCMARLCDConfig
-from cmarlcd.learners.degree_memory import features_key, find, fold_episode, may_be_missing
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.degree_memory import features_key, find, fold_episode, may_be_missing
+from cmarlcd.learners.deep.replay import push_visit, push_visit_row
 from cmarlcd.learners.policy import greedy_action, sample_action, softmax_strategy
-from cmarlcd.learners.replay import push_visit, push_visit_row
 from cmarlcd.training.deep_kernels import (
     EPISODES,
     TURNS,

@@ -2,8 +2,8 @@
 
 :func:`play_episodes` drives a learner with the object API (``act`` / ``greedy(state,
 masks)``, ``observe(state, joint, reward)``, ``end_episode(final_state, terminated)``:
-:class:`cmarlcd.learners.tabular.TabularLearner`,
-:class:`cmarlcd.learners.deep_agent.DeepAgent`) through any ``ParallelEnv`` whose
+:class:`cmarlcd.learners.tabular.protocol.TabularLearner`,
+:class:`cmarlcd.learners.deep.agent.DeepAgent`) through any ``ParallelEnv`` whose
 ``state()`` is an integer or hashable and whose infos may carry ``"action_mask"``. On the
 games of :mod:`cmarlcd.games` it learns exactly what the compiled loops of
 :mod:`cmarlcd.training.tabular` learn, one Python call per step.

@@ -4,7 +4,7 @@ budget of games while watching the greedy joint action (the learner comparison).
 :func:`play_until_converged` and :func:`play_watching_greedy` are templates
 (:mod:`cmarlcd.compiled`): ``game`` is bound to a game's kernels (a matrix game's,
 :mod:`cmarlcd.games.matrix`) and ``learner`` to a repeated-game learner's
-(:class:`cmarlcd.learners.tabular.RepeatedKernels`). :func:`fit` runs the first for a
+(:class:`cmarlcd.learners.tabular.protocol.RepeatedKernels`). :func:`fit` runs the first for a
 learner object such as :class:`cmarlcd.learners.CMARLCD`.
 """
 

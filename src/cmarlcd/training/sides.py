@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.tabular import TabularConfig
+from cmarlcd.learners.tabular.protocol import TabularConfig
 from cmarlcd.training.loop import Group
 from cmarlcd.training.protocol import Side
 from cmarlcd.training.tabular_side import UNSEEN_MODES, TabularSide

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.tabular import TabularConfig
+from cmarlcd.learners.tabular.protocol import TabularConfig
 from cmarlcd.training.loop import Play
 from cmarlcd.training.policy_side import PolicySide, UniformSide
 from cmarlcd.training.tabular_side import TabularSide

@@ -11,7 +11,7 @@ only the states its play reaches. The learner sees rows only: it learns the same
 either way.
 
 The side kernels are templates bound to the game's kernels (``game``) and the learner's
-(``learner``, :class:`cmarlcd.learners.tabular.TabularKernels`).
+(``learner``, :class:`cmarlcd.learners.tabular.protocol.TabularKernels`).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from cmarlcd.compiled import Unbound, shared_kernel, specialise_kernel
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.policy import uniform_legal_action
-from cmarlcd.learners.tabular import TabularConfig, greedy_policy, grow_tables, init_tables
+from cmarlcd.learners.tabular.protocol import TabularConfig, greedy_policy, grow_tables, init_tables
 from cmarlcd.training.protocol import Side, SideKernels, never_pause
 
 game = Unbound("game")

@@ -1,0 +1,191 @@
+"""Hyper-parameters of the VDN and QMIX baselines and the ε schedule of eq. (18), and
+what every deep learner's config provides (:class:`DeepLearnerConfig`).
+
+Kept free of PyTorch so that configs validate, and the command line reports bad input,
+without the ``[deep]`` extra installed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from cmarlcd.errors import check_discount, require
+from cmarlcd.learners.policy import annealed_epsilon
+from cmarlcd.runs import added_setting
+
+MIXERS = ("vdn", "qmix")
+#: How a deep learner takes its gradient step ([choice]): ``autograd``, PyTorch's autograd
+#: and Adam (any device); ``fused``, hand-derived gradients and Adam in compiled CPU
+#: kernels (:mod:`cmarlcd.learners.deep.fused.step`), equal to autograd's to float32 rounding
+#: (CPU only); ``auto``, the fused step where it runs (on the CPU, for a learner it
+#: covers), else autograd's.
+STEPS = ("auto", "autograd", "fused")
+#: The step of the runs stored before ``step`` existed (0.5.x): their identity leaves it
+#: out, and reads back as this one.
+STEP_BEFORE = "autograd"
+#: The deep learners' default step ([choice]): ``auto``, the fused step on the CPU, since
+#: the equivalence study (benchmarks/fused_equivalence.py, docs: The fused gradient step)
+#: showed its runs equivalent to autograd's within the declared margins (0.6.0; autograd's
+#: before, and still on a GPU).
+DEFAULT_STEP = "auto"
+
+
+def takes_fused_step(step: str, device, covered: bool = True) -> bool:
+    """Whether a model with the ``step`` setting computing on ``device`` (a
+    :class:`torch.device`) takes the fused step: ``fused`` always (the step refuses a
+    device that is not the CPU), ``auto`` on the CPU where the fused kernels cover the
+    learner's settings (``covered``)."""
+    return step == "fused" or (step == "auto" and covered and device.type == "cpu")
+
+
+#: How the mixers are named in tables and figures.
+DISPLAY_NAMES = {"vdn": "VDN", "qmix": "QMIX"}
+
+
+class DeepLearnerConfig:
+    """Base of the configs of the deep learners (VDN and QMIX, deep CMARL-CD): the fields
+    every deep config has (``hidden``, ``buffer_size``, ``batch_size``, ``train_every``,
+    ``target_every``, ``lr``, ``gamma``; :func:`scheduled_work` reads them and
+    :meth:`ready`) and the
+    constants its compiled kernels read. Its kernels and its stacked model are found by
+    the config's type (:func:`cmarlcd.training.deep_side.register_deep_learner`)."""
+
+    name: str
+    display_name: str
+    hidden: int
+    buffer_size: int
+    batch_size: int
+    train_every: int
+    target_every: int
+
+    @property
+    def anneals(self) -> bool:
+        """Whether its exploration depends on the learning budget L (eq. 18), so that a run
+        is made per L rather than evaluated at every L on the way."""
+        raise NotImplementedError
+
+    def ready(self, stored: int) -> bool:
+        """Whether ``stored`` entries of its replay are enough to learn from (default: a
+        batch's worth)."""
+        return stored >= self.batch_size
+
+    def schedule(self, learn_episodes: int) -> list[float]:
+        """The constants its compiled kernels read (``schedule``): entry
+        :data:`TRAIN_EVERY_ENTRY` is ``train_every`` for every deep learner."""
+        raise NotImplementedError
+
+
+#: Where every deep learner's schedule holds ``train_every`` (read by the pause kernel).
+TRAIN_EVERY_ENTRY = 5
+#: Where a deep side's schedule ends with what its learning stage counts (appended by the
+#: side after the learner's own entries): :data:`EPISODES_UNIT` or :data:`STEPS_UNIT`.
+BUDGET_UNIT_ENTRY = -1
+EPISODES_UNIT, STEPS_UNIT = 0.0, 1.0
+
+
+@dataclass(frozen=True)
+class DeepConfig(DeepLearnerConfig):
+    """Hyper-parameters of VDN / QMIX; defaults are the paper's DSN settings."""
+
+    mixer: str = "vdn"
+    """``"vdn"`` (sum) or ``"qmix"`` (monotonic mixing network)."""
+    hidden: int = 49
+    """Hidden units of each agent's MLP."""
+    mixer_hidden: int = 70
+    """Hidden units of the QMIX mixing network (70 DSN, 64 battlefield)."""
+    buffer_size: int = 40_000
+    """Replay buffer capacity, in transitions."""
+    batch_size: int = 400
+    """Transitions per gradient step; learning starts once this many are stored."""
+    train_every: int = 200
+    """One gradient step every this many environment steps."""
+    target_every: int = 2_000
+    """Copy the online networks to the target networks every this many environment steps."""
+    lr: float = 1e-3
+    """Adam learning rate."""
+    gamma: float = 0.9
+    """[choice] Discount of the TD target, in [0, 1] (0: each step's own reward)."""
+    eps_start: float = 1.0
+    """ε_ini of eq. (18)."""
+    eps_end: float = 0.0
+    """ε_fin of eq. (18), reached after ``anneal_fraction`` of the episodes."""
+    anneal_fraction: float = 0.8
+    """Fraction of the L learning episodes over which ε is annealed (eq. 18: 0.8)."""
+    eps_after: float = 0.01
+    """ε for the remaining episodes (eq. 18: 0.01)."""
+    step: str = added_setting(DEFAULT_STEP, "0.6.0", before=STEP_BEFORE)
+    """[choice] How the gradient step is computed (:data:`STEPS`): ``auto`` (the default,
+    :data:`DEFAULT_STEP`: the fused step on the CPU, autograd's on a GPU), ``fused`` (CPU
+    only) or ``autograd`` (the step of the runs stored before 0.6.0). The two steps round
+    floats differently, so runs follow other trajectories."""
+
+    @property
+    def name(self) -> str:  # type: ignore[override]
+        """The learner's registry name: its mixer (``"vdn"`` or ``"qmix"``)."""
+        return self.mixer
+
+    @property
+    def display_name(self) -> str:  # type: ignore[override]
+        return DISPLAY_NAMES[self.mixer]
+
+    @property
+    def anneals(self) -> bool:
+        """ε anneals over the L learning episodes (eq. 18)."""
+        return True
+
+    def schedule(self, learn_episodes: int) -> list[float]:
+        """ε schedule (start, end, anneal fraction, after), L, ``train_every``."""
+        return [*epsilon_schedule(self), learn_episodes, self.train_every]
+
+    def __post_init__(self) -> None:
+        known = ", ".join(MIXERS)
+        require(self.mixer in MIXERS, "mixer", f"must be one of {known} (got {self.mixer!r})")
+        steps = ", ".join(STEPS)
+        require(self.step in STEPS, "step", f"must be one of {steps} (got {self.step!r})")
+        for name in (
+            "hidden",
+            "mixer_hidden",
+            "buffer_size",
+            "batch_size",
+            "train_every",
+            "target_every",
+        ):
+            value = getattr(self, name)
+            require(value >= 1, name, f"must be >= 1 (got {value})")
+        require(self.batch_size <= self.buffer_size, "batch_size", "must be <= buffer_size")
+        require(self.lr > 0, "lr", f"must be > 0 (got {self.lr})")
+        check_discount(self.gamma)
+        for name in ("eps_start", "eps_end", "eps_after"):
+            value = getattr(self, name)
+            require(0 <= value <= 1, name, f"must be in [0, 1] (got {value})")
+        fraction = self.anneal_fraction
+        require(0 < fraction <= 1, "anneal_fraction", f"must be in (0, 1] (got {fraction})")
+
+
+#: The paper's battlefield settings (Section V-B).
+BATTLEFIELD_DEEP = dict(
+    buffer_size=100_000, batch_size=720, train_every=240, target_every=2_400, mixer_hidden=64
+)
+
+
+def epsilon(episode: int, total_episodes: int, config: DeepConfig) -> float:
+    """Eq. (18): ε of the ``episode``-th learning episode (1-based) out of ``L``."""
+    return annealed_epsilon(episode, total_episodes, *epsilon_schedule(config))
+
+
+def epsilon_schedule(config: DeepConfig) -> tuple[float, float, float, float]:
+    """(start, end, anneal fraction, after) for :func:`annealed_epsilon`."""
+    return (config.eps_start, config.eps_end, config.anneal_fraction, config.eps_after)
+
+
+def scheduled_work(
+    before: int, after: int, stored: int, config: DeepLearnerConfig
+) -> tuple[bool, bool]:
+    """The schedule of every deep learner: once its environment steps have gone from
+    ``before`` to ``after``, (take a gradient step, copy the target networks). A gradient
+    step is due at every multiple of ``train_every`` crossed, once the replay holds
+    enough to learn from (``stored``; ``config.ready``); a target copy at every multiple of
+    ``target_every`` crossed."""
+    step = after // config.train_every > before // config.train_every
+    copy = after // config.target_every > before // config.target_every
+    return step and config.ready(stored), copy

@@ -1,0 +1,236 @@
+"""Deep CMARL-CD's networks and update, B seeds stacked in one model (``[deep]`` extra).
+
+The settings and the rule in words are in :mod:`cmarlcd.learners.deep.coordination`.
+Like :class:`cmarlcd.learners.deep.value_decomposition.ValueDecomposition`, every tensor has a
+leading seed axis and no parameter is shared between seeds, so each seed learns exactly
+what it would alone; the degree networks are that module's :class:`AgentNetworks` (or
+:class:`SharedAgentNetwork`), so the compiled loops act with them in the same way.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from cmarlcd.learners.deep.config import takes_fused_step
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.fused.step import FusedDegreeStep
+from cmarlcd.learners.deep.value_decomposition import (
+    AgentNetworks,
+    GroupLinear,
+    StackedModel,
+    per_state,
+    rows,
+)
+
+
+class SharedAgentNetwork(nn.Module):
+    """One MLP per seed for every agent: input the state and the agent's one-hot index,
+    output one value per action; the same interface as :class:`AgentNetworks`."""
+
+    def __init__(
+        self,
+        seeds: int,
+        n_agents: int,
+        in_dim: int,
+        hidden: int,
+        n_actions: int,
+        generators: Sequence[torch.Generator],
+    ) -> None:
+        super().__init__()
+        self.seeds, self.n_agents, self.in_dim = seeds, n_agents, in_dim
+        self.first = GroupLinear(in_dim + n_agents, hidden, generators)
+        self.second = GroupLinear(hidden, n_actions, generators)
+
+    def _hidden(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, N, H) -> ReLU of every agent's hidden layer, (B, N, n, H)."""
+        agent = self.first.weight[:, self.in_dim :]  # (B, n, H): each agent's index row
+        return torch.relu(x[:, :, None, :] + agent[:, None])
+
+    def forward(self, state: torch.Tensor) -> torch.Tensor:
+        """``state``: (B, N) int64 or (B, N, in_dim) -> values (B, N, n_agents, n_actions)."""
+        if state.dtype == torch.int64:
+            return rows(self.tables(), state)
+        x = torch.baddbmm(self.first.bias[:, None], state, self.first.weight[:, : self.in_dim])
+        hidden = self._hidden(x)
+        b, n = state.shape[:2]
+        out = torch.baddbmm(
+            self.second.bias[:, None], hidden.reshape(b, -1, hidden.shape[-1]), self.second.weight
+        )
+        return out.view(b, n, self.n_agents, -1)
+
+    def tables(self) -> torch.Tensor:
+        """Values of every integer (one-hot) state: (B, in_dim, n_agents, n_actions)."""
+        x = self.first.weight[:, : self.in_dim] + self.first.bias[:, None]  # (B, S, H)
+        hidden = self._hidden(x)
+        b, s = x.shape[:2]
+        out = torch.baddbmm(
+            self.second.bias[:, None], hidden.reshape(b, -1, hidden.shape[-1]), self.second.weight
+        )
+        return out.view(b, s, self.n_agents, -1)
+
+    def copy_tables(self, out: np.ndarray) -> None:
+        """``out`` (B, in_dim, n_agents, n_actions) := :meth:`tables`."""
+        with torch.no_grad():
+            np.copyto(out, self.tables().cpu().numpy())
+
+    def feature_weights(self) -> tuple[torch.Tensor, ...]:
+        """The per-agent layers the compiled loop reads, agent-major (B * n, ...): the
+        shared weights, each agent's index row folded into its first bias."""
+        n, f = self.n_agents, self.in_dim
+        w1 = self.first.weight[:, :f].repeat_interleave(n, dim=0)
+        b1 = (self.first.bias[:, None] + self.first.weight[:, f:]).reshape(-1, w1.shape[-1])
+        w2 = self.second.weight.repeat_interleave(n, dim=0)
+        b2 = self.second.bias.repeat_interleave(n, dim=0)
+        return w1, b1, w2, b2
+
+
+class RecordNetwork(nn.Module):
+    """``R(s)`` for B seeds: state -> Linear -> ReLU -> Linear -> one value."""
+
+    def __init__(self, in_dim: int, hidden: int, generators: Sequence[torch.Generator]) -> None:
+        super().__init__()
+        self.first = GroupLinear(in_dim, hidden, generators)
+        self.second = GroupLinear(hidden, 1, generators)
+
+    def forward(self, state: torch.Tensor) -> torch.Tensor:
+        """(B, N[, in]) -> (B, N)."""
+        return per_state(self.first, state, lambda x: self.second(torch.relu(x)))[..., 0]
+
+
+class DegreeModel(StackedModel):
+    """Deep CMARL-CD for B independent seeds: degree and record networks, the record's
+    target copy, Adam, and the update of :mod:`cmarlcd.learners.deep.coordination`.
+
+    Args:
+        action_counts: actions of each agent.
+        in_dim: state features, or the number of states for integer (one-hot) states.
+        seeds: one :class:`numpy.random.SeedSequence` per seed (parameter initialisation).
+        device: where it computes (``cpu``, ``cuda:N``; :mod:`cmarlcd.devices`).
+    """
+
+    def __init__(
+        self,
+        action_counts: Sequence[int],
+        in_dim: int,
+        config: DeepCMARLCDConfig,
+        seeds: Sequence[np.random.SeedSequence],
+        device: str = "cpu",
+    ) -> None:
+        super().__init__(action_counts, config, seeds, device)
+        gens, width = self.generators, self.width
+        self.agents: nn.Module
+        if config.share:
+            shared = [g[0] for g in gens]
+            self.agents = SharedAgentNetwork(
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, shared
+            )
+        else:
+            self.agents = AgentNetworks(
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens
+            )
+        self.record = RecordNetwork(in_dim, config.record_hidden, [g[-1] for g in gens])
+        self.target_record = copy.deepcopy(self.record).requires_grad_(False)
+        self.place()
+        self.optimizer = torch.optim.Adam(
+            [
+                {"params": list(self.agents.parameters()), "lr": config.lr},
+                {"params": list(self.record.parameters()), "lr": config.record_lr},
+            ],
+            fused=True,
+        )
+        fused = takes_fused_step(config.step, self.device, config.fused_covered)
+        self.fused = FusedDegreeStep(self) if fused else None
+
+    def targets(
+        self, degrees: torch.Tensor, actions: torch.Tensor, returns: torch.Tensor,
+        record: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]:  # fmt: skip
+        """Algorithm 2's updates as regression targets: the new degrees (B, N, n, A) of
+        each visit given its present ``degrees``, taken ``actions`` (B, N, n), return
+        (B, N) and the record estimate (B, N); and which visits have one (record or tie,
+        (B, N) bool)."""
+        c = self.config
+        new_record = returns > record + c.margin
+        tie = ~new_record & ((returns - record).abs() <= c.tolerance)
+        base = torch.where(new_record[..., None, None], c.c_init, degrees.clamp(c.c_min, c.c_max))
+        step = torch.where(new_record, c.delta_reset, c.delta)[..., None, None]
+        taken = nn.functional.one_hot(actions, degrees.shape[-1]).bool()
+        moved = base + torch.where(taken, step, -step)
+        return moved.clamp(c.c_min, c.c_max), new_record | tie
+
+    def learn(self, batch: dict[str, torch.Tensor]) -> float:
+        """One Adam step on :meth:`loss` (by autograd, or the fused step of
+        ``config.step``); returns the mean loss per seed."""
+        if self.fused is not None:
+            return self.fused(batch)
+        return self.optimise(self.loss(batch))
+
+    def loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The seeds' summed losses on a batch (:meth:`keyed_loss` or
+        :meth:`replayed_loss`, as the config's ``update``)."""
+        if self.config.keyed:
+            return self.keyed_loss(batch)
+        return self.replayed_loss(batch)
+
+    def keyed_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The seeds' summed losses on a batch of kept states: ``state`` (B, N[, in]),
+        ``target`` (B, N, n, A): the degrees the memory holds there, ``record`` (B, N):
+        their records. The degrees' squared distance to the targets over each agent's
+        real actions, summed over the agents and averaged over the states; with
+        ``unseen_record`` compared with an estimate, plus the record network's squared error."""
+        state = batch["state"]
+        degrees = self.agents(state)
+        valid = self.valid.to(degrees.dtype)
+        loss = (((degrees - batch["target"]) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
+        if self.config.estimates_unseen:
+            loss = loss + ((self.record(state) - batch["record"]) ** 2).mean(dim=1).sum()
+        return loss
+
+    def replayed_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The seeds' summed losses on a batch of visits: ``state`` (B, N[, in]),
+        ``actions`` (B, N, n), ``reward`` (B, N): each visit's discounted return (every
+        tensor on the model's device). The degrees' squared distance to their targets,
+        averaged over the visits that have one, plus the record's expectile loss."""
+        state, actions, returns = batch["state"], batch["actions"], batch["reward"]
+        degrees = self.agents(state)
+        with torch.no_grad():
+            record = self.target_record(state)
+            target, updated = self.targets(degrees, actions, returns, record)
+        weight = (updated[..., None, None] & self.valid).to(degrees.dtype)
+        per_visit = (((degrees - target) ** 2) * weight).sum(dim=(2, 3))  # (B, N)
+        visits = updated.sum(dim=1).clamp(min=1).to(degrees.dtype)
+        degree_loss = (per_visit.sum(dim=1) / visits).sum()  # mean over the updated visits
+        estimate = self.record(state)
+        tau = self.config.expectile
+        below = (returns < estimate).to(estimate.dtype).detach()
+        expectile = (tau + (1 - 2 * tau) * below) * (returns - estimate) ** 2
+        return degree_loss + expectile.mean(dim=1).sum()
+
+    @torch.no_grad()
+    def record_table(self) -> torch.Tensor:
+        """The record network's estimate of every integer state, (B, S)."""
+        record = self.record
+        return record.second(torch.relu(record.first.table()))[..., 0]
+
+    def record_weights(self) -> tuple[torch.Tensor, ...]:
+        """The record network's layers as the compiled loop reads them (one "agent" per
+        seed): (B, in, H), (B, H), (B, H, 1), (B, 1)."""
+        first, second = self.record.first, self.record.second
+        return first.weight, first.bias, second.weight, second.bias
+
+    def sync_target(self) -> None:
+        """Clone the record network into its target copy."""
+        self.target_record.load_state_dict(self.record.state_dict())
+
+    @torch.no_grad()
+    def greedy_table(self) -> torch.Tensor:
+        """Greedy joint action (B, S, n) in every integer state: each agent's legal action
+        of largest clipped degree (lowest index on ties, as the tabular learner)."""
+        c = self.config
+        degrees = self.agents.tables().clamp(c.c_min, c.c_max)
+        return self._masked(degrees, self.state_legal).argmax(dim=-1)

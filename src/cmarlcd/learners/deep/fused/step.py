@@ -1,0 +1,239 @@
+"""The fused CPU steps of VDN and QMIX (``DeepConfig.step = "fused"``) and of deep
+CMARL-CD's keyed update (``DeepCMARLCDConfig.step``): the loss, its gradients and Adam in
+compiled kernels (:mod:`cmarlcd.learners.deep.fused.kernels`,
+:mod:`cmarlcd.learners.deep.fused.degree_kernels`) that read and write the model's own
+parameters in place, so the model, its targets and everything that copies its weights
+see the update as they see PyTorch's.
+
+It replaces the model's autograd and optimiser step, not the model:
+greedy actions, target copies and the side's weight copies still go through PyTorch. It
+keeps its own Adam moments, so a model takes every step one way or the other.
+
+The kernels run with subnormal floats flushed to zero (:func:`subnormals_flushed`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numpy as np
+import torch
+
+from cmarlcd.errors import require
+from cmarlcd.learners.deep.fused import degree_kernels as fused_degree_kernels
+from cmarlcd.learners.deep.fused import kernels as fused_kernels
+
+
+def _arrays(module: torch.nn.Module) -> tuple[np.ndarray, ...]:
+    """The module's parameters as NumPy arrays sharing their memory, in registration
+    order."""
+    return tuple(p.detach().numpy() for p in module.parameters())
+
+
+class FusedStep:
+    """The TD step of one :class:`ValueDecomposition` model, fused (see the module)."""
+
+    def __init__(self, model) -> None:
+        _on_the_cpu(model)
+        self.model = model
+        self.qmix = model.config.mixer == "qmix"
+        self.agents, self.target_agents = _arrays(model.agents), _arrays(model.target_agents)
+        if self.qmix:
+            self.mixer, self.target_mixer = _arrays(model.mixer), _arrays(model.target_mixer)
+        else:  # VDN has no parameters: empty arrays of the kernels' types
+            self.mixer = self.target_mixer = _no_mixer(model.n_seeds)
+        self.agent_grads = tuple(np.zeros_like(p) for p in self.agents)
+        self.mixer_grads = tuple(np.zeros_like(p) for p in self.mixer)
+        params = [*self.agents, *(self.mixer if self.qmix else ())]
+        grads = [*self.agent_grads, *(self.mixer_grads if self.qmix else ())]
+        self.flat = _flat(params, grads)
+        self.rates = np.full(len(params), model.optimizer.param_groups[0]["lr"], np.float64)
+        self.adam = adam_settings(model.optimizer)
+        self.steps = 0
+        # integer states, masks per state: the target's Q_tot at every state, per seed
+        states = self.agents[0].shape[1]
+        self.target_table = np.zeros((model.n_seeds, states), np.float32)
+        self.targets_changed()
+
+    def targets_changed(self) -> None:
+        """The target networks or the per-state masks changed: the kept target values
+        are recomputed at the next step (as autograd's step recomputes its table)."""
+        self.refresh = True
+
+    def __call__(self, batch: dict[str, torch.Tensor]) -> float:
+        """One step on a replay batch (the keys of :meth:`ValueDecomposition.td_loss`);
+        the mean loss per seed."""
+        self.steps += 1
+        per_state = batch["state"].dtype == torch.int64 and "next_legal" not in batch
+        arguments = (
+            (self.agents, self.target_agents, self.mixer, self.target_mixer),
+            (self.agent_grads, self.mixer_grads),
+            self._batch(batch),
+            self._legal(batch),
+            self.model.valid.numpy(),
+            self._shape(batch),
+            (*self.flat, self.rates, (self.steps, *self.adam)),
+            (self.refresh, self.target_table),
+        )
+        with subnormals_flushed():
+            loss = fused_kernels.td_step(*arguments)
+        if per_state:
+            self.refresh = False
+        return loss / self.model.n_seeds
+
+    def _batch(self, batch: dict[str, torch.Tensor]) -> tuple:
+        features, states = split_states(batch["state"])
+        next_features, next_states = split_states(batch["next_state"])
+        return (
+            features,
+            next_features,
+            states,
+            next_states,
+            batch["actions"].numpy(),
+            np.ascontiguousarray(batch["reward"].numpy(), np.float32),
+            batch["terminal"].numpy(),
+        )
+
+    def _legal(self, batch: dict[str, torch.Tensor]) -> tuple:
+        seeds, n, width = self.model.n_seeds, self.model.n_agents, self.model.width
+        own = batch.get("next_legal")
+        if own is not None:  # as autograd's step does, a mask that broadcasts is one
+            shape = (seeds, batch["state"].shape[1], n, width)
+            legal = np.ascontiguousarray(np.broadcast_to(own.numpy(), shape))
+            return True, legal, np.empty((0, 0, n, width), np.bool_)
+        none = np.empty((0, 0, 0, width), np.bool_)
+        legal = self.model.state_legal
+        if legal is None or batch["state"].dtype != torch.int64:
+            return False, none, np.empty((0, 0, n, width), np.bool_)
+        legal = legal.numpy()
+        if legal.ndim == 3:
+            legal = np.broadcast_to(legal, (seeds, *legal.shape))
+        return False, none, np.ascontiguousarray(legal)
+
+    def _shape(self, batch: dict[str, torch.Tensor]) -> tuple:
+        model = self.model
+        index = batch["state"].dtype == torch.int64
+        own = model.agents.own_dim or 0
+        units = model.mixer.hidden if self.qmix else 0
+        return self.qmix, index, float(model.config.gamma), own, model.mixer_dim, units
+
+
+class FusedDegreeStep:
+    """The keyed update of one :class:`cmarlcd.learners.deep.degree_model.DegreeModel`, fused
+    (:mod:`cmarlcd.learners.deep.fused.degree_kernels`): the degree networks regressed onto
+    the keyed memory's degrees and, where unseen states are compared with an estimate,
+    the record network onto its records; Adam with each network's learning rate."""
+
+    def __init__(self, model) -> None:
+        _on_the_cpu(model)
+        self.model = model
+        self.estimates = model.config.estimates_unseen
+        self.agents, self.record = _arrays(model.agents), _arrays(model.record)
+        self.agent_grads = tuple(np.zeros_like(p) for p in self.agents)
+        self.record_grads = tuple(np.zeros_like(p) for p in self.record)
+        # a network that gets no gradient is not stepped (PyTorch's Adam skips it)
+        params = [*self.agents, *(self.record if self.estimates else ())]
+        grads = [*self.agent_grads, *(self.record_grads if self.estimates else ())]
+        self.flat = _flat(params, grads)
+        rates = [model.config.lr] * 4 + [model.config.record_lr] * (len(params) - 4)
+        self.rates = np.array(rates, np.float64)
+        self.adam = adam_settings(model.optimizer)
+        self.steps = 0
+
+    def __call__(self, batch: dict[str, torch.Tensor]) -> float:
+        """One step on a batch of kept states (:meth:`DegreeModel.keyed_loss`'s keys); the
+        mean loss per seed."""
+        self.steps += 1
+        index = batch["state"].dtype == torch.int64
+        features, states = split_states(batch["state"])
+        n_states = self.agents[0].shape[1] if index else 0
+        arguments = (
+            (self.agents, self.record),
+            (self.agent_grads, self.record_grads),
+            (
+                features,
+                states,
+                np.ascontiguousarray(batch["target"].numpy(), np.float32),
+                np.ascontiguousarray(batch["record"].numpy(), np.float32),
+            ),
+            self.model.valid.numpy(),
+            (index, n_states, self.estimates),
+            (*self.flat, self.rates, (self.steps, *self.adam)),
+        )
+        with subnormals_flushed():
+            loss = fused_degree_kernels.keyed_step(*arguments)
+        return loss / self.model.n_seeds
+
+
+@contextmanager
+def subnormals_flushed() -> Iterator[None]:
+    """Run the block with subnormal floats (magnitude below 1.2e-38 in float32) read and
+    written as zero on this thread (the CPU's flush-to-zero and denormals-are-zero
+    modes, :func:`torch.set_flush_denormal`), then leave the thread's mode as it was.
+
+    Why: a parameter that gets no gradient for a while (a state the batches miss) has
+    Adam's first moment decay by beta1 per step into the subnormals, where every
+    arithmetic operation takes a slow path of the CPU; on the DSN's tables that tripled
+    the step's time. Flushed, such a moment is zero a few steps sooner. No parameter
+    moves differently in practice: a moment that small changes a weight by less than
+    ``lr`` × 1.2e-30 (Adam divides by at least its eps, 1e-8), far below a float32
+    weight's rounding, and fixed-seed runs store the same numbers, bit for bit, with and
+    without the flush (docs: The fused gradient step). Where the CPU has no
+    such mode (``set_flush_denormal`` is False) the block runs as it is."""
+    was_flushing = flushing_subnormals()
+    turned_on = not was_flushing and torch.set_flush_denormal(True)
+    try:
+        yield
+    finally:
+        if turned_on:
+            torch.set_flush_denormal(False)
+
+
+def flushing_subnormals() -> bool:
+    """Whether this thread flushes subnormal results to zero now (a float32 product that
+    is subnormal when computed exactly comes back as zero)."""
+    tiny = np.array([1.0e-38], np.float32)
+    return bool((tiny * np.float32(0.5))[0] == 0.0)
+
+
+def split_states(state: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+    """(features (B, N, F) float32, integer states (B, N)) of a batch's states: the kind
+    it is not of is an empty (features) or zero (states) stand-in of the kernels' types."""
+    array = state.numpy()
+    seeds, count = array.shape[:2]
+    if array.dtype == np.int64:
+        return np.empty((seeds, count, 0), np.float32), array
+    return np.ascontiguousarray(array, np.float32), np.zeros((seeds, count), np.int64)
+
+
+def _on_the_cpu(model) -> None:
+    require(
+        model.device.type == "cpu",
+        "step",
+        f"the fused step runs on the CPU, not {model.device}; use step=autograd there",
+    )
+
+
+def _flat(params: list[np.ndarray], grads: list[np.ndarray]) -> tuple:
+    """Flat views of the parameters and gradients, and Adam's two moments (zeros)."""
+    return (
+        tuple(p.reshape(-1) for p in params),
+        tuple(g.reshape(-1) for g in grads),
+        tuple(np.zeros(p.size, np.float32) for p in params),
+        tuple(np.zeros(p.size, np.float32) for p in params),
+    )
+
+
+def adam_settings(optimizer: torch.optim.Optimizer) -> tuple[float, float, float]:
+    """(beta1, beta2, eps) of a PyTorch Adam (every group's are the defaults here)."""
+    group = optimizer.param_groups[0]
+    beta1, beta2 = group["betas"]
+    return float(beta1), float(beta2), float(group["eps"])
+
+
+def _no_mixer(seeds: int) -> tuple[np.ndarray, ...]:
+    """Ten empty arrays shaped as QMIX's parameters (3-d weights, 2-d biases)."""
+    return tuple(
+        np.zeros((seeds, 0, 0) if k % 2 == 0 else (seeds, 0), np.float32) for k in range(10)
+    )
