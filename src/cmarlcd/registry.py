@@ -108,9 +108,12 @@ def _tabular(stochastic: Any = None, repeated: Any = None, **presets: Any) -> Le
     return Learner(name, TABULAR, stochastic, repeated, presets)
 
 
-def _deep(mixer: str) -> Learner:
-    battle = DeepConfig(mixer=mixer, **BATTLEFIELD_DEEP)
-    return Learner(mixer, DEEP, DeepConfig(mixer=mixer), None, {BATTLEFIELD: battle})
+def _deep(mixer: str, battlefield: bool = True) -> Learner:
+    """A learner of :class:`DeepConfig` (with the battlefield's settings where it plays
+    the paper's tournament)."""
+    config = DeepConfig(mixer=mixer)
+    presets = {BATTLEFIELD: DeepConfig(mixer=mixer, **BATTLEFIELD_DEEP)} if battlefield else {}
+    return Learner(config.name, DEEP, config, None, presets)
 
 
 #: Every learner, in the order tables list them: the paper's four, then the classic
@@ -136,6 +139,9 @@ REGISTRY: dict[str, Learner] = {
         _tabular(LenientStochasticConfig(), LenientConfig()),
         _tabular(repeated=JointActionConfig()),
         _tabular(repeated=CentralQConfig()),
+        # the deep forms of independent learning (beyond the paper: not in its tournament)
+        _deep("independent", battlefield=False),
+        _deep("hysteretic", battlefield=False),
     )
 }
 

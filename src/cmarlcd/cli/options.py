@@ -216,7 +216,14 @@ def _setting_item(item: str, by_name: dict[str, Any], parameter: str) -> tuple[s
     fields = sorted(f.name for f in dataclasses.fields(by_name[name]))
     known = f"{name} has no setting {field!r}; its settings: {', '.join(fields)}"
     require(field in fields, parameter, known)
-    return name, field, _typed(getattr(by_name[name], field), text.strip(), parameter)
+    config = by_name[name]
+    default = getattr(config, field)
+    if default is None:  # an optional setting: its declared type says what it holds
+        declared = next(f.type for f in dataclasses.fields(config) if f.name == field)
+        if text.strip().lower() == "none":
+            return name, field, None
+        default = 0.0 if "float" in str(declared) else 0 if "int" in str(declared) else None
+    return name, field, _typed(default, text.strip(), parameter)
 
 
 def _typed(default: Any, text: str, parameter: str) -> Any:

@@ -13,7 +13,20 @@ from cmarlcd.errors import check_discount, require
 from cmarlcd.learners.policy import annealed_epsilon
 from cmarlcd.runs import added_setting
 
-MIXERS = ("vdn", "qmix")
+#: How the agents' values make the TD target: VDN's sum and QMIX's monotonic network (one
+#: target for the team), or none (each agent its own target on the team reward: deep
+#: independent Q-learning, and its hysteretic form).
+MIXERS = ("vdn", "qmix", "independent", "hysteretic")
+#: The mixers whose agents learn each from its own TD error.
+INDEPENDENT_MIXERS = ("independent", "hysteretic")
+#: The mixers the fused CPU step covers (the others take autograd's step under ``auto``).
+FUSED_MIXERS = ("vdn", "qmix")
+#: [choice] Hysteretic DQN's ratio of the learning rate for negative TD errors to the
+#: rate for positive ones (Omidshafiei et al., 2017, "Deep decentralized multi-task
+#: multi-agent reinforcement learning under partial observability", ICML: a smaller rate
+#: for negative errors, ``β < α``). The project's value, 0.2, is its own choice; the
+#: setting is ``negative_rate``.
+HYSTERETIC_NEGATIVE_RATE = 0.2
 #: How a deep learner takes its gradient step ([choice]): ``autograd``, PyTorch's autograd
 #: and Adam (any device); ``fused``, hand-derived gradients and Adam in compiled CPU
 #: kernels (:mod:`cmarlcd.learners.deep.fused.step`), equal to autograd's to float32 rounding
@@ -39,7 +52,19 @@ def takes_fused_step(step: str, device, covered: bool = True) -> bool:
 
 
 #: How the mixers are named in tables and figures.
-DISPLAY_NAMES = {"vdn": "VDN", "qmix": "QMIX"}
+DISPLAY_NAMES = {
+    "vdn": "VDN",
+    "qmix": "QMIX",
+    "independent": "Deep IQL",
+    "hysteretic": "Hysteretic DQN",
+}
+#: The registry name of the learner of each mixer.
+LEARNER_NAMES = {
+    "vdn": "vdn",
+    "qmix": "qmix",
+    "independent": "deep-iql",
+    "hysteretic": "hysteretic-dqn",
+}
 
 
 class DeepLearnerConfig:
@@ -85,10 +110,14 @@ EPISODES_UNIT, STEPS_UNIT = 0.0, 1.0
 
 @dataclass(frozen=True)
 class DeepConfig(DeepLearnerConfig):
-    """Hyper-parameters of VDN / QMIX; defaults are the paper's DSN settings."""
+    """Hyper-parameters of VDN / QMIX (and of deep IQL and hysteretic DQN, the same
+    networks without a mixer); defaults are the paper's DSN settings."""
 
     mixer: str = "vdn"
-    """``"vdn"`` (sum) or ``"qmix"`` (monotonic mixing network)."""
+    """``"vdn"`` (sum), ``"qmix"`` (monotonic mixing network), ``"independent"`` (deep
+    IQL: no mixer, each agent's own TD target on the team reward) or ``"hysteretic"``
+    (hysteretic DQN: deep IQL whose negative TD errors move the values at
+    ``negative_rate`` times the rate)."""
     hidden: int = 49
     """Hidden units of each agent's MLP."""
     mixer_hidden: int = 70
@@ -119,10 +148,30 @@ class DeepConfig(DeepLearnerConfig):
     only) or ``autograd`` (the step of the runs stored before 0.6.0). The two steps round
     floats differently, so runs follow other trajectories."""
 
+    negative_rate: float | None = added_setting(None, "0.7.0")
+    """Hysteretic DQN's β/α ([choice]): each squared TD error whose TD error
+    ``r + γ max Q' − Q`` is negative is weighed by it, so with plain gradient descent
+    those errors move the values at this fraction of the rate (with Adam, which scales
+    the summed gradient, approximately so). None: :data:`HYSTERETIC_NEGATIVE_RATE` for
+    ``mixer="hysteretic"``, 1 (no hysteresis) for every other mixer."""
+
     @property
     def name(self) -> str:  # type: ignore[override]
-        """The learner's registry name: its mixer (``"vdn"`` or ``"qmix"``)."""
-        return self.mixer
+        """The learner's registry name (:data:`LEARNER_NAMES`): ``"vdn"``, ``"qmix"``,
+        ``"deep-iql"`` or ``"hysteretic-dqn"``."""
+        return LEARNER_NAMES[self.mixer]
+
+    @property
+    def independent(self) -> bool:
+        """Whether each agent learns from its own TD error (no mixer)."""
+        return self.mixer in INDEPENDENT_MIXERS
+
+    @property
+    def negative_weight(self) -> float:
+        """The weight of a squared TD error whose TD error is negative (1: none)."""
+        if self.negative_rate is not None:
+            return self.negative_rate
+        return HYSTERETIC_NEGATIVE_RATE if self.mixer == "hysteretic" else 1.0
 
     @property
     def display_name(self) -> str:  # type: ignore[override]
@@ -142,6 +191,19 @@ class DeepConfig(DeepLearnerConfig):
         require(self.mixer in MIXERS, "mixer", f"must be one of {known} (got {self.mixer!r})")
         steps = ", ".join(STEPS)
         require(self.step in STEPS, "step", f"must be one of {steps} (got {self.step!r})")
+        require(
+            self.step != "fused" or self.mixer in FUSED_MIXERS,
+            "step",
+            f"the fused step covers vdn and qmix only, not {self.name} (use auto or autograd)",
+        )
+        if self.negative_rate is not None:
+            rate = self.negative_rate
+            require(0 < rate <= 1, "negative_rate", f"must be in (0, 1] (got {rate})")
+            require(
+                self.mixer == "hysteretic",
+                "negative_rate",
+                f"applies to hysteretic-dqn only, not {self.name}",
+            )
         for name in (
             "hidden",
             "mixer_hidden",

@@ -41,7 +41,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from cmarlcd.learners.deep.config import DeepConfig, takes_fused_step
+from cmarlcd.learners.deep.config import FUSED_MIXERS, DeepConfig, takes_fused_step
 from cmarlcd.learners.deep.fused.step import FusedStep
 
 # -------------------------------------------------------------------------- layers
@@ -179,6 +179,14 @@ class VDNMixer(nn.Module):
         return q.sum(dim=-1)
 
 
+class NoMixer(nn.Module):
+    """No mixer (deep IQL, hysteretic DQN): each agent's value stays its own,
+    ``(B, N, n) -> (B, N, n)``, and so does its TD target."""
+
+    def forward(self, q: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
+        return q
+
+
 class QMixer(nn.Module):
     """QMIX's monotonic mixer for B seeds: hypernetworks on the state give non-negative
     (``abs``) weights, an ELU hidden layer of ``hidden`` units and a state-dependent bias
@@ -313,6 +321,8 @@ class ValueDecomposition(StackedModel):
         self.mixer: nn.Module = (
             QMixer(self.n_seeds, self.n_agents, self.mixer_dim, config.mixer_hidden, gens)
             if config.mixer == "qmix"
+            else NoMixer()
+            if config.independent
             else VDNMixer()
         )
         self.target_agents = copy.deepcopy(self.agents).requires_grad_(False)
@@ -324,7 +334,9 @@ class ValueDecomposition(StackedModel):
             lr=config.lr,
             fused=True,  # one pass over the parameters: ~10x the default on CPU (CUDA too)
         )
-        self.fused = FusedStep(self) if takes_fused_step(config.step, self.device) else None
+        covered = config.mixer in FUSED_MIXERS
+        fused = takes_fused_step(config.step, self.device, covered)
+        self.fused = FusedStep(self) if fused else None
 
     def q_values(self, state: torch.Tensor, legal: torch.Tensor | None = None) -> torch.Tensor:
         """Online Q (B, N, n, A) with illegal and padded actions at -inf."""
@@ -372,8 +384,25 @@ class ValueDecomposition(StackedModel):
         with torch.no_grad():
             next_tot = self._next_values(batch["next_state"], batch.get("next_legal"))
             alive = (~batch["terminal"]).to(q_tot.dtype)
-            target = batch["reward"] + self.config.gamma * alive * next_tot
-        return ((q_tot - target) ** 2).mean(dim=1).sum()
+            if self.config.independent:  # each agent its own target: (B, N, n)
+                reward, alive = batch["reward"][..., None], alive[..., None]
+                target = reward + self.config.gamma * alive * next_tot
+            else:
+                target = batch["reward"] + self.config.gamma * alive * next_tot
+        if not self.config.independent:
+            return ((q_tot - target) ** 2).mean(dim=1).sum()
+        return self._independent_loss(q_tot, target)
+
+    def _independent_loss(self, q: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        """Deep IQL's loss: each agent's squared TD error, the mean over transitions and
+        agents (as EPyMARL's IQL averages them), summed over seeds; hysteretic DQN weighs
+        an error whose TD error ``target − q`` is negative by ``negative_weight``."""
+        error = q - target
+        squared = error**2
+        weight = self.config.negative_weight
+        if weight != 1.0:
+            squared = torch.where(error > 0, weight * squared, squared)
+        return squared.mean(dim=(1, 2)).sum()
 
     def _mixer_state(self, state: torch.Tensor) -> torch.Tensor:
         """What the mixer reads of the input: all of it, or its state ``s`` where the
@@ -403,7 +432,10 @@ class ValueDecomposition(StackedModel):
             best = masked.max(dim=-1).values
             every_state = torch.arange(best.shape[1], device=best.device).expand(best.shape[0], -1)
             self._next_value_table = self.target_mixer(best, every_state)
-        return torch.gather(self._next_value_table, 1, state)
+        table = self._next_value_table  # (B, S), or (B, S, n) without a mixer
+        if table.dim() == 3:
+            return torch.gather(table, 1, state[..., None].expand(-1, -1, table.shape[2]))
+        return torch.gather(table, 1, state)
 
     def sync_target(self) -> None:
         """Clone the online networks into the target networks."""
