@@ -80,6 +80,16 @@ def test_a_budget_of_steps_end_to_end(tmp_path) -> None:
     assert "3,000 environment steps" in doc["settings"]
     vdn = doc["curves"]["VDN"]
     assert [point[0] for point in vdn[0]] == [1000, 2000, 3000]
+    # the field's figures of each learner's curve: the best point of the mean over runs,
+    # and the mean over every point
+    means = [sum(run[k][1] for run in vdn) / len(vdn) for k in range(3)]
+    field = doc["field"]["VDN"]
+    assert field["max_return"] == pytest.approx(max(means))
+    assert field["max_return_at"] == [1000, 2000, 3000][means.index(max(means))]
+    assert field["max_return_low"] <= field["max_return"] <= field["max_return_high"]
+    assert field["average_return"] == pytest.approx(sum(means) / 3)
+    assert (field["seeds"], field["points"]) == (2, 3)
+    assert set(doc["field"]) == {"CMARL-CD", "VDN"}  # not the random policy
 
 
 def test_train_on_simple_spread_end_to_end(tmp_path) -> None:

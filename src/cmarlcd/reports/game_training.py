@@ -1,5 +1,7 @@
 """The report of ``cmarl-cd train --game``: learning curves on a compiled game beside the
-uniform random policy's return, a table of the final greedy returns and its JSON."""
+uniform random policy's return, a table of the final greedy returns and its JSON (with,
+per learner, the field's maximum and average return of its curve:
+:mod:`cmarlcd.experiments.field_metrics`)."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import numpy as np
 from cmarlcd.experiments import games, settings_of
 from cmarlcd.experiments.episodic import STD_DDOF
 from cmarlcd.experiments.episodic_results import row_label
+from cmarlcd.experiments.field_metrics import field_metrics
 from cmarlcd.reports.section import (
     FigureBlock,
     Section,
@@ -154,6 +157,11 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         seed=seed,
         rows=[r.to_dict() for r in rows],
         curves={label: data.tolist() for label, data in curves.items()},
+        field={
+            label: field_metrics(data[0, :, 0].astype(int), data[:, :, 1]).as_dict()
+            for label, data in curves.items()
+            if label != RANDOM_LABEL
+        },
         figures={"curves": str(drawn)},
     )
     section.add(
