@@ -42,7 +42,7 @@ def test_only_vdn_and_qmix_read_their_own_observations() -> None:
     seed = np.random.SeedSequence(0)
     counts = np.array([2, 2])
     assert envs.new_learner(registry.require_learner("qmix"), counts, shape, 10, seed)
-    with pytest.raises(ConfigError, match="own-observations is for vdn and qmix"):
+    with pytest.raises(ConfigError, match="own-observations is for vdn, qmix, deep-iql"):
         envs.new_learner(registry.require_learner("deep-cmarl-cd"), counts, shape, 10, seed)
 
 

@@ -138,7 +138,7 @@ def test_vdn_and_qmix_on_their_own_observations_end_to_end(tmp_path) -> None:
         (["--game", "foraging:8x8-2p-2f", "--env", "tests.tiny_env:make"], "one of --env"),
         ([], "one of --env"),
         (["--game", "foraging:8x8-2p-2f", "--reward", "mean"], "--env only"),
-        (["--game", "simple_spread", "--inputs", "own-observations"], "vdn and qmix only"),
+        (["--game", "simple_spread", "--inputs", "own-observations"], "hysteretic-dqn only"),
         (["--game", "simple_spread", "--inputs", "pixels"], "inputs"),
         (["--game", "foraging:8x8-2p-2f", "--algorithms", "cmarl-cd"], "need a table"),
         (["--game", "foraging:8x8-2p-2f", "--seed-batch", "0"], "seed"),

@@ -125,8 +125,9 @@ def train(
         str,
         typer.Option(
             help="What the learners read: state (the env's state()), observations (joined), or "
-            "own-observations (VDN, QMIX: each agent its own, the mixer the state). With "
-            "--game, state and observations are every agent's observation joined."
+            "own-observations (VDN, QMIX, deep IQL, hysteretic DQN: each agent its own, the "
+            "mixer the state). With --game, state and observations are every agent's "
+            "observation joined."
         ),
     ] = "state",
     envs_per_run: Annotated[

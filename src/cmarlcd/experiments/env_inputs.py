@@ -12,6 +12,7 @@ import gymnasium
 import numpy as np
 
 from cmarlcd.errors import ConfigError, require
+from cmarlcd.learners.deep.config import OWN_OBSERVATION_LEARNERS
 from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
 
 #: [choice] What the learners read: the environment's ``state()`` (default); every
@@ -19,8 +20,6 @@ from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
 #: ``own-observations``: each agent's network its own observation and QMIX's mixer the
 #: state (decentralised execution, as VDN and QMIX were published; VDN and QMIX only).
 INPUTS = ("state", "observations", "own-observations")
-#: The learners that can read ``own-observations``.
-OWN_OBSERVATION_LEARNERS = ("vdn", "qmix")
 
 
 class JoinedObservations:
@@ -137,7 +136,7 @@ def check_reads_own_observations(learner: str, inputs: str) -> None:
     require(
         inputs != "own-observations" or learner in OWN_OBSERVATION_LEARNERS,
         "inputs",
-        f"own-observations is for {' and '.join(OWN_OBSERVATION_LEARNERS)}; "
+        f"own-observations is for {', '.join(OWN_OBSERVATION_LEARNERS)}; "
         f"{learner} reads the state or the observations joined",
     )
 

@@ -41,6 +41,7 @@ from cmarlcd.experiments.episodic import (
 from cmarlcd.games.foraging import Foraging
 from cmarlcd.games.observations import own_observations
 from cmarlcd.games.spread import SimpleSpread
+from cmarlcd.learners.deep.config import OWN_OBSERVATION_LEARNERS
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment
 from cmarlcd.training.tabular import EpisodeStats, evaluate_uniform
@@ -118,8 +119,6 @@ class GameFamily:
 #: agents each their own, QMIX's mixer the joined ones (decentralised execution, as
 #: EPyMARL and BenchMARL run them; :func:`cmarlcd.games.observations.own_observations`).
 GAME_INPUTS = ("observations", "own-observations")
-#: The learners that can read ``own-observations``.
-OWN_OBSERVATION_LEARNERS = ("vdn", "qmix")
 
 
 @functools.lru_cache(maxsize=64)
@@ -189,7 +188,7 @@ class GameSweep(EpisodicSweep):
             require(
                 not others,
                 "inputs",
-                f"own-observations is read by {' and '.join(OWN_OBSERVATION_LEARNERS)} only "
+                f"own-observations is read by {', '.join(OWN_OBSERVATION_LEARNERS)} only "
                 f"(not {', '.join(others)})",
             )
         tabular = [c.name for c in self.learners if not is_deep(c)]

@@ -65,6 +65,9 @@ LEARNER_NAMES = {
     "independent": "deep-iql",
     "hysteretic": "hysteretic-dqn",
 }
+#: The learners that can read each agent its own observation (``own-observations``):
+#: every learner of :class:`DeepConfig`, whose agent networks take ``own_dim``.
+OWN_OBSERVATION_LEARNERS = tuple(LEARNER_NAMES.values())
 
 
 class DeepLearnerConfig:
