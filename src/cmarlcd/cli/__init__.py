@@ -1,6 +1,6 @@
 """The ``cmarl-cd`` command line: one module per command (:mod:`~.repeated`, :mod:`~.dsn`,
 :mod:`~.tournament`, :mod:`~.readings`, :mod:`~.reproduce`, :mod:`~.compare`,
-:mod:`~.scaling`, :mod:`~.train`, :mod:`~.report`, :mod:`~.play`, :mod:`~.theory`),
+:mod:`~.scaling`, :mod:`~.train`, :mod:`~.field`, :mod:`~.report`, :mod:`~.play`, :mod:`~.theory`),
 each registering with the app of :mod:`~.app`; :mod:`~.sweeps` (the options and sweep
 every computing command shares), :mod:`~.options` (parsing and clean failures) and
 :mod:`~.progress` (the progress bar)."""
@@ -8,6 +8,7 @@ every computing command shares), :mod:`~.options` (parsing and clean failures) a
 from cmarlcd.cli import (  # noqa: F401  (each registers its command)
     compare,
     dsn,
+    field,
     play,
     readings,
     repeated,
@@ -34,6 +35,7 @@ ORDER = (
     "compare",
     "scaling",
     "train",
+    "field",
     "play",
     "report",
 )

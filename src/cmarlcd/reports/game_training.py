@@ -106,6 +106,11 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         x = next(iter(curves.values()))[0, :, 0]
         flat = [[point, floor_return, floor.lengths.mean()] for point in x]
         curves = {RANDOM_LABEL: np.array([flat]), **curves}
+    field = {
+        label: field_metrics(data[0, :, 0].astype(int), data[:, :, 1])
+        for label, data in curves.items()
+        if label != RANDOM_LABEL
+    }
     where = f"{family.name} {rules.name}"
     steps = first.unit == "steps"
     learnt = f"{budget:,} environment steps" if steps else f"L = {budget:,} episodes"
@@ -145,6 +150,26 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         protocol,
         layout="compact",
     )
+    unit = "steps" if steps else "episodes"
+    interval = "95 % interval"
+    field_table = TableBlock(
+        f"The field's figures of the curves on {where}",
+        ["learner", "max return", interval, f"at ({unit})", "average return", interval],
+        [
+            cells(
+                label,
+                f"{m.max_return:.3f}",
+                f"[{m.max_return_low:.3f}, {m.max_return_high:.3f}]",
+                f"{m.max_return_at:,}",
+                f"{m.average_return:.3f}",
+                f"[{m.average_return_low:.3f}, {m.average_return_high:.3f}]",
+            )
+            for label, m in field.items()
+        ],
+        "max return: the point of the curve whose mean over runs is highest; average return: "
+        "the mean over every point; intervals: Student's t over the runs (EPyMARL's figures)",
+        layout="compact",
+    )
     section = new_section(
         f"Learning on {where} (beyond the paper)",
         protocol,
@@ -157,11 +182,7 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         seed=seed,
         rows=[r.to_dict() for r in rows],
         curves={label: data.tolist() for label, data in curves.items()},
-        field={
-            label: field_metrics(data[0, :, 0].astype(int), data[:, :, 1]).as_dict()
-            for label, data in curves.items()
-            if label != RANDOM_LABEL
-        },
+        field={label: m.as_dict() for label, m in field.items()},
         figures={"curves": str(drawn)},
     )
     section.add(
@@ -175,6 +196,7 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
                 else ""
             )
         ),
+        field_table,
         FigureBlock(
             drawn, f"greedy return against {'environment steps' if steps else 'learning episodes'}"
         ),

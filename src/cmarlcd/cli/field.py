@@ -1,0 +1,167 @@
+"""``cmarl-cd field``: tasks x learners x seeds at the field's protocol (EPyMARL's:
+Papoudakis et al., NeurIPS 2021 Datasets and Benchmarks), beyond the paper. Each run
+learns for a budget of environment steps (2.05M) with a greedy evaluation every 50,000
+steps over 100 episodes; the report gives, per task and learner, the maximum and the
+average return of the curve (:mod:`cmarlcd.experiments.field_metrics`). Every run is
+stored as it ends, so a killed study resumes where it stopped."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+
+from cmarlcd import registry
+from cmarlcd.cli.app import app
+from cmarlcd.cli.options import (
+    SeedOption,
+    SetOption,
+    apply_settings,
+    fails_cleanly,
+    parse_count,
+    parse_names,
+)
+from cmarlcd.cli.sweeps import (
+    Execution,
+    compute_runs,
+    present,
+    print_results,
+    require_torch_for,
+    run_counts,
+    with_deep_execution,
+)
+from cmarlcd.errors import ConfigError, require
+from cmarlcd.experiments import games
+from cmarlcd.experiments.sensor_network import SEED_BATCH
+from cmarlcd.limits import check_seed_batch
+from cmarlcd.reports.game_training import game_training_section
+
+#: The learners of the field's comparison: the independent learners, the value
+#: decompositions and deep CMARL-CD.
+DEFAULT_LEARNERS = "deep-iql,hysteretic-dqn,vdn,qmix,deep-cmarl-cd"
+#: The field's protocol ([choice], EPyMARL's): environment steps a run, steps between
+#: greedy evaluations, episodes an evaluation, seeds.
+FIELD_STEPS, EVAL_INTERVAL, EVAL_EPISODES, SEEDS = 2_050_000, 50_000, 100, 5
+
+
+def split_tasks(text: str) -> list[str]:
+    """``"foraging:5x5-2p-1f,penalty=0.1,simple_spread:N=5"`` -> the two tasks: a comma
+    part with ``=`` and no ``:`` is a rule of the task before it."""
+    tasks: list[str] = []
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        if "=" in part and ":" not in part:
+            require(bool(tasks), "tasks", f"a rule before any task (got {text!r})")
+            tasks[-1] += f",{part}"
+        else:
+            tasks.append(part)
+    require(bool(tasks), "tasks", "needs at least one task, e.g. foraging:8x8-2p-2f-coop")
+    return list(dict.fromkeys(tasks))
+
+
+def evaluation_points(budget: int, interval: int) -> int:
+    """The greedy evaluations of a run: one every ``interval`` steps, the last at the end."""
+    require(interval >= 1, "eval_interval", f"must be >= 1 (got {interval})")
+    require(
+        interval <= budget,
+        "eval_interval",
+        f"must be at most the budget ({budget:,} steps; got {interval:,})",
+    )
+    return -(-budget // interval)
+
+
+def run_field(
+    sweeps: list[games.GameSweep], run: Execution, console: Console | None, seed_batch: int
+) -> dict[str, Any]:
+    """Run (or resume) every task's runs as one sweep, then report each task."""
+    specs = [spec for sweep in sweeps for spec in sweep.specs()]
+    records, done = compute_runs(specs, run, "field", seed_batch)
+    sections = []
+    for sweep in sweeps:
+        keys = {spec.key for spec in sweep.specs()}
+        mine = [r for r in records if r.key in keys]
+        sections.append(present(game_training_section(mine, run.figures, sweep.seed), console))
+    return {"tasks": sections, **run_counts(done, run.store, console)}
+
+
+@app.command(short_help="Beyond the paper: the field's protocol on its cooperative benchmarks.")
+@fails_cleanly
+@with_deep_execution
+def field(
+    tasks: Annotated[
+        str,
+        typer.Option(
+            help="Comma list of compiled tasks, each foraging:TASK[,rule=value...] or "
+            "simple_spread[:N=3,...], e.g. foraging:8x8-2p-2f-coop,simple_spread."
+        ),
+    ],
+    learners: Annotated[
+        str, typer.Option(help=f"Comma list of {registry.learner_names()}.")
+    ] = DEFAULT_LEARNERS,
+    seeds: Annotated[int, typer.Option(help="Runs (seeds) per task and learner.")] = SEEDS,
+    steps: Annotated[
+        str, typer.Option(help="Environment steps of each run (2.05M allowed).")
+    ] = "2.05M",
+    eval_interval: Annotated[
+        str, typer.Option(help="Environment steps between greedy evaluations.")
+    ] = "50k",
+    eval_episodes: Annotated[str, typer.Option(help="Episodes of each greedy evaluation.")] = str(
+        EVAL_EPISODES
+    ),
+    inputs: Annotated[
+        str,
+        typer.Option(
+            help="What the deep learners read: observations (every agent's, joined) or "
+            "own-observations (each agent its own; VDN, QMIX, deep IQL, hysteretic DQN)."
+        ),
+    ] = "observations",
+    seed_batch: Annotated[
+        int, typer.Option(help="Seeds of a deep learner trained together in one model.")
+    ] = SEED_BATCH,
+    seed: SeedOption = 0,
+    settings: SetOption = "",
+    *,
+    run: Execution,
+) -> None:
+    """Tasks x learners x seeds at the field's protocol: each run learns for a budget of
+    environment steps with a greedy evaluation at every interval; per task and learner,
+    the curve, the maximum return (with its 95 % interval over the seeds) and the average
+    return; stored and resumable."""
+    names = parse_names(learners, "learners")
+    configs = tuple(registry.require_learner(name, "learners") for name in names)
+    require_torch_for(names, "learners")
+    check_seed_batch(seed_batch)
+    require(seeds >= 1, "seeds", f"must be >= 1 (got {seeds})")
+    budget = parse_count(steps, "steps")
+    points = evaluation_points(budget, parse_count(eval_interval, "eval_interval"))
+    evaluated = parse_count(eval_episodes, "eval_episodes")
+    require(
+        inputs in games.GAME_INPUTS,
+        "inputs",
+        f"must be one of {', '.join(games.GAME_INPUTS)} (got {inputs!r})",
+    )
+    chosen = apply_settings(settings, configs)
+    sweeps = []
+    for task in split_tasks(tasks):
+        try:
+            family, rules = games.parse_game(task)
+            sweeps.append(
+                games.GameSweep(
+                    game=family.game,
+                    learners=chosen,
+                    episodes=(budget,),
+                    unit="steps",
+                    runs=seeds,
+                    eval_episodes=evaluated,
+                    seed=seed,
+                    curve_points=points,
+                    curve_eval_episodes=evaluated,
+                    options=family.options(rules, inputs),
+                )
+            )
+        except ConfigError as error:
+            parameter = {"algorithms": "learners", "game": "tasks"}.get(error.parameter)
+            raise ConfigError(parameter or error.parameter, f"{task}: {error.message}") from None
+    print_results(run, lambda console: run_field(sweeps, run, console, seed_batch))

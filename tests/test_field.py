@@ -1,0 +1,133 @@
+"""``cmarl-cd field``: tasks x learners x seeds at the field's protocol, as a user runs
+it (a subprocess), killed with SIGKILL and resumed; its task list; bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cmarlcd import ConfigError
+from cmarlcd.cli.field import evaluation_points, split_tasks
+
+pytest.importorskip("torch")
+
+TINY = [
+    "--learners", "deep-iql,vdn", "--seeds", "2", "--steps", "3k", "--eval-interval", "1k",
+    "--eval-episodes", "5", "--workers", "1", "--no-progress",
+]  # fmt: skip
+
+
+def field(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "cmarlcd", "field", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=cwd,
+    )
+
+
+def test_a_rule_after_a_task_belongs_to_it() -> None:
+    assert split_tasks("foraging:5x5-2p-1f,penalty=0.1,simple_spread:N=2,local_ratio=0") == [
+        "foraging:5x5-2p-1f,penalty=0.1",
+        "simple_spread:N=2,local_ratio=0",
+    ]
+    assert split_tasks("simple_spread, foraging:8x8-2p-2f-coop,simple_spread") == [
+        "simple_spread",
+        "foraging:8x8-2p-2f-coop",
+    ]
+    with pytest.raises(ConfigError, match="a rule before any task"):
+        split_tasks("penalty=0.1,foraging:5x5-2p-1f")
+    with pytest.raises(ConfigError, match="at least one task"):
+        split_tasks(" , ")
+
+
+def test_an_evaluation_every_interval_and_one_at_the_end() -> None:
+    assert evaluation_points(2_050_000, 50_000) == 41
+    assert evaluation_points(3_000, 1_000) == 3
+    assert evaluation_points(3_500, 1_000) == 4
+    with pytest.raises(ConfigError, match="at most the budget"):
+        evaluation_points(1_000, 2_000)
+
+
+def test_two_tasks_end_to_end_with_the_fields_figures(tmp_path) -> None:
+    done = field(
+        "--tasks", "foraging:5x5-2p-1f,simple_spread:N=2", *TINY, "--json",
+        "--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "f"),
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    doc = json.loads(done.stdout)
+    assert doc["runs_computed"] == 8  # 2 tasks x 2 learners x 2 seeds
+    games = [task["game"] for task in doc["tasks"]]
+    assert games == ["foraging:5x5-2p-1f", "simple_spread:N=2,local_ratio=0.5,max_cycles=25"]
+    for task in doc["tasks"]:
+        assert (task["budget"], task["unit"]) == (3000, "steps")
+        curve = task["curves"]["VDN"]
+        assert [point[0] for point in curve[0]] == [1000, 2000, 3000]
+        means = [sum(run[k][1] for run in curve) / len(curve) for k in range(3)]
+        assert task["field"]["VDN"]["max_return"] == pytest.approx(max(means))
+        assert task["field"]["Deep IQL"]["seeds"] == 2
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs SIGKILL")
+def test_killed_with_sigkill_and_resumed_to_the_same_store(tmp_path) -> None:
+    store = tmp_path / "s.sqlite"
+    args = [
+        sys.executable, "-m", "cmarlcd", "field", "--tasks", "simple_spread:N=2",
+        "--learners", "vdn", "--seeds", "4", "--seed-batch", "1", "--steps", "60k",
+        "--eval-interval", "30k", "--eval-episodes", "5", "--workers", "1", "--no-progress",
+        "--store", str(store), "--figures", str(tmp_path / "f"),
+    ]  # fmt: skip
+    process = subprocess.Popen(args, cwd=tmp_path, start_new_session=True)
+
+    def stored() -> int:
+        if not store.exists():
+            return 0
+        try:
+            with sqlite3.connect(store) as db:
+                return db.execute("select count(*) from runs").fetchone()[0]
+        except sqlite3.Error:
+            return 0
+
+    deadline = time.monotonic() + 300
+    while stored() < 1 and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+    before = stored()
+    assert 1 <= before < 4  # killed mid-sweep
+    again = subprocess.run(
+        [*args, "--json"], capture_output=True, text=True, timeout=600, cwd=tmp_path
+    )
+    assert again.returncode == 0, again.stderr[-3000:]
+    doc = json.loads(again.stdout)
+    assert doc["runs_reused"] == before and doc["runs_computed"] == 4 - before
+    assert stored() == 4
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--tasks", "nowhere:1"], "--tasks: nowhere:1: unknown game 'nowhere'"),
+        (["--tasks", "foraging:9x9"], "--tasks: foraging:9x9"),
+        (["--tasks", "simple_spread", "--learners", "nope"], "--learners: unknown 'nope'"),
+        (["--tasks", "simple_spread", "--learners", "cmarl-cd"], "need a table"),
+        (["--tasks", "simple_spread", "--inputs", "pixels"], "--inputs"),
+        (["--tasks", "simple_spread", "--eval-interval", "5M"], "at most the budget"),
+        (["--tasks", "simple_spread", "--seeds", "0"], "--seeds"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(tmp_path, args, says) -> None:
+    done = field(*args, "--store", str(tmp_path / "s.sqlite"), cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    assert says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert not (tmp_path / "s.sqlite").exists()
