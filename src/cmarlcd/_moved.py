@@ -79,10 +79,8 @@ MOVED_IN = dict.fromkeys(_LEARNERS_0_7, SINCE_0_7)
 
 def new_name(name: str) -> str | None:
     """Where module ``name`` lives now, or None if it did not move."""
-    for old, new in MOVED.items():
-        if name == old or name.startswith(old + "."):
-            return new + name[len(old) :]
-    return None
+    old = _old_key(name)
+    return None if old is None else MOVED[old] + name[len(old) :]
 
 
 def moved_in(old: str) -> str:
@@ -102,9 +100,8 @@ def moved_attribute(package: str, module: str, name: str, since: str):
     :class:`DeprecationWarning`; for a module's ``__getattr__``."""
     value = getattr(importlib.import_module(module), name, MISSING)
     # a class or function imported into ``module`` from elsewhere is not one of its names
-    if name.startswith("_") or value is MISSING or isinstance(value, ModuleType):
-        raise AttributeError(f"module {package!r} has no attribute {name!r}")
-    if callable(value) and getattr(value, "__module__", module) != module:
+    imported = callable(value) and getattr(value, "__module__", module) != module
+    if name.startswith("_") or value is MISSING or isinstance(value, ModuleType) or imported:
         raise AttributeError(f"module {package!r} has no attribute {name!r}")
     warnings.warn(
         f"{package}.{name} moved to {module}.{name} in cmarl-cd {since}; "
@@ -115,9 +112,9 @@ def moved_attribute(package: str, module: str, name: str, since: str):
     return value
 
 
-def _old_key(name: str) -> str:
-    """The key of :data:`MOVED` that module ``name`` falls under."""
-    return next(old for old in MOVED if name == old or name.startswith(old + "."))
+def _old_key(name: str) -> str | None:
+    """The key of :data:`MOVED` that module ``name`` falls under (None: it did not move)."""
+    return next((old for old in MOVED if name == old or name.startswith(old + ".")), None)
 
 
 class MovedFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
@@ -136,7 +133,7 @@ class MovedFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 
     def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType:
         new = new_name(spec.name)
-        since = moved_in(_old_key(spec.name))
+        since = moved_in(_old_key(spec.name) or spec.name)
         warnings.warn(
             f"{spec.name} moved to {new} in cmarl-cd {since}; the old name goes in "
             f"{goes_in(since)}",

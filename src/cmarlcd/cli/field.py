@@ -76,11 +76,11 @@ def run_field(
     sweeps: list[games.GameSweep], run: Execution, console: Console | None, seed_batch: int
 ) -> dict[str, Any]:
     """Run (or resume) every task's runs as one sweep, then report each task."""
-    specs = [spec for sweep in sweeps for spec in sweep.specs()]
-    records, done = compute_runs(specs, run, "field", seed_batch)
+    per_task = [sweep.specs() for sweep in sweeps]
+    records, done = compute_runs([s for specs in per_task for s in specs], run, "field", seed_batch)
     sections = []
-    for sweep in sweeps:
-        keys = {spec.key for spec in sweep.specs()}
+    for sweep, specs in zip(sweeps, per_task, strict=True):
+        keys = {spec.key for spec in specs}
         mine = [r for r in records if r.key in keys]
         sections.append(present(game_training_section(mine, run.figures, sweep.seed), console))
     return {"tasks": sections, **run_counts(done, run.store, console)}

@@ -383,12 +383,10 @@ class ValueDecomposition(StackedModel):
         q_tot = self.mixer(chosen, self._mixer_state(batch["state"]))
         with torch.no_grad():
             next_tot = self._next_values(batch["next_state"], batch.get("next_legal"))
-            alive = (~batch["terminal"]).to(q_tot.dtype)
+            reward, alive = batch["reward"], (~batch["terminal"]).to(q_tot.dtype)
             if self.config.independent:  # each agent its own target: (B, N, n)
-                reward, alive = batch["reward"][..., None], alive[..., None]
-                target = reward + self.config.gamma * alive * next_tot
-            else:
-                target = batch["reward"] + self.config.gamma * alive * next_tot
+                reward, alive = reward[..., None], alive[..., None]
+            target = reward + self.config.gamma * alive * next_tot
         if not self.config.independent:
             return ((q_tot - target) ** 2).mean(dim=1).sum()
         return self._independent_loss(q_tot, target)
