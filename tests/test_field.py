@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from cmarlcd import ConfigError
-from cmarlcd.cli.field import evaluation_points, split_tasks
+from cmarlcd import ConfigError, registry
+from cmarlcd.cli.field import evaluation_points, split_tasks, with_preset
 
 pytest.importorskip("torch")
 
@@ -78,6 +78,35 @@ def test_two_tasks_end_to_end_with_the_fields_figures(tmp_path) -> None:
         assert task["field"]["Deep IQL"]["seeds"] == 2
 
 
+def test_the_epymarl_preset_sets_epymarls_numbers_per_task() -> None:
+    vdn, iql, cmarl = (registry.require_learner(n) for n in ("vdn", "deep-iql", "deep-cmarl-cd"))
+    assert with_preset((vdn, cmarl), "paper", 25) == (vdn, cmarl)
+    # simple_spread's 25-step episodes: EPyMARL's batches of 32 episodes, a buffer of 5,000
+    # episodes, a gradient step per episode and a target copy every 200 episodes
+    epy_vdn, epy_iql, same = with_preset((vdn, iql, cmarl), "epymarl", 25)
+    assert same is cmarl  # deep CMARL-CD keeps its own settings
+    assert (epy_vdn.batch_size, epy_vdn.buffer_size) == (32 * 25, 5_000 * 25)
+    assert (epy_vdn.train_every, epy_vdn.target_every) == (25, 200 * 25)
+    assert (epy_vdn.lr, epy_vdn.hidden, epy_vdn.anneal_steps) == (5e-4, 64, 50_000)
+    assert (epy_vdn.gamma, epy_vdn.eps_start, epy_vdn.eps_end) == (0.99, 1.0, 0.05)
+    assert epy_vdn.double_q and epy_vdn.standardise_rewards and epy_vdn.grad_clip == 10.0
+    assert (epy_iql.lr, epy_iql.hidden, epy_iql.anneal_steps) == (3e-4, 128, 200_000)
+    assert epy_iql.mixer == "independent"
+
+
+def test_the_epymarl_preset_end_to_end_named_in_the_rows(tmp_path) -> None:
+    done = field(
+        "--tasks", "simple_spread:N=2", "--learners", "vdn,deep-iql", "--preset", "epymarl",
+        "--set", "vdn.lr=0.001", "--seeds", "2", "--steps", "2k", "--eval-interval", "1k",
+        "--eval-episodes", "5", "--workers", "1", "--no-progress", "--json",
+        "--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "f"),
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    (task,) = json.loads(done.stdout)["tasks"]
+    assert set(task["field"]) == {"VDN (EPyMARL, lr=0.001)", "Deep IQL (EPyMARL)"}
+
+
 @pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs SIGKILL")
 def test_killed_with_sigkill_and_resumed_to_the_same_store(tmp_path) -> None:
     store = tmp_path / "s.sqlite"
@@ -124,6 +153,7 @@ def test_killed_with_sigkill_and_resumed_to_the_same_store(tmp_path) -> None:
         (["--tasks", "simple_spread", "--inputs", "pixels"], "--inputs"),
         (["--tasks", "simple_spread", "--eval-interval", "5M"], "at most the budget"),
         (["--tasks", "simple_spread", "--seeds", "0"], "--seeds"),
+        (["--tasks", "simple_spread", "--preset", "pymarl"], "--preset: must be one of"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, says) -> None:

@@ -34,6 +34,8 @@ from cmarlcd.cli.sweeps import (
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.experiments import games
 from cmarlcd.experiments.sensor_network import SEED_BATCH
+from cmarlcd.learners.deep.config import DeepConfig
+from cmarlcd.learners.deep.epymarl import epymarl_config
 from cmarlcd.limits import check_seed_batch
 from cmarlcd.reports.game_training import game_training_section
 
@@ -43,6 +45,10 @@ DEFAULT_LEARNERS = "deep-iql,hysteretic-dqn,vdn,qmix,deep-cmarl-cd"
 #: The field's protocol ([choice], EPyMARL's): environment steps a run, steps between
 #: greedy evaluations, episodes an evaluation, seeds.
 FIELD_STEPS, EVAL_INTERVAL, EVAL_EPISODES, SEEDS = 2_050_000, 50_000, 100, 5
+#: The settings the deep learners of :class:`DeepConfig` (VDN, QMIX, deep IQL, hysteretic
+#: DQN) play with: the registry's (the paper's DSN settings) or EPyMARL's
+#: (:mod:`cmarlcd.learners.deep.epymarl`, per task: they depend on its episode length).
+PRESETS = ("paper", "epymarl")
 
 
 def split_tasks(text: str) -> list[str]:
@@ -70,6 +76,16 @@ def evaluation_points(budget: int, interval: int) -> int:
         f"must be at most the budget ({budget:,} steps; got {interval:,})",
     )
     return -(-budget // interval)
+
+
+def with_preset(configs: tuple, preset: str, episode_steps: int) -> tuple:
+    """``configs`` with the ``preset``'s settings where it has some (EPyMARL's, for the
+    learners of :class:`DeepConfig` on a task of ``episode_steps``-step episodes)."""
+    if preset == "paper":
+        return configs
+    return tuple(
+        epymarl_config(c, episode_steps) if isinstance(c, DeepConfig) else c for c in configs
+    )
 
 
 def run_field(
@@ -120,6 +136,14 @@ def field(
     seed_batch: Annotated[
         int, typer.Option(help="Seeds of a deep learner trained together in one model.")
     ] = SEED_BATCH,
+    preset: Annotated[
+        str,
+        typer.Option(
+            help="Settings of VDN, QMIX, deep IQL and hysteretic DQN: paper (the registry's, "
+            "the paper's DSN settings) or epymarl (EPyMARL's, per task; --set applies "
+            "after it). Deep CMARL-CD keeps its own."
+        ),
+    ] = "paper",
     seed: SeedOption = 0,
     settings: SetOption = "",
     *,
@@ -131,6 +155,7 @@ def field(
     return; stored and resumable."""
     names = parse_names(learners, "learners")
     configs = tuple(registry.require_learner(name, "learners") for name in names)
+    require(preset in PRESETS, "preset", f"must be one of {', '.join(PRESETS)} (got {preset!r})")
     require_torch_for(names, "learners")
     check_seed_batch(seed_batch)
     require(seeds >= 1, "seeds", f"must be >= 1 (got {seeds})")
@@ -142,11 +167,12 @@ def field(
         "inputs",
         f"must be one of {', '.join(games.GAME_INPUTS)} (got {inputs!r})",
     )
-    chosen = apply_settings(settings, configs)
+    apply_settings(settings, configs)  # bad settings refused before any task is made
     sweeps = []
     for task in split_tasks(tasks):
         try:
             family, rules = games.parse_game(task)
+            chosen = apply_settings(settings, with_preset(configs, preset, rules.spec().max_steps))
             sweeps.append(
                 games.GameSweep(
                     game=family.game,

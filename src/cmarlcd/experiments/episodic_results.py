@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -20,6 +20,8 @@ from cmarlcd.experiments.episodic import (
     anneals_over_budget,
     run_of,
 )
+from cmarlcd.learners.deep.config import DeepConfig
+from cmarlcd.learners.deep.epymarl import epymarl_config
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import RunRecord
 
@@ -50,8 +52,29 @@ class Row:
 
 def row_label(learner: LearnerConfig) -> str:
     """The learner's name with the settings that differ from the paper's (its DSN
-    settings), e.g. ``CMARL-CD (delta=0.08)``; :func:`cmarlcd.registry.variant_label`."""
+    settings), e.g. ``CMARL-CD (delta=0.08)``; :func:`cmarlcd.registry.variant_label`.
+    A deep learner at EPyMARL's settings (:mod:`cmarlcd.learners.deep.epymarl`) is named
+    so, with the settings that differ from those: ``VDN (EPyMARL)``, ``VDN (EPyMARL,
+    lr=0.001)``."""
+    preset = epymarl_reference(learner)
+    if preset is not None:
+        changed = registry.changed_settings(learner, preset)
+        if len(changed) < len(registry.changed_settings(learner)):
+            words = "".join(f", {k}={v}" for k, v in sorted(changed.items()))
+            return f"{registry.display_name(learner.name)} (EPyMARL{words})"
     return registry.variant_label(learner)
+
+
+def epymarl_reference(learner: LearnerConfig) -> DeepConfig | None:
+    """EPyMARL's settings for ``learner`` (a :class:`DeepConfig`) on the task its training
+    rhythm says (one gradient step per episode: ``train_every`` is the episode's steps)."""
+    if not isinstance(learner, DeepConfig):
+        return None
+    reference = registry.reference_settings(learner)
+    if not isinstance(reference, DeepConfig):
+        return None
+    preset = epymarl_config(reference, learner.train_every)
+    return replace(preset, negative_rate=learner.negative_rate)
 
 
 def summarize(game: EpisodicGame, records: Iterable[RunRecord]) -> list[Row]:

@@ -156,7 +156,8 @@ def deep_pause(side) -> bool:
 @kernel
 def exploration(side) -> float:
     """ε of the side's current learning episode (eq. 18), or of its current learning
-    turn where its learning stage counts environment steps (the schedule's last entry)."""
+    turn where its exploration counts environment steps (the schedule's last entry),
+    over the length of the schedule's entry 4 (L, or the steps ε anneals over)."""
     s = side.schedule
     done = side.counters[TURNS] if s[s.shape[0] - 1] == STEPS_UNIT else side.counters[EPISODES]
     return annealed_epsilon(done + 1, int(s[4]), s[0], s[1], s[2], s[3])

@@ -287,7 +287,8 @@ class DeepSide(Side):
         self.group, self.index, self.kernels, self.frozen = group, index, kernels, False
         replay = group.replay_kind.view(group.ring, index)
         counters = np.zeros(GENERATION + 1, np.int64)  # every entry up to the last
-        counted = STEPS_UNIT if unit == "steps" else EPISODES_UNIT
+        by_steps = unit == "steps" or config.explores_by_steps
+        counted = STEPS_UNIT if by_steps else EPISODES_UNIT
         schedule = np.array([*config.schedule(learn_episodes), counted], np.float64)
         joints, rewards = np.zeros((steps, n), np.int64), np.zeros(steps)
         self.data: FeatureData | IndexData

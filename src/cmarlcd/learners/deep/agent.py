@@ -156,7 +156,7 @@ class DeepAgent(StepAgent):
         the successor. The draws go copy by copy, agent by agent."""
         for state, mask, copy in zip(states, masks, copies, strict=True):
             self._complete(copy, state, mask, terminal=False)
-        eps = epsilon(self.episode + 1, self.total_episodes, self.config)
+        eps = epsilon(self.episode + 1, self.total_episodes, self.config, self.steps + 1)
         greedy, legal = self.greedy_many(states, masks), self._legal_many(masks)
         joints = []
         for best_joint, legal_joint in zip(greedy, legal, strict=True):

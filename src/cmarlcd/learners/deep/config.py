@@ -21,6 +21,10 @@ MIXERS = ("vdn", "qmix", "independent", "hysteretic")
 INDEPENDENT_MIXERS = ("independent", "hysteretic")
 #: The mixers the fused CPU step covers (the others take autograd's step under ``auto``).
 FUSED_MIXERS = ("vdn", "qmix")
+#: The settings the fused CPU step does not cover: a config that turns one on takes
+#: autograd's step under ``auto`` (standardised rewards it covers: the batch's rewards
+#: are standardised before either step).
+AUTOGRAD_ONLY_SETTINGS = ("double_q", "grad_clip")
 #: [choice] Hysteretic DQN's ratio of the learning rate for negative TD errors to the
 #: rate for positive ones (Omidshafiei et al., 2017, "Deep decentralized multi-task
 #: multi-agent reinforcement learning under partial observability", ICML: a smaller rate
@@ -92,6 +96,12 @@ class DeepLearnerConfig:
         is made per L rather than evaluated at every L on the way."""
         raise NotImplementedError
 
+    @property
+    def explores_by_steps(self) -> bool:
+        """Whether its exploration schedule counts environment steps whatever its budget
+        counts (default: it counts what the budget counts)."""
+        return False
+
     def ready(self, stored: int) -> bool:
         """Whether ``stored`` entries of its replay are enough to learn from (default: a
         batch's worth)."""
@@ -105,8 +115,10 @@ class DeepLearnerConfig:
 
 #: Where every deep learner's schedule holds ``train_every`` (read by the pause kernel).
 TRAIN_EVERY_ENTRY = 5
-#: Where a deep side's schedule ends with what its learning stage counts (appended by the
-#: side after the learner's own entries): :data:`EPISODES_UNIT` or :data:`STEPS_UNIT`.
+#: Where a deep side's schedule ends with what its exploration counts (appended by the
+#: side after the learner's own entries): :data:`EPISODES_UNIT` or :data:`STEPS_UNIT`
+#: (steps where its learning stage counts them, or its ε anneals over a number of them:
+#: ``DeepLearnerConfig.explores_by_steps``).
 BUDGET_UNIT_ENTRY = -1
 EPISODES_UNIT, STEPS_UNIT = 0.0, 1.0
 
@@ -151,6 +163,24 @@ class DeepConfig(DeepLearnerConfig):
     only) or ``autograd`` (the step of the runs stored before 0.6.0). The two steps round
     floats differently, so runs follow other trajectories."""
 
+    double_q: bool = added_setting(False, "0.7.0")
+    """[choice] Double Q-learning (van Hasselt et al., 2016; EPyMARL's ``double_q``): the
+    TD target values each agent's next action chosen greedily (over its legal actions) by
+    the online networks with the target networks; False: the target networks' own
+    greedy value."""
+    grad_clip: float | None = added_setting(None, "0.7.0")
+    """[choice] Each seed's gradient, over all its parameters, rescaled to at most this L2
+    norm before the optimiser's step (``torch.nn.utils.clip_grad_norm_``'s rule, per
+    seed; EPyMARL's ``grad_norm_clip``: 10); None: not clipped."""
+    standardise_rewards: bool = added_setting(False, "0.7.0")
+    """[choice] Each replay batch's rewards standardised by a running mean and variance
+    of every batch's rewards so far, the batch's own included (EPyMARL's
+    ``standardise_rewards``: the parallel update of its ``RunningMeanStd`` from a count
+    of 1e-4, mean 0 and variance 1, the batch's variance unbiased); per seed."""
+    anneal_steps: int | None = added_setting(None, "0.7.0")
+    """[choice] ε linear from ``eps_start`` to ``eps_end`` over this many environment
+    steps, then ``eps_end``, whatever the budget (EPyMARL's ``epsilon_anneal_time``);
+    None: eq. (18) over the budget (``anneal_fraction``, ``eps_after``)."""
     negative_rate: float | None = added_setting(None, "0.7.0")
     """Hysteretic DQN's β/α ([choice]): each squared TD error whose TD error
     ``r + γ max Q' − Q`` is negative is weighed by it, so with plain gradient descent
@@ -182,12 +212,25 @@ class DeepConfig(DeepLearnerConfig):
 
     @property
     def anneals(self) -> bool:
-        """ε anneals over the L learning episodes (eq. 18)."""
-        return True
+        """ε anneals over the L learning episodes (eq. 18), unless over a fixed number of
+        steps (``anneal_steps``)."""
+        return self.anneal_steps is None
+
+    @property
+    def explores_by_steps(self) -> bool:
+        """ε counts environment steps where it anneals over ``anneal_steps``."""
+        return self.anneal_steps is not None
+
+    @property
+    def fused_covers(self) -> bool:
+        """Whether the fused CPU step covers these settings (:data:`FUSED_MIXERS`, none of
+        :data:`AUTOGRAD_ONLY_SETTINGS` on)."""
+        return self.mixer in FUSED_MIXERS and not (self.double_q or self.grad_clip is not None)
 
     def schedule(self, learn_episodes: int) -> list[float]:
-        """ε schedule (start, end, anneal fraction, after), L, ``train_every``."""
-        return [*epsilon_schedule(self), learn_episodes, self.train_every]
+        """ε schedule (start, end, anneal fraction, after), the length it anneals over (L,
+        or ``anneal_steps``), ``train_every``."""
+        return [*epsilon_schedule(self, learn_episodes), self.train_every]
 
     def __post_init__(self) -> None:
         known = ", ".join(MIXERS)
@@ -199,6 +242,17 @@ class DeepConfig(DeepLearnerConfig):
             "step",
             f"the fused step covers vdn and qmix only, not {self.name} (use auto or autograd)",
         )
+        require(
+            self.step != "fused" or self.fused_covers,
+            "step",
+            f"the fused step does not cover {' or '.join(AUTOGRAD_ONLY_SETTINGS)} "
+            "(use auto or autograd)",
+        )
+        if self.grad_clip is not None:
+            require(self.grad_clip > 0, "grad_clip", f"must be > 0 (got {self.grad_clip})")
+        if self.anneal_steps is not None:
+            count = self.anneal_steps
+            require(count >= 1, "anneal_steps", f"must be >= 1 (got {count})")
         if self.negative_rate is not None:
             rate = self.negative_rate
             require(0 < rate <= 1, "negative_rate", f"must be in (0, 1] (got {rate})")
@@ -233,14 +287,20 @@ BATTLEFIELD_DEEP = dict(
 )
 
 
-def epsilon(episode: int, total_episodes: int, config: DeepConfig) -> float:
-    """Eq. (18): ε of the ``episode``-th learning episode (1-based) out of ``L``."""
-    return annealed_epsilon(episode, total_episodes, *epsilon_schedule(config))
+def epsilon(episode: int, total_episodes: int, config: DeepConfig, step: int = 1) -> float:
+    """Eq. (18): ε of the ``episode``-th learning episode (1-based) out of ``L``; where ε
+    anneals over ``anneal_steps``, ε of the ``step``-th environment step (1-based)."""
+    done = step if config.explores_by_steps else episode
+    start, end, fraction, after, length = epsilon_schedule(config, total_episodes)
+    return annealed_epsilon(done, int(length), start, end, fraction, after)
 
 
-def epsilon_schedule(config: DeepConfig) -> tuple[float, float, float, float]:
-    """(start, end, anneal fraction, after) for :func:`annealed_epsilon`."""
-    return (config.eps_start, config.eps_end, config.anneal_fraction, config.eps_after)
+def epsilon_schedule(config: DeepConfig, budget: int) -> tuple[float, float, float, float, int]:
+    """(start, end, anneal fraction, after, length) for :func:`annealed_epsilon`: eq. (18)
+    over the ``budget``, or linear over ``anneal_steps`` and then ``eps_end``."""
+    if config.anneal_steps is not None:
+        return (config.eps_start, config.eps_end, 1.0, config.eps_end, config.anneal_steps)
+    return (config.eps_start, config.eps_end, config.anneal_fraction, config.eps_after, budget)
 
 
 def scheduled_work(

@@ -18,7 +18,11 @@ Pieces, each in one place:
 * :class:`VDNMixer` (``Q_tot = Σ_i Q_i``) and :class:`QMixer` (hypernetworks on the state,
   non-negative weights via ``abs``, an ELU hidden layer, a state-dependent bias).
 * :class:`ValueDecomposition` -- online and target networks, Adam, the one-step TD loss
-  with the target network's greedy legal action, target copies, greedy action tables.
+  with the target network's greedy legal action (or, with ``double_q``, the online
+  network's, valued by the target network), target copies, greedy action tables; and
+  EPyMARL's optional parts: rewards standardised by running statistics
+  (:class:`RewardStatistics`) and each seed's gradient norm clipped
+  (:func:`clip_per_seed`).
 
 Decentralised inputs (``own_dim``): a feature vector may be laid out as the mixer's state
 followed by every agent's own observation, ``[s, o_1, ..., o_n]`` with each ``o_i`` of
@@ -41,7 +45,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from cmarlcd.learners.deep.config import FUSED_MIXERS, DeepConfig, takes_fused_step
+from cmarlcd.learners.deep.config import DeepConfig, takes_fused_step
 from cmarlcd.learners.deep.fused.step import FusedStep
 
 # -------------------------------------------------------------------------- layers
@@ -265,10 +269,15 @@ class StackedModel(nn.Module):
         self.generators = [generators_of(s, self.n_agents + 1) for s in seeds]
         self.state_legal: torch.Tensor | None = None
 
-    def optimise(self, loss: torch.Tensor) -> float:
-        """One Adam step on ``loss`` (the seeds' summed losses); the mean loss per seed."""
+    def optimise(self, loss: torch.Tensor, clip: float | None = None) -> float:
+        """One Adam step on ``loss`` (the seeds' summed losses), each seed's gradient
+        first clipped to norm ``clip`` if given (:func:`clip_per_seed`); the mean loss
+        per seed."""
         self.optimizer.zero_grad(set_to_none=True)  # type: ignore[attr-defined]
         loss.backward()
+        if clip is not None:
+            params = [p for group in self.optimizer.param_groups for p in group["params"]]  # type: ignore[attr-defined]
+            clip_per_seed(params, self.n_seeds, clip)
         self.optimizer.step()  # type: ignore[attr-defined]
         return float(loss.detach()) / self.n_seeds
 
@@ -334,9 +343,10 @@ class ValueDecomposition(StackedModel):
             lr=config.lr,
             fused=True,  # one pass over the parameters: ~10x the default on CPU (CUDA too)
         )
-        covered = config.mixer in FUSED_MIXERS
-        fused = takes_fused_step(config.step, self.device, covered)
+        fused = takes_fused_step(config.step, self.device, config.fused_covers)
         self.fused = FusedStep(self) if fused else None
+        self.rewards = RewardStatistics(self.n_seeds, self.device)
+        """The running statistics of ``standardise_rewards`` (unused without it)."""
 
     def q_values(self, state: torch.Tensor, legal: torch.Tensor | None = None) -> torch.Tensor:
         """Online Q (B, N, n, A) with illegal and padded actions at -inf."""
@@ -366,10 +376,13 @@ class ValueDecomposition(StackedModel):
 
     def td_step(self, batch: dict[str, torch.Tensor]) -> float:
         """One Adam step on :meth:`td_loss` (by autograd, or the fused step of
-        ``config.step``); returns the mean loss per seed."""
+        ``config.step``), on the batch's rewards standardised first where
+        ``standardise_rewards`` says so; returns the mean loss per seed."""
+        if self.config.standardise_rewards:
+            batch = {**batch, "reward": self.rewards.standardise(batch["reward"])}
         if self.fused is not None:
             return self.fused(batch)
-        return self.optimise(self.td_loss(batch))
+        return self.optimise(self.td_loss(batch), self.config.grad_clip)
 
     def td_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
         """The summed per-seed one-step TD losses of VDN or QMIX (paper Section V-A/B).
@@ -420,20 +433,35 @@ class ValueDecomposition(StackedModel):
 
     def _next_values(self, state: torch.Tensor, legal: torch.Tensor | None) -> torch.Tensor:
         """The target networks' ``Q_tot`` at ``state`` (B, N) with each agent's best legal
-        action. For integer states with per-state masks it depends on the state alone, so
-        it is a (B, S) table, computed once per target copy and looked up."""
+        action (the online networks' choice with ``double_q``). For integer states with
+        per-state masks it depends on the state alone, so it is a (B, S) table, computed
+        once per target copy (every step with ``double_q``) and looked up."""
         if state.dtype != torch.int64 or legal is not None:
-            best = self._masked(self.target_agents(state), legal).max(dim=-1).values
+            target = self._masked(self.target_agents(state), legal)
+            online = self.agents(state) if self.config.double_q else None
+            best = self._best(target, online, legal)
             return self.target_mixer(best, self._mixer_state(state))
-        if self._next_value_table is None:
+        if self._next_value_table is None or self.config.double_q:
             masked = self._masked(self.target_agents.tables(), self.state_legal)
-            best = masked.max(dim=-1).values
+            online = self.agents.tables() if self.config.double_q else None
+            best = self._best(masked, online, self.state_legal)
             every_state = torch.arange(best.shape[1], device=best.device).expand(best.shape[0], -1)
             self._next_value_table = self.target_mixer(best, every_state)
         table = self._next_value_table  # (B, S), or (B, S, n) without a mixer
         if table.dim() == 3:
             return torch.gather(table, 1, state[..., None].expand(-1, -1, table.shape[2]))
         return torch.gather(table, 1, state)
+
+    def _best(
+        self, target: torch.Tensor, online: torch.Tensor | None, legal: torch.Tensor | None
+    ) -> torch.Tensor:
+        """Each agent's value of its next action (``target``: the target networks' masked
+        Q-values): the largest, or (double Q) the one at the online values' greedy legal
+        action."""
+        if online is None:
+            return target.max(dim=-1).values
+        choice = self._masked(online, legal).argmax(dim=-1, keepdim=True)
+        return target.gather(-1, choice)[..., 0]
 
     def sync_target(self) -> None:
         """Clone the online networks into the target networks."""
@@ -442,6 +470,47 @@ class ValueDecomposition(StackedModel):
         self._next_value_table = None
         if self.fused is not None:
             self.fused.targets_changed()
+
+
+class RewardStatistics:
+    """The running mean and variance of the rewards of every replay batch so far, one
+    pair per seed: EPyMARL's ``RunningMeanStd`` (the parallel update of Chan et al.: a
+    count that starts at 1e-4, a mean at 0 and a variance at 1; each batch's variance
+    unbiased, as ``torch.var`` gives it)."""
+
+    #: The count the statistics start from (EPyMARL's ``epsilon``).
+    START_COUNT = 1e-4
+
+    def __init__(self, seeds: int, device: torch.device) -> None:
+        self.mean = torch.zeros(seeds, device=device)
+        self.var = torch.ones(seeds, device=device)
+        self.count = self.START_COUNT
+
+    def standardise(self, reward: torch.Tensor) -> torch.Tensor:
+        """Update with a batch's rewards (B, N), then return them standardised per seed:
+        ``(r - mean) / sqrt(var)``."""
+        n = reward.shape[1]
+        batch_mean, batch_var = reward.mean(dim=1), reward.var(dim=1)
+        delta, total = batch_mean - self.mean, self.count + n
+        spread = self.var * self.count + batch_var * n + delta**2 * self.count * n / total
+        self.mean = self.mean + delta * n / total
+        self.var, self.count = spread / total, total
+        return (reward - self.mean[:, None]) / torch.sqrt(self.var[:, None])
+
+
+def clip_per_seed(params: Sequence[torch.Tensor], seeds: int, max_norm: float) -> None:
+    """Scale each seed's gradients so that their L2 norm over all ``params`` is at most
+    ``max_norm``, by ``torch.nn.utils.clip_grad_norm_``'s rule (a factor ``max_norm /
+    (norm + 1e-6)`` where that is below 1). Every parameter's leading axis holds the
+    seeds, seed-major (per agent within a seed for the agent networks), so a seed's
+    gradient is its rows of each."""
+    grads = [p.grad.view(seeds, -1) for p in params if p.grad is not None]
+    if not grads:
+        return
+    norm = torch.stack([g.pow(2).sum(dim=1) for g in grads]).sum(dim=0).sqrt()
+    scale = (max_norm / (norm + 1e-6)).clamp(max=1.0)
+    for grad in grads:
+        grad.mul_(scale[:, None])
 
 
 def generators_of(seed: np.random.SeedSequence, count: int) -> list[torch.Generator]:
