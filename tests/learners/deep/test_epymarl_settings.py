@@ -61,8 +61,16 @@ def batch(rewards: list[list[float]], next_legal: bool = True) -> dict:
     return out
 
 
+def second_layer_grad(model: ValueDecomposition) -> np.ndarray:
+    """The gradient of the agents' second layer (agent, hidden, action), from either step."""
+    if model.fused is not None:
+        return model.fused.agent_grads[2]
+    return model.agents.second.weight.grad.numpy()
+
+
+@pytest.mark.parametrize("step", ["autograd", "fused"])
 @pytest.mark.parametrize("masks", ["in the batch", "per state"])
-def test_double_q_values_the_online_choice_with_the_target_networks(masks: str) -> None:
+def test_double_q_values_the_online_choice_with_the_target_networks(masks: str, step: str) -> None:
     """VDN, γ = 0.5; the online networks choose each agent's next action, the target
     networks value it:
       1. s' = 1: online (0, 3) -> 1, (2, 1) -> 0; target 7 + 2; Q_tot 2.5,
@@ -71,23 +79,25 @@ def test_double_q_values_the_online_choice_with_the_target_networks(masks: str) 
       3. s' = 2: online (4, ·) -> 0 (1 illegal), (0, 0) -> 0; target 3 + 6; Q_tot 4,
          target 0 + 0.5·9 = 4.5                                        -> error −0.5
     loss (9 + 4 + 0.25) / 3 (without double Q, 40.25 / 3: the target's own 7 + 8)."""
-    model = model_of(double_q=True)
-    assert model.fused is None  # the fused step does not cover double Q
+    model = model_of(double_q=True, step=step)
+    assert (model.fused is not None) == (step == "fused")
     if masks == "per state":
         legal = torch.ones(3, 2, 2, dtype=torch.bool)
         legal[2, 0, 1] = False
         model.set_state_legal(legal)
     loss = model.td_step(batch([[1.0, 2.0, 0.0]], next_legal=masks == "in the batch"))
     assert loss == pytest.approx(13.25 / 3)
-    grad = model.agents.second.weight.grad  # (agent, hidden = state, action)
+    grad = second_layer_grad(model)  # (agent, hidden = state, action)
     assert grad[0, 0, 1] == pytest.approx(2 * -3 / 3) and grad[1, 0, 0] == pytest.approx(-2)
 
 
-def test_double_q_follows_the_online_networks_as_they_learn() -> None:
+@pytest.mark.parametrize("step", ["autograd", "fused"])
+def test_double_q_follows_the_online_networks_as_they_learn(step: str) -> None:
     """The online choice is read at every step, not kept with the target values: after
     the online values of s' = 1 change so that agent 0 prefers action 0, its next value
-    is the target's 5, not 7."""
-    model = model_of(double_q=True)
+    is the target's 5, not 7. (A learning rate of 1e-9: the fused step's Adam moves the
+    weights by about that, far below the tolerance.)"""
+    model = model_of(double_q=True, step=step, lr=1e-9)
     model.set_state_legal(torch.ones(3, 2, 2, dtype=torch.bool))
     one = batch([[1.0, 2.0, 0.0]], next_legal=False)
     first = model.td_step(one)
@@ -136,26 +146,31 @@ def test_a_td_step_with_standardised_rewards_learns_from_the_standardised_reward
     )
 
 
-def test_each_seeds_gradient_is_clipped_to_the_norm_on_its_own() -> None:
+@pytest.mark.parametrize("step", ["autograd", "fused"])
+def test_each_seeds_gradient_is_clipped_to_the_norm_on_its_own(step: str) -> None:
     """Seed 0 has the oracle's batch (errors −6, 2, −0.5: a gradient of norm > 1), seed 1
     one whose errors are all 0.01 (a tiny gradient). With the clip at 1, seed 0's
     gradient is rescaled to norm 1 in the same direction; seed 1's stays as it was
     (a clip of the two seeds' joint norm would have shrunk it too)."""
     rewards = [[1.0, 2.0, 0.0], [-5.01, 3.99, -0.51]]  # seed 1: Q_tot − target = 0.01
     plain = model_of(seeds=2, step="autograd")  # the gradients kept where they are read
-    clipped = model_of(seeds=2, grad_clip=1.0)
+    clipped = model_of(seeds=2, grad_clip=1.0, step=step)
     plain.td_step(batch(rewards))
     clipped.td_step(batch(rewards))
 
     def per_seed(model) -> list[torch.Tensor]:
-        grads = [p.grad.reshape(2, -1) for p in model.agents.parameters()]
+        if model.fused is not None:  # the fused step's gradients, clipped before Adam
+            grads = [torch.as_tensor(g).reshape(2, -1) for g in model.fused.agent_grads]
+        else:
+            grads = [p.grad.reshape(2, -1) for p in model.agents.parameters()]
         return [torch.cat([g[k] for g in grads]) for k in range(2)]
 
     before, after = per_seed(plain), per_seed(clipped)
     assert before[0].norm() > 1 and before[1].norm() < 1
     assert after[0].norm().item() == pytest.approx(1.0, rel=1e-5)
-    assert torch.allclose(after[0], before[0] / (before[0].norm() + 1e-6), atol=1e-7)
-    assert torch.equal(after[1], before[1])
+    assert torch.allclose(after[0], before[0] / (before[0].norm() + 1e-6), atol=1e-6)
+    # seed 1 untouched (the fused step's own sums equal autograd's to float32 rounding)
+    assert torch.allclose(after[1], before[1], rtol=1e-5, atol=0)
 
 
 def test_epsilon_anneals_over_a_number_of_steps_whatever_the_budget() -> None:
@@ -191,8 +206,6 @@ def test_the_compiled_side_anneals_over_the_steps_where_the_budget_counts_episod
     [
         ({"grad_clip": 0.0}, "grad_clip"),
         ({"anneal_steps": 0}, "anneal_steps"),
-        ({"double_q": True, "step": "fused"}, "step"),
-        ({"grad_clip": 10.0, "step": "fused"}, "step"),
     ],
 )
 def test_bad_settings_are_refused(settings: dict, parameter: str) -> None:

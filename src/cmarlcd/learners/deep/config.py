@@ -19,12 +19,10 @@ from cmarlcd.runs import added_setting
 MIXERS = ("vdn", "qmix", "independent", "hysteretic")
 #: The mixers whose agents learn each from its own TD error.
 INDEPENDENT_MIXERS = ("independent", "hysteretic")
-#: The mixers the fused CPU step covers (the others take autograd's step under ``auto``).
+#: The mixers the fused CPU step covers (the others take autograd's step under ``auto``),
+#: with every setting of theirs: double Q and the gradient clip are in its kernels, and
+#: standardised rewards are standardised before either step.
 FUSED_MIXERS = ("vdn", "qmix")
-#: The settings the fused CPU step does not cover: a config that turns one on takes
-#: autograd's step under ``auto`` (standardised rewards it covers: the batch's rewards
-#: are standardised before either step).
-AUTOGRAD_ONLY_SETTINGS = ("double_q", "grad_clip")
 #: [choice] Hysteretic DQN's ratio of the learning rate for negative TD errors to the
 #: rate for positive ones (Omidshafiei et al., 2017, "Deep decentralized multi-task
 #: multi-agent reinforcement learning under partial observability", ICML: a smaller rate
@@ -223,9 +221,8 @@ class DeepConfig(DeepLearnerConfig):
 
     @property
     def fused_covers(self) -> bool:
-        """Whether the fused CPU step covers these settings (:data:`FUSED_MIXERS`, none of
-        :data:`AUTOGRAD_ONLY_SETTINGS` on)."""
-        return self.mixer in FUSED_MIXERS and not (self.double_q or self.grad_clip is not None)
+        """Whether the fused CPU step covers these settings (:data:`FUSED_MIXERS`)."""
+        return self.mixer in FUSED_MIXERS
 
     def schedule(self, learn_episodes: int) -> list[float]:
         """ε schedule (start, end, anneal fraction, after), the length it anneals over (L,
@@ -241,12 +238,6 @@ class DeepConfig(DeepLearnerConfig):
             self.step != "fused" or self.mixer in FUSED_MIXERS,
             "step",
             f"the fused step covers vdn and qmix only, not {self.name} (use auto or autograd)",
-        )
-        require(
-            self.step != "fused" or self.fused_covers,
-            "step",
-            f"the fused step does not cover {' or '.join(AUTOGRAD_ONLY_SETTINGS)} "
-            "(use auto or autograd)",
         )
         if self.grad_clip is not None:
             require(self.grad_clip > 0, "grad_clip", f"must be > 0 (got {self.grad_clip})")

@@ -32,13 +32,17 @@ INPUTS = {
 }
 
 
-def pair(mixer: str, inputs: str) -> tuple[ValueDecomposition, ValueDecomposition, callable]:
+def pair(
+    mixer: str, inputs: str, **settings
+) -> tuple[ValueDecomposition, ValueDecomposition, callable]:
     """The same model twice, autograd's and the fused step's (same seeds, so the same
     weights), with target networks moved away from the online ones, and a maker of
-    random batches of the input kind."""
+    random batches of the input kind; ``settings``: more of the :class:`DeepConfig`."""
     index, own, batch_masks, state_masks = INPUTS[inputs]
     in_dim = 6 if index else (4 + len(COUNTS) * own if own else 5)
-    config = DeepConfig(mixer=mixer, hidden=7, mixer_hidden=5, batch_size=BATCH, gamma=0.8)
+    config = DeepConfig(
+        mixer=mixer, hidden=7, mixer_hidden=5, batch_size=BATCH, gamma=0.8, **settings
+    )
     sequences = [np.random.SeedSequence(k) for k in range(SEEDS)]
     models = []
     for step in ("autograd", "fused"):
@@ -85,12 +89,15 @@ def parameters(model: ValueDecomposition) -> list[torch.Tensor]:
     return [*model.agents.parameters(), *model.mixer.parameters()]
 
 
+@pytest.mark.parametrize("double_q", [False, True])
 @pytest.mark.parametrize("inputs", list(INPUTS))
 @pytest.mark.parametrize("mixer", ["vdn", "qmix"])
-def test_fused_gradients_equal_autograd(mixer: str, inputs: str) -> None:
+def test_fused_gradients_equal_autograd(mixer: str, inputs: str, double_q: bool) -> None:
     """One step from the same weights on the same batch: the same loss and, parameter by
-    parameter, the same gradient to float32 rounding (relative to its largest entry)."""
-    auto, fused, batch = pair(mixer, inputs)
+    parameter, the same gradient to float32 rounding (relative to its largest entry);
+    with double Q too (the online networks choose the next actions, the targets value
+    them)."""
+    auto, fused, batch = pair(mixer, inputs, double_q=double_q)
     sample = batch()
     assert sample["terminal"].any()
     auto.optimizer.zero_grad()
@@ -105,16 +112,25 @@ def test_fused_gradients_equal_autograd(mixer: str, inputs: str) -> None:
         np.testing.assert_allclose(grad, p.grad.numpy(), rtol=0, atol=1e-5 * scale)
 
 
+#: EPyMARL's additions (double Q, each seed's gradient norm clipped; a clip this small
+#: binds on every step) beside the paper's settings.
+EXTRAS = {"paper": {}, "double Q, clipped": {"double_q": True, "grad_clip": 0.05}}
+
+
+@pytest.mark.parametrize("extras", list(EXTRAS))
 @pytest.mark.parametrize(
     "inputs", ["features, masks in the batch", "integer states", "integer states, per-state masks"]
 )
 @pytest.mark.parametrize("mixer", ["vdn", "qmix"])
-def test_fused_adam_and_weights_follow_autograd_over_steps(mixer: str, inputs: str) -> None:
+def test_fused_adam_and_weights_follow_autograd_over_steps(
+    mixer: str, inputs: str, extras: str
+) -> None:
     """Five steps with a target copy and new per-state masks between: Adam's moments and
     the weights stay equal to PyTorch's fused Adam's to float32 rounding (the moments
     check the update's scale, which Adam's first step alone, ±lr, does not); the target
-    values both keep between steps are renewed when the targets or the masks change."""
-    auto, fused, batch = pair(mixer, inputs)
+    values both keep between steps are renewed when the targets or the masks change (or,
+    with double Q, at every step, as the online networks move)."""
+    auto, fused, batch = pair(mixer, inputs, **EXTRAS[extras])
     for step in range(5):
         sample = batch()
         assert auto.td_step(sample) == pytest.approx(fused.td_step(sample), rel=1e-4)

@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from cmarlcd.learners.deep.fused.layers import (
+    clip_seed,
     dense_backward,
     dense_forward,
     fused,
@@ -137,6 +138,23 @@ def best_legal(q, legal, valid, out) -> None:
 
 
 @fused
+def online_choice_value(online, q, legal, valid, out) -> None:
+    """Double Q: ``out[t]`` := ``q[a*, t]`` at the legal (``legal`` (A, N)) and valid
+    action ``a*`` whose ``online[a, t]`` is largest, the first such on a tie (as
+    ``argmax`` picks it); -inf if none is legal."""
+    top = np.empty(out.shape[0], np.float32)
+    top[:] = -np.inf
+    out[:] = -np.inf
+    for a in range(q.shape[0]):
+        if valid[a]:
+            row, value, allowed = online[a], q[a], legal[a]
+            for t in range(out.shape[0]):
+                if allowed[t] and row[t] > top[t]:
+                    top[t] = row[t]
+                    out[t] = value[t]
+
+
+@fused
 def hidden_gradient(w2, hidden, grad_q, grad_hidden) -> None:
     """``grad_hidden`` (H, M) := ``W2 grad_q`` through the ReLU of ``hidden`` (H, M)."""
     for h in range(hidden.shape[0]):
@@ -187,22 +205,26 @@ def agent_backward_tables(w2t, hidden, states, act, grad_c, scratch, grads) -> N
 
 
 @fused
-def agents_forward(agents, target_agents, b, inputs, c, best, hidden, kept, targets) -> None:
+def agents_forward(
+    agents, target_agents, b, inputs, c, best, hidden, kept, targets, double_q
+) -> None:
     """Every agent of seed ``b``: ``c`` (n, N) the online Q of each transition's action
     (``hidden`` keeps what the backward pass reads), and where ``targets``, ``best`` the
-    target networks' best legal Q: (n, N) at each transition's next state, or, for
-    integer states whose masks are per state, (n, S) at every state. ``inputs``: see
-    :func:`td_step`."""
+    target networks' best legal Q (with ``double_q``, their Q at the online networks'
+    best legal action): (n, N) at each transition's next state, or, for integer states
+    whose masks are per state, (n, S) at every state. ``inputs``: see :func:`td_step`."""
     w1, b1, w2, b2 = agents
     tw1, tb1, tw2, tb2 = target_agents
     index, x, nx, states, next_states, actions, legal_of, own_dim = inputs
     n, count = c.shape
     units, width = w2.shape[1], w2.shape[2]
     q = np.empty((width, count), np.float32)
+    online = np.empty((width, count if double_q else 0), np.float32)
     legal = np.empty((width, count), np.bool_)
     act = np.empty(count, np.int64)
     rows = w1.shape[1] if index else 0
     table = np.empty((rows, width), np.float32)
+    online_table = np.empty((rows if double_q else 0, width), np.float32)
     w2t = np.empty((width, units), np.float32)
     target_hidden = np.empty_like(hidden[0])
     for i in range(n):
@@ -214,37 +236,54 @@ def agents_forward(agents, target_agents, b, inputs, c, best, hidden, kept, targ
                 c[i, t] = table[states[t], act[t]]
             if not targets:
                 continue
+            if double_q:
+                online_table[:] = table
             net_tables(tw1[g], tb1[g], transposed(tw2[g], w2t), tb2[g], target_hidden, table)
             if legal_of[0]:  # the batch's own masks: every transition's next Q-values
                 for a in range(width):
                     for t in range(count):
                         q[a, t] = table[next_states[t], a]
                 legal_of_agent(legal_of, b, i, next_states, legal)
-                best_legal(q, legal, kept[i], best[i])
+                if double_q:
+                    for a in range(width):
+                        for t in range(count):
+                            online[a, t] = online_table[next_states[t], a]
+                    online_choice_value(online, q, legal, kept[i], best[i])
+                else:
+                    best_legal(q, legal, kept[i], best[i])
             else:  # masks per state: the best of each state
-                best_of_states(table, legal_of[2], b, i, kept[i], best[i])
+                chooser = online_table if double_q else table
+                best_of_states(chooser, table, legal_of[2], b, i, kept[i], best[i])
         else:
             lo = 0 if own_dim == 0 else x.shape[0] - (n - i) * own_dim
             hi = x.shape[0] if own_dim == 0 else lo + own_dim
             agent_features(w1[g], b1[g], w2[g], b2[g], x[lo:hi], hidden[i], q)
             chosen(q, act, c[i])
+            if double_q:  # the online networks at the next states (hidden units unkept)
+                agent_features(w1[g], b1[g], w2[g], b2[g], nx[lo:hi], target_hidden, online)
             agent_features(tw1[g], tb1[g], tw2[g], tb2[g], nx[lo:hi], target_hidden, q)
             legal_of_agent(legal_of, b, i, next_states, legal)
-            best_legal(q, legal, kept[i], best[i])
+            if double_q:
+                online_choice_value(online, q, legal, kept[i], best[i])
+            else:
+                best_legal(q, legal, kept[i], best[i])
 
 
 @fused
-def best_of_states(table, state_legal, b, i, valid, out) -> None:
-    """``out[s]`` := max over agent ``i``'s legal (``state_legal`` (B, S, n, A), or every
-    action where it is empty) and valid actions of ``table[s]`` (-inf if none)."""
+def best_of_states(chooser, table, state_legal, b, i, valid, out) -> None:
+    """``out[s]`` := ``table[s, a*]`` at agent ``i``'s legal (``state_legal`` (B, S, n,
+    A), or every action where it is empty) and valid action ``a*`` whose ``chooser[s,
+    a]`` is largest, the first on a tie (-inf if none): the largest of ``table[s]`` where
+    ``chooser`` is ``table``, double Q's value where it is the online networks' table."""
     masked = state_legal.shape[0] > 0
     for s in range(table.shape[0]):
-        best = -np.inf
+        top, value = -np.inf, -np.inf
         for a in range(table.shape[1]):
             allowed = valid[a] and (not masked or state_legal[b, s, i, a])
-            if allowed and table[s, a] > best:
-                best = table[s, a]
-        out[s] = best
+            if allowed and chooser[s, a] > top:
+                top = chooser[s, a]
+                value = table[s, a]
+        out[s] = value
 
 
 @fused
@@ -306,18 +345,20 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache) -> flo
     (whether the batch has its own masks, them (B, N, n, A), per-state masks (B, S, n, A)
     or empty); ``valid`` (n, A): each agent's real actions. ``shape``: (qmix, index,
     discount, own_dim: features of each agent's own observation or 0, mixer_dim: the
-    leading features the mixer reads, mixer hidden units). ``optimiser``: the flat
+    leading features the mixer reads, mixer hidden units, double Q, and the norm each
+    seed's gradient is clipped to, 0 for none: :func:`clip_seed`). ``optimiser``: the flat
     parameters, gradients (the same memory as ``grads``) and Adam's two moments, and
     Adam's settings (:func:`adam`). ``cache``: (refresh, table (B, S)): for integer
     states with masks per state, each seed's target ``Q_tot`` at every state, kept
     between steps (it changes only when the target networks or the masks do) and
-    recomputed where ``refresh``.
+    recomputed where ``refresh`` (at every step with double Q: the online networks
+    choose the actions).
     """
     agents, target_agents, mixer, target_mixer = nets
     refresh, target_table = cache
     agent_grads, mixer_grads = grads
     features, next_features, states, next_states, actions, reward, terminal = batch
-    qmix, index, gamma, own_dim, mixer_dim, units = shape
+    qmix, index, gamma, own_dim, mixer_dim, units, double_q, clip = shape
     seeds, count, n = actions.shape
     hidden_units = agents[0].shape[2]
     if index:  # state-major tables (S, H)
@@ -356,8 +397,8 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache) -> flo
             transpose_into(features[b], x)
             transpose_into(next_features[b], nx)
         inputs = (index, x, nx, states[b], next_states[b], actions[b], legal_of, own_dim)
-        targets = refresh or not per_state
-        agents_forward(agents, target_agents, b, inputs, c, best, hidden, valid, targets)
+        targets = refresh or not per_state or double_q
+        agents_forward(agents, target_agents, b, inputs, c, best, hidden, valid, targets, double_q)
         mixed, next_mixed = x[:mixer_dim], nx[:mixer_dim]
         if targets:
             at = every_state if per_state else next_states[b]
@@ -377,5 +418,7 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache) -> flo
             qmix, mixer, mixer_grads, b, c, mixed, states[b], index, scratch, work, grad, grad_c
         )
         agents_backward(agents, agent_grads, b, inputs, grad_c, hidden)
+        if clip > 0.0:
+            clip_seed(optimiser[1], b, seeds, clip)
         update_seed(optimiser, b, seeds)
     return loss

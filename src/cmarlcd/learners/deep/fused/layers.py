@@ -229,6 +229,29 @@ def update_seed(optimiser, b: int, seeds: int) -> None:
 
 
 @fused
+def clip_seed(grads, b: int, seeds: int, max_norm: float) -> None:
+    """Scale seed ``b``'s rows of every gradient so that their joint L2 norm is at most
+    ``max_norm``: by ``max_norm / (norm + 1e-6)`` where that is below 1, the rule of
+    ``torch.nn.utils.clip_grad_norm_`` (and of
+    :func:`cmarlcd.learners.deep.value_decomposition.clip_per_seed`); the squares are
+    summed in float64."""
+    total = 0.0
+    for k in range(len(grads)):
+        size = grads[k].shape[0] // seeds
+        g = grads[k][b * size : (b + 1) * size]
+        for j in range(g.shape[0]):
+            total += np.float64(g[j]) * np.float64(g[j])
+    scale = max_norm / (np.sqrt(total) + 1e-6)
+    if scale < 1.0:
+        factor = np.float32(scale)
+        for k in range(len(grads)):
+            size = grads[k].shape[0] // seeds
+            g = grads[k][b * size : (b + 1) * size]
+            for j in range(g.shape[0]):
+                g[j] *= factor
+
+
+@fused
 def zero_seed(grads, b: int, seeds: int) -> None:
     for k in range(len(grads)):
         size = grads[k].shape[0] // seeds

@@ -116,7 +116,9 @@ class FusedStep:
         index = batch["state"].dtype == torch.int64
         own = model.agents.own_dim or 0
         units = model.mixer.hidden if self.qmix else 0
-        return self.qmix, index, float(model.config.gamma), own, model.mixer_dim, units
+        clip = float(model.config.grad_clip or 0.0)
+        gamma, double_q = float(model.config.gamma), model.config.double_q
+        return self.qmix, index, gamma, own, model.mixer_dim, units, double_q, clip
 
 
 class FusedDegreeStep:

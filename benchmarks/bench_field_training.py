@@ -1,0 +1,155 @@
+"""Benchmark: one task's run of the field's protocol, timed, and where the time goes.
+
+A VDN run of ``--steps`` environment steps (2.05M, EPyMARL's budget) on a compiled task
+(``foraging:8x8-2p-2f-coop``), ``--seeds`` seeds stacked in one model as ``cmarl-cd field``
+trains them, a greedy evaluation of ``--eval-episodes`` episodes every
+``--eval-interval`` steps, at each preset of ``--presets`` (``paper``: the project's
+settings; ``epymarl``: EPyMARL's, ``cmarl-cd field --preset epymarl``). After a short run
+outside the clock (numba's compilation), the seconds are split by timing, in the run
+itself:
+
+* **gradient**: the model's learning steps (the fused or autograd TD step and Adam),
+* **replay**: drawing the replay batches and handing them to the model,
+* **weights**: copying the networks to the compiled loop after each step,
+* **evaluation**: the greedy evaluations,
+* **acting**: the rest (the compiled loop playing, choosing and storing; target copies).
+
+Usage: python benchmarks/bench_field_training.py [--task foraging:8x8-2p-2f-coop]
+           [--steps 2.05M] [--seeds 5] [--presets paper,epymarl] [--eval-interval 50k]
+           [--eval-episodes 100] [--json]
+(torch: pip install -e ".[deep]")
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from collections import defaultdict
+from contextlib import contextmanager
+from datetime import date
+
+import numpy as np
+
+from cmarlcd import registry
+from cmarlcd.cli.field import evaluation_points, with_preset
+from cmarlcd.cli.options import parse_count
+from cmarlcd.experiments import games
+from cmarlcd.experiments.episodic import EpisodicRun, Recorder, run_batch
+
+PARTS = ("gradient", "replay", "weights", "evaluation")
+
+
+@contextmanager
+def timed(seconds: dict[str, float]):
+    """Inside the block, the calls of each part's function add their seconds to
+    ``seconds[part]``."""
+    from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
+    from cmarlcd.training.deep_side import DeepGroup
+
+    targets = {
+        "gradient": (ValueDecomposition, "learn"),
+        "replay": (DeepGroup, "sample"),
+        "weights": (DeepGroup, "_copy_weights"),
+        "evaluation": (Recorder, "_evaluate"),
+    }
+    originals = {part: getattr(owner, name) for part, (owner, name) in targets.items()}
+
+    def clocked(part, function):
+        def call(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                seconds[part] += time.perf_counter() - start
+
+        return call
+
+    for part, (owner, name) in targets.items():
+        setattr(owner, name, clocked(part, originals[part]))
+    try:
+        yield
+    finally:
+        for part, (owner, name) in targets.items():
+            setattr(owner, name, originals[part])
+
+
+def one_run(task: str, preset: str, steps: int, seeds: int, interval: int, episodes: int):
+    """(wall seconds, seconds per part, the learner's settings, the runs' metrics)."""
+    family, rules = games.parse_game(task)
+    (learner,) = with_preset((registry.require_learner("vdn"),), preset, rules.spec().max_steps)
+    settings = EpisodicRun(
+        learner, (steps,), episodes, evaluation_points(steps, interval), episodes,
+        family.options(rules, "observations"), unit="steps",
+    )  # fmt: skip
+    sequences = [np.random.SeedSequence(k) for k in range(seeds)]
+    seconds: dict[str, float] = defaultdict(float)
+    with timed(seconds):
+        start = time.perf_counter()
+        metrics = run_batch(family.game, settings, sequences)
+        wall = time.perf_counter() - start
+    return wall, dict(seconds), learner, metrics
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="foraging:8x8-2p-2f-coop")
+    parser.add_argument("--steps", default="2.05M")
+    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--presets", default="paper,epymarl")
+    parser.add_argument("--eval-interval", default="50k")
+    parser.add_argument("--eval-episodes", type=int, default=100)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    import torch
+
+    torch.set_num_threads(1)
+    steps = parse_count(args.steps, "--steps")
+    interval = parse_count(args.eval_interval, "--eval-interval")
+    rows = []
+    for preset in args.presets.split(","):
+        one_run(args.task, preset, 2_000, 1, 1_000, 2)  # compiled outside the clock
+        wall, seconds, learner, metrics = one_run(
+            args.task, preset, steps, args.seeds, interval, args.eval_episodes
+        )
+        acting = wall - sum(seconds.get(part, 0.0) for part in PARTS)
+        last = [run["curve"][-1][2] for run in metrics]
+        rows.append(
+            {
+                "preset": preset,
+                "step": "fused" if learner.fused_covers else "autograd",
+                "minutes": round(wall / 60, 2),
+                "steps_per_second": round(args.seeds * steps / wall),
+                "seconds": {
+                    "acting": round(acting, 1),
+                    **{part: round(seconds.get(part, 0.0), 1) for part in PARTS},
+                },
+                "final_return_per_seed": [round(x, 3) for x in last],
+            }
+        )
+    machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
+    head = {
+        "date": str(date.today()),
+        "machine": machine,
+        "task": args.task,
+        "steps": steps,
+        "seeds": args.seeds,
+        "eval_interval": interval,
+        "eval_episodes": args.eval_episodes,
+    }
+    if args.json:
+        print(json.dumps({**head, "runs": rows}, indent=2))
+        return
+    print(f"{machine}, Python {platform.python_version()}, {date.today()}, one thread")
+    print(f"VDN on {args.task}: {steps:,} steps x {args.seeds} seeds stacked, "
+          f"an evaluation of {args.eval_episodes} episodes every {interval:,} steps")  # fmt: skip
+    for row in rows:
+        parts = ", ".join(f"{k} {v:.1f} s" for k, v in row["seconds"].items())
+        print(f"  {row['preset']:8s} ({row['step']} step): {row['minutes']:.2f} min, "
+              f"{row['steps_per_second']:,} steps/s in all; {parts}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
