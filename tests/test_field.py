@@ -72,10 +72,29 @@ def test_two_tasks_end_to_end_with_the_fields_figures(tmp_path) -> None:
     for task in doc["tasks"]:
         assert (task["budget"], task["unit"]) == (3000, "steps")
         curve = task["curves"]["VDN"]
-        assert [point[0] for point in curve[0]] == [1000, 2000, 3000]
-        means = [sum(run[k][1] for run in curve) / len(curve) for k in range(3)]
+        # EPyMARL's protocol: an evaluation before learning, then one every interval
+        assert [point[0] for point in curve[0]] == [0, 1000, 2000, 3000]
+        means = [sum(run[k][1] for run in curve) / len(curve) for k in range(4)]
         assert task["field"]["VDN"]["max_return"] == pytest.approx(max(means))
         assert task["field"]["Deep IQL"]["seeds"] == 2
+
+
+def test_the_evaluation_at_start_changes_nothing_the_runs_learn(tmp_path) -> None:
+    """Without it the curve starts at the first interval; with it, the same seeds give
+    the same later points (the evaluation draws from streams of its own)."""
+    curves = {}
+    for flag in ("--no-eval-at-start", "--eval-at-start"):
+        done = field(
+            "--tasks", "simple_spread:N=2", *TINY, flag, "--json",
+            "--store", str(tmp_path / f"{flag}.sqlite"), "--figures", str(tmp_path / "f"),
+            cwd=tmp_path,
+        )  # fmt: skip
+        assert done.returncode == 0, done.stderr[-3000:]
+        (task,) = json.loads(done.stdout)["tasks"]
+        curves[flag] = task["curves"]
+    assert [point[0] for point in curves["--no-eval-at-start"]["VDN"][0]] == [1000, 2000, 3000]
+    for learner, runs in curves["--eval-at-start"].items():
+        assert [run[1:] for run in runs] == curves["--no-eval-at-start"][learner]
 
 
 def test_the_epymarl_preset_sets_epymarls_numbers_per_task() -> None:

@@ -45,6 +45,9 @@ DEFAULT_LEARNERS = "deep-iql,hysteretic-dqn,vdn,qmix,deep-cmarl-cd"
 #: The field's protocol ([choice], EPyMARL's): environment steps a run, steps between
 #: greedy evaluations, episodes an evaluation, seeds.
 FIELD_STEPS, EVAL_INTERVAL, EVAL_EPISODES, SEEDS = 2_050_000, 50_000, 100, 5
+#: [choice] Whether the field's curves start with an evaluation before learning (EPyMARL's
+#: do: its first test runs at step 0, and its average return counts it).
+EVAL_AT_START = True
 #: The settings the deep learners of :class:`DeepConfig` (VDN, QMIX, deep IQL, hysteretic
 #: DQN) play with: the registry's (the paper's DSN settings) or EPyMARL's
 #: (:mod:`cmarlcd.learners.deep.epymarl`, per task: they depend on its episode length).
@@ -144,6 +147,13 @@ def field(
             "after it). Deep CMARL-CD keeps its own."
         ),
     ] = "paper",
+    eval_at_start: Annotated[
+        bool,
+        typer.Option(
+            help="Evaluate the greedy policy before learning too (a curve point at step 0, "
+            "in the average return), as EPyMARL does."
+        ),
+    ] = EVAL_AT_START,
     seed: SeedOption = 0,
     settings: SetOption = "",
     *,
@@ -185,6 +195,7 @@ def field(
                     curve_points=points,
                     curve_eval_episodes=evaluated,
                     options=family.options(rules, inputs),
+                    eval_at_start=eval_at_start,
                 )
             )
         except ConfigError as error:

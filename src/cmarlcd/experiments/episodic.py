@@ -36,7 +36,15 @@ from cmarlcd.limits import (
 )
 from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
-from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
+from cmarlcd.runs import (
+    Experiment,
+    RunRecord,
+    RunSpec,
+    Settings,
+    added_setting,
+    identity,
+    parse_settings,
+)
 from cmarlcd.training.deep_kernels import MAX_INDEX_STATES
 from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.loop import BUDGET_UNITS
@@ -143,6 +151,9 @@ class EpisodicRun(Settings):
     unit: str = "episodes"
     """What the budgets count: learning episodes, or environment ``"steps"`` (stored
     only then; a budget of steps ends at the end of the episode it is reached in)."""
+    eval_at_start: bool = added_setting(False, "0.7.0")
+    """[choice] Whether the curve has a point at budget 0 too, the greedy policy before
+    any learning (EPyMARL's protocol evaluates there; stored only when on)."""
 
     def to_config(self) -> dict[str, Any]:
         config = {
@@ -157,6 +168,8 @@ class EpisodicRun(Settings):
             config["game"] = dict(self.options)
         if self.unit != "episodes":
             config["unit"] = self.unit
+        if self.eval_at_start:
+            config["eval_at_start"] = True
         return config
 
     @classmethod
@@ -169,6 +182,7 @@ class EpisodicRun(Settings):
             config["curve_eval_episodes"],
             options_of(config.get("game", {})),
             config.get("unit", "episodes"),
+            config.get("eval_at_start", False),
         )
 
     def stream(self) -> dict[str, Any]:
@@ -194,13 +208,14 @@ class EpisodicRun(Settings):
         curve = (
             {round(self.largest * k / points) for k in range(1, points + 1)} if points else set()
         )
-        return sorted(curve | set(self.checkpoints) - {0})
+        start = {0} if self.eval_at_start else set()
+        return sorted(curve | set(self.checkpoints) - {0} | start)
 
     def work(self, max_steps: int = 1) -> float:
         """The episodes one run plays (learning and evaluation): its progress units. A
         budget of steps counts as episodes of ``max_steps`` steps (the game's cap)."""
         evaluated = self.schedule()
-        if anneals_over_budget(self.learner):
+        if anneals_over_budget(self.learner) and not self.eval_at_start:
             evaluated = [b for b in evaluated if b > 0]  # reached by playing, never at 0
         curve = self.curve_eval_episodes * len(evaluated)
         return self.learned(max_steps) + curve + self.eval_episodes * len(self.checkpoints)
@@ -241,6 +256,8 @@ class EpisodicSweep:
     """The game's options (e.g. a larger DSN's ``grid`` and ``targets``)."""
     unit: str = "episodes"
     """What ``episodes`` counts: learning episodes, or environment ``"steps"``."""
+    eval_at_start: bool = False
+    """Whether the curve has a point at budget 0 (:attr:`EpisodicRun.eval_at_start`)."""
 
     def __post_init__(self) -> None:
         spec = self.game.with_options(self.options).spec  # refuses options it does not take
@@ -299,6 +316,7 @@ class EpisodicSweep:
             self.curve_eval_episodes,
             self.options,
             self.unit,
+            self.eval_at_start,
         )
 
     def specs(self) -> list[RunSpec]:
@@ -416,7 +434,10 @@ def run_batch(
     spec = game.with_options(settings.options).spec
     batch = DeepBatch(spec, learner, train_seeds, settings.largest, unit=settings.unit)
     with unit_cost(learn_seconds(learner) * records[0].scale):  # evaluations say their own
-        batch.train(settings.schedule(), lambda k, budget, policy: records[k](budget, policy))
+        # a budget 0 (a curve's rounding can give one) is evaluated only where asked for,
+        # as before eval_at_start existed
+        schedule = [b for b in settings.schedule() if b > 0 or settings.eval_at_start]
+        batch.train(schedule, lambda k, budget, policy: records[k](budget, policy))
     return [r.metrics() for r in records]
 
 

@@ -102,9 +102,12 @@ class DeepBatch:
         """Learn until every seed has played its learning stage, calling ``evaluate`` as
         each seed reaches each checkpoint (in episodes, or environment steps) with the
         greedy policy it had then (when the seeds next paused: the networks do not change
-        in between)."""
+        in between); a checkpoint 0 is evaluated before any learning."""
         points = sorted(set(checkpoints) | {self.total_episodes})
         evaluated = [0] * self.n_seeds
+        if 0 in points:  # before any learning: the networks as they were made
+            for k, policy in enumerate(self.greedy_policies()):
+                evaluate(k, 0, policy)
         steps = self.unit == "steps"
 
         def done(play: Play) -> int:

@@ -74,11 +74,6 @@ DIFFERENCES = (
         "fixed at the steps done when the episode began",
         "the steps done before each step",
     ),
-    (
-        "evaluation at 0 steps",
-        "a greedy evaluation before learning, counted in the average return",
-        "the first evaluation after the first interval",
-    ),
 )
 
 
