@@ -1,8 +1,9 @@
 """Benchmark: one task's run of the field's protocol, timed, and where the time goes.
 
-A VDN run of ``--steps`` environment steps (2.05M, EPyMARL's budget) on a compiled task
-(``foraging:8x8-2p-2f-coop``), ``--seeds`` seeds stacked in one model as ``cmarl-cd field``
-trains them, a greedy evaluation of ``--eval-episodes`` episodes every
+A VDN run (``--learner``; ``--step`` its gradient step) of ``--steps`` environment steps
+(2.05M, EPyMARL's budget) on a compiled task (``foraging:8x8-2p-2f-coop``), ``--seeds``
+seeds stacked in one model as ``cmarl-cd field`` trains them, a greedy evaluation of
+``--eval-episodes`` episodes every
 ``--eval-interval`` steps, at each preset of ``--presets`` (``paper``: the project's
 settings; ``epymarl``: EPyMARL's, ``cmarl-cd field --preset epymarl``). After a short run
 outside the clock (numba's compilation), the seconds are split by timing, in the run
@@ -14,7 +15,8 @@ itself:
 * **evaluation**: the greedy evaluations,
 * **acting**: the rest (the compiled loop playing, choosing and storing; target copies).
 
-Usage: python benchmarks/bench_field_training.py [--task foraging:8x8-2p-2f-coop]
+Usage: python benchmarks/bench_field_training.py [--learner vdn] [--step auto]
+           [--task foraging:8x8-2p-2f-coop]
            [--steps 2.05M] [--seeds 5] [--presets paper,epymarl] [--eval-interval 50k]
            [--eval-episodes 100] [--json]
 (torch: pip install -e ".[deep]")
@@ -29,6 +31,7 @@ import platform
 import time
 from collections import defaultdict
 from contextlib import contextmanager
+from dataclasses import replace
 from datetime import date
 
 import numpy as np
@@ -76,10 +79,15 @@ def timed(seconds: dict[str, float]):
             setattr(owner, name, originals[part])
 
 
-def one_run(task: str, preset: str, steps: int, seeds: int, interval: int, episodes: int):
+def one_run(
+    name: str, step: str, task: str, preset: str, steps: int, seeds: int, interval: int,
+    episodes: int,
+):  # fmt: skip
     """(wall seconds, seconds per part, the learner's settings, the runs' metrics)."""
     family, rules = games.parse_game(task)
-    (learner,) = with_preset((registry.require_learner("vdn"),), preset, rules.spec().max_steps)
+    base = registry.require_learner(name)
+    (learner,) = with_preset((base,), preset, rules.spec().max_steps)
+    learner = replace(learner, step=step)
     settings = EpisodicRun(
         learner, (steps,), episodes, evaluation_points(steps, interval), episodes,
         family.options(rules, "observations"), unit="steps",
@@ -95,6 +103,8 @@ def one_run(task: str, preset: str, steps: int, seeds: int, interval: int, episo
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--learner", default="vdn", help="vdn, qmix, deep-iql, hysteretic-dqn")
+    parser.add_argument("--step", default="auto", help="auto, fused or autograd")
     parser.add_argument("--task", default="foraging:8x8-2p-2f-coop")
     parser.add_argument("--steps", default="2.05M")
     parser.add_argument("--seeds", type=int, default=5)
@@ -110,16 +120,19 @@ def main() -> None:
     interval = parse_count(args.eval_interval, "--eval-interval")
     rows = []
     for preset in args.presets.split(","):
-        one_run(args.task, preset, 2_000, 1, 1_000, 2)  # compiled outside the clock
+        what = (args.learner, args.step, args.task, preset)
+        one_run(*what, 2_000, 1, 1_000, 2)  # compiled outside the clock
         wall, seconds, learner, metrics = one_run(
-            args.task, preset, steps, args.seeds, interval, args.eval_episodes
+            *what, steps, args.seeds, interval, args.eval_episodes
         )
         acting = wall - sum(seconds.get(part, 0.0) for part in PARTS)
         last = [run["curve"][-1][2] for run in metrics]
         rows.append(
             {
                 "preset": preset,
-                "step": "fused" if learner.fused_covers else "autograd",
+                "step": learner.step
+                if learner.step != "auto"
+                else ("fused" if learner.auto_fuses else "autograd"),
                 "minutes": round(wall / 60, 2),
                 "steps_per_second": round(args.seeds * steps / wall),
                 "seconds": {
@@ -133,6 +146,7 @@ def main() -> None:
     head = {
         "date": str(date.today()),
         "machine": machine,
+        "learner": args.learner,
         "task": args.task,
         "steps": steps,
         "seeds": args.seeds,
@@ -143,7 +157,8 @@ def main() -> None:
         print(json.dumps({**head, "runs": rows}, indent=2))
         return
     print(f"{machine}, Python {platform.python_version()}, {date.today()}, one thread")
-    print(f"VDN on {args.task}: {steps:,} steps x {args.seeds} seeds stacked, "
+    name = registry.display_name(args.learner)
+    print(f"{name} on {args.task}: {steps:,} steps x {args.seeds} seeds stacked, "
           f"an evaluation of {args.eval_episodes} episodes every {interval:,} steps")  # fmt: skip
     for row in rows:
         parts = ", ".join(f"{k} {v:.1f} s" for k, v in row["seconds"].items())

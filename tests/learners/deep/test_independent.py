@@ -56,6 +56,14 @@ def batch(next_legal: bool) -> dict:
     return out
 
 
+def second_layer_grad(model: ValueDecomposition) -> torch.Tensor:
+    """The gradient of the agents' second layer (agent, hidden = state, action), from
+    autograd's step or the fused step's own arrays."""
+    if model.fused is not None:
+        return torch.as_tensor(model.fused.agent_grads[2])
+    return model.agents.second.weight.grad
+
+
 def step(model: ValueDecomposition, masks: str) -> float:
     if masks == "per state":
         legal = torch.ones(3, 2, 2, dtype=torch.bool)
@@ -75,14 +83,15 @@ def step(model: ValueDecomposition, masks: str) -> float:
 ERRORS = [-2.5, -4.5, 1.0, -1.0, 2.5, -3.0]
 
 
+@pytest.mark.parametrize("kind", ["autograd", "fused"])
 @pytest.mark.parametrize("masks", ["in the batch", "per state"])
-def test_deep_iql_one_td_step_against_a_hand_computed_batch(masks: str) -> None:
+def test_deep_iql_one_td_step_against_a_hand_computed_batch(masks: str, kind: str) -> None:
     """loss: the mean over 3 transitions × 2 agents of the squared errors, 43.75 / 6;
     dloss/dQ_i(s, a) = 2 · error / 6 at each played entry, 0 elsewhere."""
-    model = model_of("independent")
-    assert model.fused is None  # the fused step covers VDN and QMIX only
+    model = model_of("independent", step=kind)
+    assert (model.fused is not None) == (kind == "fused")
     assert step(model, masks) == pytest.approx(43.75 / 6)
-    grad = model.agents.second.weight.grad  # (agent, hidden = state, action)
+    grad = second_layer_grad(model)
     for (agent, state, action), error in zip(PLAYED, ERRORS, strict=True):
         assert grad[agent, state, action] == pytest.approx(error / 3)
     unplayed = torch.ones_like(grad, dtype=torch.bool)
@@ -91,18 +100,27 @@ def test_deep_iql_one_td_step_against_a_hand_computed_batch(masks: str) -> None:
     assert (grad[unplayed] == 0).all()
 
 
+@pytest.mark.parametrize("kind", ["autograd", "fused"])
 @pytest.mark.parametrize("masks", ["in the batch", "per state"])
-def test_hysteretic_dqn_moves_a_negative_td_error_by_the_smaller_rate(masks: str) -> None:
+def test_hysteretic_dqn_moves_a_negative_td_error_by_the_smaller_rate(
+    masks: str, kind: str
+) -> None:
     """The two errors with Q above its target (agent 0 at t2 and t3: TD errors −1 and
     −2.5) are weighed by β = 0.2: loss (6.25 + 20.25 + 0.2 + 1 + 1.25 + 9) / 6, and their
     gradients are 0.2 times deep IQL's."""
-    model = model_of("hysteretic")
+    model = model_of("hysteretic", step=kind)
     assert model.config.negative_weight == HYSTERETIC_NEGATIVE_RATE == 0.2
     assert step(model, masks) == pytest.approx(37.95 / 6)
-    grad = model.agents.second.weight.grad
+    grad = second_layer_grad(model)
     for (agent, state, action), error in zip(PLAYED, ERRORS, strict=True):
         weight = 0.2 if error > 0 else 1.0
         assert grad[agent, state, action] == pytest.approx(weight * error / 3)
+
+
+@pytest.mark.parametrize("mixer", ["independent", "hysteretic"])
+def test_step_auto_keeps_autograds_step_until_a_study_compares_the_runs(mixer: str) -> None:
+    assert model_of(mixer).fused is None  # auto: autograd's, on a CPU too
+    assert model_of(mixer, step="fused").fused is not None
 
 
 def test_hysteretic_dqn_with_beta_one_is_deep_iql() -> None:
@@ -144,7 +162,6 @@ def test_the_registry_names_them_and_keeps_them_out_of_the_papers_tournament() -
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        ({"mixer": "independent", "step": "fused"}, "covers vdn and qmix only"),
         ({"mixer": "hysteretic", "negative_rate": 0.0}, r"in \(0, 1\]"),
         ({"mixer": "hysteretic", "negative_rate": 1.5}, r"in \(0, 1\]"),
         ({"mixer": "vdn", "negative_rate": 0.5}, "hysteretic-dqn only"),

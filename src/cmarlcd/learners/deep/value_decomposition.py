@@ -343,7 +343,7 @@ class ValueDecomposition(StackedModel):
             lr=config.lr,
             fused=True,  # one pass over the parameters: ~10x the default on CPU (CUDA too)
         )
-        fused = takes_fused_step(config.step, self.device, config.fused_covers)
+        fused = takes_fused_step(config.step, self.device, config.auto_fuses)
         self.fused = FusedStep(self) if fused else None
         self.rewards = RewardStatistics(self.n_seeds, self.device)
         """The running statistics of ``standardise_rewards`` (unused without it)."""

@@ -17,6 +17,9 @@ from cmarlcd.learners.deep.config import DeepConfig, takes_fused_step  # noqa: E
 from cmarlcd.learners.deep.fused import mixers as fused_mixers  # noqa: E402
 from cmarlcd.learners.deep.value_decomposition import ValueDecomposition  # noqa: E402
 
+#: Every mixer: VDN's sum, QMIX's network, and none (deep IQL; hysteretic DQN, its
+#: negative TD errors weighed by 0.2).
+MIXERS = ["vdn", "qmix", "independent", "hysteretic"]
 COUNTS = [3, 4, 2]  # unequal action counts: padded actions are masked
 SEEDS, BATCH = 2, 11
 
@@ -91,7 +94,7 @@ def parameters(model: ValueDecomposition) -> list[torch.Tensor]:
 
 @pytest.mark.parametrize("double_q", [False, True])
 @pytest.mark.parametrize("inputs", list(INPUTS))
-@pytest.mark.parametrize("mixer", ["vdn", "qmix"])
+@pytest.mark.parametrize("mixer", MIXERS)
 def test_fused_gradients_equal_autograd(mixer: str, inputs: str, double_q: bool) -> None:
     """One step from the same weights on the same batch: the same loss and, parameter by
     parameter, the same gradient to float32 rounding (relative to its largest entry);
@@ -121,7 +124,7 @@ EXTRAS = {"paper": {}, "double Q, clipped": {"double_q": True, "grad_clip": 0.05
 @pytest.mark.parametrize(
     "inputs", ["features, masks in the batch", "integer states", "integer states, per-state masks"]
 )
-@pytest.mark.parametrize("mixer", ["vdn", "qmix"])
+@pytest.mark.parametrize("mixer", MIXERS)
 def test_fused_adam_and_weights_follow_autograd_over_steps(
     mixer: str, inputs: str, extras: str
 ) -> None:

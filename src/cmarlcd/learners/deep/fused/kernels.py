@@ -155,6 +155,27 @@ def online_choice_value(online, q, legal, valid, out) -> None:
 
 
 @fused
+def independent_errors(c, best, reward, terminal, next_states, per_state, gamma, weight, grad_c):
+    """Deep IQL's and hysteretic DQN's loss of one seed, each agent ``i`` its own TD target
+    ``y_it = r_t + γ (1 - terminal_t) best_i(s'_t)`` (``best`` (n, N), or (n, S) at every
+    state where ``per_state``): ``Σ_it w (c_it - y_it)² / (N n)``, ``w`` = ``weight``
+    where ``c_it > y_it`` (a negative TD error), else 1; ``grad_c`` := its gradient
+    ``2 w (c_it - y_it) / (N n)``. Returns the loss."""
+    n, count = c.shape
+    share = np.float32(count * n)
+    loss = 0.0
+    for i in range(n):
+        for t in range(count):
+            alive = np.float32(0.0) if terminal[t] else np.float32(1.0)
+            after = best[i, next_states[t]] if per_state else best[i, t]
+            error = c[i, t] - (reward[t] + gamma * alive * after)
+            w = weight if error > 0.0 else np.float32(1.0)
+            loss += w * error * error / share
+            grad_c[i, t] = np.float32(2.0) * w * error / share
+    return loss
+
+
+@fused
 def hidden_gradient(w2, hidden, grad_q, grad_hidden) -> None:
     """``grad_hidden`` (H, M) := ``W2 grad_q`` through the ReLU of ``hidden`` (H, M)."""
     for h in range(hidden.shape[0]):
@@ -345,8 +366,10 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache) -> flo
     (whether the batch has its own masks, them (B, N, n, A), per-state masks (B, S, n, A)
     or empty); ``valid`` (n, A): each agent's real actions. ``shape``: (qmix, index,
     discount, own_dim: features of each agent's own observation or 0, mixer_dim: the
-    leading features the mixer reads, mixer hidden units, double Q, and the norm each
-    seed's gradient is clipped to, 0 for none: :func:`clip_seed`). ``optimiser``: the flat
+    leading features the mixer reads, mixer hidden units, double Q, the norm each
+    seed's gradient is clipped to (0 for none: :func:`clip_seed`), whether each agent
+    learns from its own target (deep IQL, hysteretic DQN: :func:`independent_errors`) and
+    the weight of its negative TD errors). ``optimiser``: the flat
     parameters, gradients (the same memory as ``grads``) and Adam's two moments, and
     Adam's settings (:func:`adam`). ``cache``: (refresh, table (B, S)): for integer
     states with masks per state, each seed's target ``Q_tot`` at every state, kept
@@ -358,7 +381,7 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache) -> flo
     refresh, target_table = cache
     agent_grads, mixer_grads = grads
     features, next_features, states, next_states, actions, reward, terminal = batch
-    qmix, index, gamma, own_dim, mixer_dim, units, double_q, clip = shape
+    qmix, index, gamma, own_dim, mixer_dim, units, double_q, clip, independent, weight = shape
     seeds, count, n = actions.shape
     hidden_units = agents[0].shape[2]
     if index:  # state-major tables (S, H)
@@ -397,26 +420,33 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache) -> flo
             transpose_into(features[b], x)
             transpose_into(next_features[b], nx)
         inputs = (index, x, nx, states[b], next_states[b], actions[b], legal_of, own_dim)
-        targets = refresh or not per_state or double_q
+        targets = refresh or not per_state or double_q or independent
         agents_forward(agents, target_agents, b, inputs, c, best, hidden, valid, targets, double_q)
-        mixed, next_mixed = x[:mixer_dim], nx[:mixer_dim]
-        if targets:
-            at = every_state if per_state else next_states[b]
-            target_tot = target_table[b] if per_state else next_tot
-            mix(qmix, target_mixer, b, best, next_mixed, at, index, scratch, work, target_tot)
-        if per_state:
+        if independent:  # each agent its own target: no mixer, no kept table
+            loss += independent_errors(
+                c, best, reward[b], terminal[b], next_states[b], per_state, discount,
+                np.float32(weight), grad_c,
+            )  # fmt: skip
+            zero_seed(optimiser[1], b, seeds)
+        else:
+            mixed, next_mixed = x[:mixer_dim], nx[:mixer_dim]
+            if targets:
+                at = every_state if per_state else next_states[b]
+                target_tot = target_table[b] if per_state else next_tot
+                mix(qmix, target_mixer, b, best, next_mixed, at, index, scratch, work, target_tot)
+            if per_state:
+                for t in range(count):
+                    next_tot[t] = target_table[b, next_states[b, t]]
+            mix(qmix, mixer, b, c, mixed, states[b], index, scratch, work, q_tot)
             for t in range(count):
-                next_tot[t] = target_table[b, next_states[b, t]]
-        mix(qmix, mixer, b, c, mixed, states[b], index, scratch, work, q_tot)
-        for t in range(count):
-            alive = np.float32(0.0) if terminal[b, t] else np.float32(1.0)
-            error = q_tot[t] - (reward[b, t] + discount * alive * next_tot[t])
-            loss += error * error / count
-            grad[t] = np.float32(2.0) * error / np.float32(count)
-        zero_seed(optimiser[1], b, seeds)
-        mix_backward(
-            qmix, mixer, mixer_grads, b, c, mixed, states[b], index, scratch, work, grad, grad_c
-        )
+                alive = np.float32(0.0) if terminal[b, t] else np.float32(1.0)
+                error = q_tot[t] - (reward[b, t] + discount * alive * next_tot[t])
+                loss += error * error / count
+                grad[t] = np.float32(2.0) * error / np.float32(count)
+            zero_seed(optimiser[1], b, seeds)
+            mix_backward(
+                qmix, mixer, mixer_grads, b, c, mixed, states[b], index, scratch, work, grad, grad_c
+            )
         agents_backward(agents, agent_grads, b, inputs, grad_c, hidden)
         if clip > 0.0:
             clip_seed(optimiser[1], b, seeds, clip)

@@ -117,8 +117,13 @@ class FusedStep:
         own = model.agents.own_dim or 0
         units = model.mixer.hidden if self.qmix else 0
         clip = float(model.config.grad_clip or 0.0)
-        gamma, double_q = float(model.config.gamma), model.config.double_q
-        return self.qmix, index, gamma, own, model.mixer_dim, units, double_q, clip
+        config = model.config
+        gamma, double_q = float(config.gamma), config.double_q
+        independent, weight = config.independent, float(config.negative_weight)
+        return (
+            self.qmix, index, gamma, own, model.mixer_dim, units, double_q, clip,
+            independent, weight,
+        )  # fmt: skip
 
 
 class FusedDegreeStep:
