@@ -124,7 +124,8 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
     protocol = (
         f"{learnt}, deep learners reading {read}, greedy return over {episodes:,} episodes "
         f"at the end and {first.curve_eval_episodes:,} at {first.curve_points} points of the "
-        f"curve, team reward = the {team} of the agents', seed {seed}; the random policy: "
+        f"curve{' and before learning' if first.eval_at_start else ''}, team reward = the "
+        f"{team} of the agents', seed {seed}; the random policy: "
         f"{floor_episodes:,} episodes of uniform legal actions"
     )
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
