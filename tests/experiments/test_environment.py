@@ -255,3 +255,28 @@ def test_a_deep_cmarl_cd_that_kept_nothing_is_named_in_the_report(paths) -> None
     fixed = invoke(*base, "--set", "deep-cmarl-cd.unseen_record=estimate-once-kept")
     assert fixed.exit_code == 0, fixed.stderr
     assert "kept nothing" not in fixed.stdout
+
+
+def test_a_budget_of_steps_end_to_end(paths) -> None:  # noqa: F811
+    """``--steps``: the curve's points at steps 300, 600 and 900 (the tiny game's
+    episodes last 3 steps, so each budget is met exactly), the runs stored with their
+    unit, the report in steps; ε of a deep learner read per step of the budget."""
+    pytest.importorskip("torch")
+    from cmarlcd.learners.deep.config import DeepConfig, epsilon
+
+    store, _, where = paths
+    args = (
+        "train", "--env", TINY, "--algorithms", "vdn", "--steps", "900", "--runs", "1",
+        "--eval-episodes", "4", "--curve-points", "3", "--envs", "2", "--json", *where,
+    )  # fmt: skip
+    result = invoke(*args)
+    assert result.exit_code == 0, result.stderr
+    with ResultStore(store) as db:
+        records = list(db.records(envs.EXPERIMENT))
+    assert {json.loads(r.key.config)["unit"] for r in records} == {"steps"}
+    for record in records:
+        assert [point[0] for point in record.metrics["curve"]] == [300, 600, 900]
+    assert "900 environment steps" in invoke("report", *where).stdout
+    config = DeepConfig()  # step 450 of 900 is where episode 450 of 900 is
+    assert epsilon(1, 900, config, 450, by_steps=True) == epsilon(450, 900, config)
+    assert epsilon(1, 900, config, 450, by_steps=True) < epsilon(1, 900, config, 450)

@@ -125,3 +125,29 @@ def test_an_episode_over_at_its_reset_is_closed_at_once_as_terminated(copies: in
     assert stats.terminated[empty].all()
     ends = [call for calls in learner.calls.values() for call in calls if call[0] == "end"]
     assert len(ends) == 30  # each episode closed once, the empty ones too
+
+
+@pytest.mark.parametrize("copies", [1, 4])
+def test_a_budget_of_steps_ends_with_the_episodes_in_play_when_it_is_reached(
+    copies: int,
+) -> None:
+    """Episodes start while fewer than ``steps`` steps have been played in all; those in
+    play then run to their end, so the steps played are at least the budget and less than
+    it plus one episode per copy; every episode is closed, and each copy plays what it
+    plays alone from its seed (the same episodes as a budget of that many episodes)."""
+    seeds, budget = list(range(21, 21 + copies)), 101
+    learner = Recorder(batched=True)
+    stats = play_copies([RandomLengthEnv() for _ in seeds], learner, 0, seeds=seeds, steps=budget)
+    played = int(stats.lengths.sum())
+    longest = 6  # RandomLengthEnv's episodes last 1 to 6 steps
+    assert budget <= played < budget + copies * longest
+    per_copy = {k: episodes_of(calls) for k, calls in learner.calls.items()}
+    assert sum(len(e) for e in per_copy.values()) == len(stats.lengths)
+    assert sum(len(e) - 1 for eps in per_copy.values() for e in eps) == played
+    # the same episodes, copy by copy, as a budget of that many episodes
+    by_episodes = Recorder(batched=True)
+    again = play_copies(
+        [RandomLengthEnv() for _ in seeds], by_episodes, len(stats.lengths), seeds=seeds
+    )
+    assert by_episodes.calls == learner.calls
+    np.testing.assert_array_equal(again.lengths, stats.lengths)

@@ -106,8 +106,8 @@ def train(
     steps: Annotated[
         str | None,
         typer.Option(
-            help="With --game, instead of --episodes: the learning budget in environment "
-            "steps (2.05M allowed), to the end of the episode it is reached in; the curve's "
+            help="Instead of --episodes: the learning budget in environment steps (2.05M "
+            "allowed), to the end of the episodes in play when it is reached; the curve's "
             "points and ε's annealing count steps too."
         ),
     ] = None,
@@ -182,11 +182,13 @@ def train(
         print_results(run, lambda console: run_game_training(game_sweep, run, console, seed_batch))
         return
     assert env is not None
-    require(steps is None, "steps", "counts the budget of --game only; with --env give --episodes")
     sweep = envs.EnvSweep(
         env=env,
         learners=apply_settings(settings, configs),
-        episodes=parse_count(episodes, "episodes"),
+        episodes=parse_count(episodes, "episodes")
+        if steps is None
+        else parse_count(steps, "steps"),
+        unit="episodes" if steps is None else "steps",
         runs=runs,
         eval_episodes=parse_count(eval_episodes, "eval_episodes"),
         env_kwargs=parse_env_kwargs(env_kwargs),

@@ -40,11 +40,18 @@ from cmarlcd.experiments.env_inputs import (
 )
 from cmarlcd.experiments.episodic import options_of
 from cmarlcd.learners.deep.config import DeepLearnerConfig
-from cmarlcd.limits import check_at_most, check_episodes, check_run_count, check_seed
+from cmarlcd.limits import (
+    check_at_most,
+    check_episodes,
+    check_run_count,
+    check_seed,
+    check_steps,
+)
 from cmarlcd.progress import report_progress
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec, Settings, added_setting, identity
 from cmarlcd.training.episodes import play_copies
+from cmarlcd.training.loop import BUDGET_UNITS
 
 EXPERIMENT = "train"
 #: The uniform random policy, run beside the learners as the baseline.
@@ -66,6 +73,9 @@ MAX_ENVS = 1024
 #: ``EnvRun.envs`` keeps 1 as its identity's base, so runs stored with one copy resume
 #: under ``--envs 1`` (a command without it now makes runs of 16 copies, new ones).
 DEFAULT_ENVS = 16
+#: [choice] For progress only: a budget of environment steps counts as episodes of this
+#: many steps (an environment's episode length is not known before it is played).
+PROGRESS_EPISODE_STEPS = 25
 
 EnvKwargs = tuple[tuple[str, Any], ...]
 
@@ -138,9 +148,15 @@ class RandomPolicy:
 
 
 def new_learner(
-    config: LearnerConfig | None, counts: np.ndarray, shape: StateShape, total: int, seed
+    config: LearnerConfig | None,
+    counts: np.ndarray,
+    shape: StateShape,
+    total: int,
+    seed,
+    unit: str = "episodes",
 ) -> Any:
-    """The object-API learner of ``config`` (None: the random policy)."""
+    """The object-API learner of ``config`` (None: the random policy); ``total``: the
+    learning budget, in ``unit`` (episodes or environment steps)."""
     if config is None:
         return RandomPolicy(counts, seed)
     if isinstance(config, DeepLearnerConfig):
@@ -153,7 +169,7 @@ def new_learner(
         if shape.own_dim:
             check_reads_own_observations(config.name, "own-observations")
             inputs["own_dim"] = shape.own_dim
-        return kind(counts, config, total, **inputs, seed=seed)
+        return kind(counts, config, total, **inputs, seed=seed, unit=unit)
     from cmarlcd.learners.tabular.protocol import TabularLearner
 
     require(
@@ -180,6 +196,10 @@ class EnvRun(Settings):
     inputs: str = "state"
     envs: int = added_setting(1, "0.6.0")
     """Copies of the environment played at once (1: one at a time, as before)."""
+    unit: str = added_setting("episodes", "0.7.0")
+    """What ``episodes`` counts: learning episodes, or environment ``"steps"`` (a budget
+    of steps ends at the end of the episodes in play when it is reached; the curve's
+    points and a deep learner's ε count steps too)."""
 
     @property
     def algorithm(self) -> str:
@@ -221,14 +241,24 @@ def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
     evaluating = min(settings.envs, settings.eval_episodes)  # copies an evaluation can use
     evaluations = make_copies(settings.env, settings.env_kwargs, settings.inputs, evaluating)
     shape, counts = check_copies(envs, settings.inputs, copy_seeds(env_seed, settings.envs))
-    learner = new_learner(settings.learner, counts, shape, settings.episodes, learner_seed)
+    steps = settings.unit == "steps"
+    learner = new_learner(
+        settings.learner, counts, shape, settings.episodes, learner_seed, settings.unit
+    )
     reward = REWARDS[settings.reward]
     curve, trained = [], 0
-    for budget in settings.budgets():
-        first = copy_seeds(env_seed, settings.envs) if trained == 0 else None
-        play_copies(envs, learner, budget - trained, global_reward=reward, seeds=first)
-        report_progress(budget - trained)
-        trained = budget
+    for k, budget in enumerate(settings.budgets()):
+        first = copy_seeds(env_seed, settings.envs) if k == 0 else None
+        if steps:  # to the end of the episodes in play when the budget is reached
+            learned = play_copies(
+                envs, learner, 0, global_reward=reward, seeds=first, steps=budget - trained
+            )
+            trained += int(learned.lengths.sum())
+            report_progress(int(learned.lengths.sum()) / PROGRESS_EPISODE_STEPS)
+        else:
+            play_copies(envs, learner, budget - trained, global_reward=reward, seeds=first)
+            report_progress(budget - trained)
+            trained = budget
         point = np.random.SeedSequence(eval_seed.entropy, spawn_key=(*eval_seed.spawn_key, budget))
         stats = play_copies(
             evaluations, learner, settings.eval_episodes, learn=False,
@@ -298,8 +328,11 @@ class EnvSweep:
     inputs: str = "state"
     seed: int = 0
     envs: int = DEFAULT_ENVS
+    unit: str = "episodes"
+    """What ``episodes`` counts: learning episodes, or environment ``"steps"``."""
 
     def __post_init__(self) -> None:
+        require(self.unit in BUDGET_UNITS, "unit", f"must be one of {BUDGET_UNITS}")
         require(
             self.reward in REWARDS,
             "reward",
@@ -311,8 +344,12 @@ class EnvSweep:
             f"must be one of {', '.join(INPUTS)} (got {self.inputs!r})",
         )
         require(self.runs >= 1, "runs", f"must be >= 1 (got {self.runs})")
-        require(self.episodes >= 1, "episodes", f"must be >= 1 (got {self.episodes})")
-        check_episodes(self.episodes, "episodes")
+        budget = "steps" if self.unit == "steps" else "episodes"
+        require(self.episodes >= 1, budget, f"must be >= 1 (got {self.episodes})")
+        if self.unit == "steps":
+            check_steps(self.episodes, "steps")
+        else:
+            check_episodes(self.episodes, "episodes")
         require(
             self.eval_episodes >= 1, "eval_episodes", f"must be >= 1 (got {self.eval_episodes})"
         )
@@ -343,7 +380,7 @@ class EnvSweep:
     def settings(self, learner: LearnerConfig | None) -> EnvRun:
         return EnvRun(
             self.env, self.env_kwargs, learner, self.episodes, self.eval_episodes,
-            self.curve_points, self.reward, self.inputs, self.envs,
+            self.curve_points, self.reward, self.inputs, self.envs, self.unit,
         )  # fmt: skip
 
     def specs(self) -> list[RunSpec]:
@@ -360,12 +397,20 @@ def _cost(settings: EnvRun) -> float:
     learner, 1 ms otherwise, and 1 ms per evaluation episode."""
     deep = isinstance(settings.learner, DeepLearnerConfig)
     evaluated = settings.eval_episodes * len(settings.budgets())
-    return settings.episodes * (5e-3 if deep else 1e-3) + 1e-3 * evaluated
+    return _learned(settings) * (5e-3 if deep else 1e-3) + 1e-3 * evaluated
+
+
+def _learned(settings: EnvRun) -> float:
+    """The learning budget in episodes (a budget of steps in episodes of
+    :data:`PROGRESS_EPISODE_STEPS` steps)."""
+    if settings.unit == "steps":
+        return settings.episodes / PROGRESS_EPISODE_STEPS
+    return settings.episodes
 
 
 def _work(settings: EnvRun) -> float:
     """Episodes one run plays: learning and evaluation."""
-    return settings.episodes + settings.eval_episodes * len(settings.budgets())
+    return _learned(settings) + settings.eval_episodes * len(settings.budgets())
 
 
 TRAIN = Experiment(

@@ -103,7 +103,7 @@ def protocol_key(record: RunRecord) -> tuple:
     s = settings_of(record)
     kwargs = canonical_json(dict(s.env_kwargs))
     return (s.env, kwargs, s.episodes, s.eval_episodes, s.curve_points, s.reward, s.inputs,
-            s.envs, record.key.root_seed)  # fmt: skip
+            s.envs, s.unit, record.key.root_seed)  # fmt: skip
 
 
 def _copies(count: int) -> str:
@@ -137,17 +137,21 @@ def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
     first = settings_of(records[0])
     seed = records[0].key.root_seed
     where = f"{first.env}({envs.kwargs_text(first.env_kwargs)})"
+    steps = first.unit == "steps"
+    learnt = (
+        f"{first.episodes:,} environment steps" if steps else f"L = {first.episodes:,} episodes"
+    )
     protocol = (
-        f"L = {first.episodes:,} episodes, greedy return over {first.eval_episodes:,} "
+        f"{learnt}, greedy return over {first.eval_episodes:,} "
         f"episodes at {len(first.budgets())} points, team reward = {first.reward} of the "
         f"agents', inputs: {first.inputs}, {_copies(first.envs)}, seed {seed}"
     )
     rows = final_returns(records)
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
     path = figures / figure_name(f"train-seed{seed}", group)
-    drawn = figs.environment_curves(curves(records), RANDOM_LABEL, where, path)
+    drawn = figs.environment_curves(curves(records), RANDOM_LABEL, where, path, first.unit)
     table = TableBlock(
-        f"Greedy return after L = {first.episodes:,} episodes",
+        f"Greedy return after {learnt}",
         ["learner", "runs", "return", "vs random", "steps"],
         [
             cells(
@@ -170,6 +174,7 @@ def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
         env=first.env,
         env_kwargs=dict(first.env_kwargs),
         seed=seed,
+        unit=first.unit,
         rows=[r.to_dict() for r in rows],
         curves={label: data.tolist() for label, data in curves(records).items()},
         figures={"curves": str(drawn)},
@@ -177,5 +182,6 @@ def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
     section.add(table, TextBlock("Mean over runs; ± the spread over runs (population std)."))
     for warning in learned_nothing(records):
         section.add(TextBlock(warning))
-    section.add(FigureBlock(drawn, "greedy return against learning episodes"))
+    against = "environment steps" if steps else "learning episodes"
+    section.add(FigureBlock(drawn, f"greedy return against {against}"))
     return section

@@ -52,16 +52,49 @@ class _Lockstep:
     """One :func:`play_copies` call: the copies, which episode each plays, their last
     infos, the statistics, and the learner they are played for."""
 
-    def __init__(self, envs: Sequence[Any], learner: Any, episodes: int, learn: bool) -> None:
+    def __init__(
+        self, envs: Sequence[Any], learner: Any, episodes: int, learn: bool, steps: int | None
+    ) -> None:
         self.envs, self.learner, self.episodes, self.learn = list(envs), learner, episodes, learn
+        self.steps, self.played = steps, 0  # the budget in steps (or None), the steps played
         self.several = len(self.envs) > 1
         self.started = 0
         self.episode_of: dict[int, int] = {}  # live copy -> the episode it plays
         self.infos: list[Any] = [None] * len(self.envs)
         self.agents: list[list[str]] = [[] for _ in self.envs]
-        self.stats = EpisodeStats(
-            np.zeros(episodes), np.zeros(episodes, dtype=np.int64), np.zeros(episodes, np.bool_)
-        )
+        self.stats = self._empty(episodes if steps is None else 2 * len(self.envs))
+
+    @staticmethod
+    def _empty(size: int) -> EpisodeStats:
+        return EpisodeStats(np.zeros(size), np.zeros(size, np.int64), np.zeros(size, np.bool_))
+
+    def more(self) -> bool:
+        """Whether another episode of the budget is to start."""
+        if self.steps is None:
+            return self.started < self.episodes
+        # (an environment whose every episode ends at its reset plays no step: at most
+        # ``steps`` episodes, so that the budget ends)
+        return self.played < self.steps and self.started < self.steps
+
+    def _room(self) -> None:
+        """Room in the statistics for one more episode (a budget of steps does not know
+        its episodes ahead: the arrays double as they fill)."""
+        size = len(self.stats.returns)
+        if self.started < size:
+            return
+        grown = self._empty(2 * size)
+        for old, new in zip(
+            (self.stats.returns, self.stats.lengths, self.stats.terminated),
+            (grown.returns, grown.lengths, grown.terminated),
+            strict=True,
+        ):
+            new[:size] = old
+        self.stats = grown
+
+    def played_stats(self) -> EpisodeStats:
+        """The statistics of the episodes played."""
+        stats, n = self.stats, self.started
+        return EpisodeStats(stats.returns[:n], stats.lengths[:n], stats.terminated[:n])
 
     def whose(self, copy: int) -> dict[str, int]:
         """The ``copy`` keyword, given only when several copies play (so that a learner
@@ -71,7 +104,8 @@ class _Lockstep:
     def start(self, copy: int, seed: int | None) -> None:
         """Start the budget's next episode on ``copy``, if one is left; one that ends at
         its reset (no agent left) is closed at once, as terminated."""
-        while self.started < self.episodes:
+        while self.more():
+            self._room()
             env = self.envs[copy]
             _, self.infos[copy] = env.reset(seed=seed)
             self.agents[copy] = list(env.possible_agents)
@@ -120,6 +154,7 @@ class _Lockstep:
             dict(zip(self.agents[copy], joint, strict=True))
         )
         reward = global_reward(rewards)
+        self.played += 1
         if self.learn:
             self.learner.observe(state, joint, reward, **self.whose(copy))
         stats.returns[episode] += reward
@@ -138,12 +173,17 @@ def play_copies(
     learn: bool = True,
     seeds: Sequence[int | None] | None = None,
     global_reward: Callable[[Mapping[str, float]], float] = shared_reward,
+    steps: int | None = None,
 ) -> EpisodeStats:
     """Play ``episodes`` episodes over the copies ``envs`` of one environment, in
     lockstep: sampled actions and learning when ``learn``, greedy actions otherwise.
     ``seeds[k]`` seeds copy ``k``'s first reset; its later episodes continue its own
-    stream. The statistics are in the order the episodes started."""
-    play = _Lockstep(envs, learner, episodes, learn)
+    stream. The statistics are in the order the episodes started.
+
+    With ``steps``, the budget counts environment steps instead (``episodes`` is then
+    not read): episodes start while the copies have played fewer than ``steps`` steps in
+    all, and those in play when it is reached are played to their end."""
+    play = _Lockstep(envs, learner, episodes, learn, steps)
     for copy in range(len(play.envs)):
         play.start(copy, None if seeds is None else seeds[copy])
     while play.episode_of:
@@ -152,4 +192,4 @@ def play_copies(
         joints = play.joint_actions(states, [play.masks(k) for k in live], live)
         for copy, state, joint in zip(live, states, joints, strict=True):
             play.step(copy, state, joint, global_reward)
-    return play.stats
+    return play.played_stats()

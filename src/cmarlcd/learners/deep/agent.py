@@ -42,8 +42,13 @@ class StepAgent:
         state_dim: int | None,
         seed: int | np.random.SeedSequence | None,
         device: str | None = None,
+        unit: str = "episodes",
     ) -> None:
         require((n_states is None) != (state_dim is None), "n_states", "give n_states or state_dim")
+        require(unit in ("episodes", "steps"), "unit", f"must be episodes or steps (got {unit!r})")
+        #: What ``total_episodes`` counts: episodes, or environment steps (then ε anneals
+        #: over the steps, eq. 18 read per step).
+        self.by_steps = unit == "steps"
         self.device = devices.current() if device is None else devices.resolve(device)
         root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
         self.init_seed, act, replay = root.spawn(3)
@@ -125,8 +130,9 @@ class DeepAgent(StepAgent):
         seed: int | np.random.SeedSequence | None = None,
         device: str | None = None,
         own_dim: int | None = None,
+        unit: str = "episodes",
     ) -> None:
-        super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device)
+        super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device, unit)
         if own_dim is not None:
             require(
                 state_dim is not None and 0 < own_dim * len(self.counts) < state_dim,
@@ -156,7 +162,9 @@ class DeepAgent(StepAgent):
         the successor. The draws go copy by copy, agent by agent."""
         for state, mask, copy in zip(states, masks, copies, strict=True):
             self._complete(copy, state, mask, terminal=False)
-        eps = epsilon(self.episode + 1, self.total_episodes, self.config, self.steps + 1)
+        eps = epsilon(
+            self.episode + 1, self.total_episodes, self.config, self.steps + 1, self.by_steps
+        )
         greedy, legal = self.greedy_many(states, masks), self._legal_many(masks)
         joints = []
         for best_joint, legal_joint in zip(greedy, legal, strict=True):

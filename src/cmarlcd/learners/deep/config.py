@@ -277,10 +277,13 @@ BATTLEFIELD_DEEP = dict(
 )
 
 
-def epsilon(episode: int, total_episodes: int, config: DeepConfig, step: int = 1) -> float:
+def epsilon(
+    episode: int, total_episodes: int, config: DeepConfig, step: int = 1, by_steps: bool = False
+) -> float:
     """Eq. (18): ε of the ``episode``-th learning episode (1-based) out of ``L``; where ε
-    anneals over ``anneal_steps``, ε of the ``step``-th environment step (1-based)."""
-    done = step if config.explores_by_steps else episode
+    anneals over ``anneal_steps``, or the budget counts steps (``by_steps``: ``L`` is then
+    a number of environment steps), ε of the ``step``-th environment step (1-based)."""
+    done = step if config.explores_by_steps or by_steps else episode
     start, end, fraction, after, length = epsilon_schedule(config, total_episodes)
     return annealed_epsilon(done, int(length), start, end, fraction, after)
 

@@ -51,8 +51,9 @@ class DegreeAgent(StepAgent):
         state_dim: int | None = None,
         seed: int | np.random.SeedSequence | None = None,
         device: str | None = None,
+        unit: str = "episodes",
     ) -> None:
-        super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device)
+        super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device, unit)
         self.config = config
         self.model = DegreeModel(self.counts, self.in_dim, config, [self.init_seed], self.device)
         n = len(self.counts)
