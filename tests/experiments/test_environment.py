@@ -276,7 +276,15 @@ def test_a_budget_of_steps_end_to_end(paths) -> None:  # noqa: F811
     assert {json.loads(r.key.config)["unit"] for r in records} == {"steps"}
     for record in records:
         assert [point[0] for point in record.metrics["curve"]] == [300, 600, 900]
-    assert "900 environment steps" in invoke("report", *where).stdout
+    doc = json.loads(result.stdout)
+    mean_curve = np.mean(
+        [[p[1] for p in r.metrics["curve"]] for r in records if r.key.algorithm == "vdn"], axis=0
+    )
+    assert doc["field"]["VDN"]["max_return"] == pytest.approx(mean_curve.max())
+    assert doc["field"]["VDN"]["average_return"] == pytest.approx(mean_curve.mean())
+    assert "random policy" not in {k.lower() for k in doc["field"]}
+    report = invoke("report", *where).stdout
+    assert "900 environment steps" in report and "The field's figures" in report
     config = DeepConfig()  # step 450 of 900 is where episode 450 of 900 is
     assert epsilon(1, 900, config, 450, by_steps=True) == epsilon(450, 900, config)
     assert epsilon(1, 900, config, 450, by_steps=True) < epsilon(1, 900, config, 450)

@@ -14,6 +14,7 @@ from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments import settings_of
 from cmarlcd.experiments.episodic import STD_DDOF
 from cmarlcd.experiments.episodic_results import row_label
+from cmarlcd.reports.game_training import field_figures, field_figures_table
 from cmarlcd.reports.section import (
     FigureBlock,
     Section,
@@ -147,6 +148,7 @@ def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
         f"agents', inputs: {first.inputs}, {_copies(first.envs)}, seed {seed}"
     )
     rows = final_returns(records)
+    field = field_figures(curves(records), return_column=1)
     group = sorted({(r.key.algorithm, r.key.config) for r in records})
     path = figures / figure_name(f"train-seed{seed}", group)
     drawn = figs.environment_curves(curves(records), RANDOM_LABEL, where, path, first.unit)
@@ -177,9 +179,11 @@ def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
         unit=first.unit,
         rows=[r.to_dict() for r in rows],
         curves={label: data.tolist() for label, data in curves(records).items()},
+        field={label: m.as_dict() for label, m in field.items()},
         figures={"curves": str(drawn)},
     )
     section.add(table, TextBlock("Mean over runs; ± the spread over runs (population std)."))
+    section.add(field_figures_table(field, where, first.unit))
     for warning in learned_nothing(records):
         section.add(TextBlock(warning))
     against = "environment steps" if steps else "learning episodes"

@@ -10,6 +10,7 @@ from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -106,11 +107,7 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         x = next(iter(curves.values()))[0, :, 0]
         flat = [[point, floor_return, floor.lengths.mean()] for point in x]
         curves = {RANDOM_LABEL: np.array([flat]), **curves}
-    field = {
-        label: field_metrics(data[0, :, 0].astype(int), data[:, :, 1])
-        for label, data in curves.items()
-        if label != RANDOM_LABEL
-    }
+    field = field_figures(curves, return_column=1)
     where = f"{family.name} {rules.name}"
     steps = first.unit == "steps"
     learnt = f"{budget:,} environment steps" if steps else f"L = {budget:,} episodes"
@@ -151,26 +148,7 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         protocol,
         layout="compact",
     )
-    unit = "steps" if steps else "episodes"
-    interval = "95 % interval"
-    field_table = TableBlock(
-        f"The field's figures of the curves on {where}",
-        ["learner", "max return", interval, f"at ({unit})", "average return", interval],
-        [
-            cells(
-                label,
-                f"{m.max_return:.3f}",
-                f"[{m.max_return_low:.3f}, {m.max_return_high:.3f}]",
-                f"{m.max_return_at:,}",
-                f"{m.average_return:.3f}",
-                f"[{m.average_return_low:.3f}, {m.average_return_high:.3f}]",
-            )
-            for label, m in field.items()
-        ],
-        "max return: the point of the curve whose mean over runs is highest; average return: "
-        "the mean over every point; intervals: Student's t over the runs (EPyMARL's figures)",
-        layout="compact",
-    )
+    field_table = field_figures_table(field, where, first.unit)
     section = new_section(
         f"Learning on {where} (beyond the paper)",
         protocol,
@@ -203,3 +181,37 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         ),
     )
     return section
+
+
+def field_figures(curves: dict[str, np.ndarray], return_column: int) -> dict[str, Any]:
+    """Each learner's (not the random policy's) field figures of its curves ``(runs,
+    points, columns)``: column 0 the budgets, ``return_column`` the greedy return
+    (:func:`cmarlcd.experiments.field_metrics.field_metrics`)."""
+    return {
+        label: field_metrics(data[0, :, 0].astype(int), data[:, :, return_column])
+        for label, data in curves.items()
+        if label != RANDOM_LABEL
+    }
+
+
+def field_figures_table(field: dict[str, Any], where: str, unit: str) -> TableBlock:
+    """The field's figures of :func:`field_figures` as a table."""
+    interval = "95 % interval"
+    return TableBlock(
+        f"The field's figures of the curves on {where}",
+        ["learner", "max return", interval, f"at ({unit})", "average return", interval],
+        [
+            cells(
+                label,
+                f"{m.max_return:.3f}",
+                f"[{m.max_return_low:.3f}, {m.max_return_high:.3f}]",
+                f"{m.max_return_at:,}",
+                f"{m.average_return:.3f}",
+                f"[{m.average_return_low:.3f}, {m.average_return_high:.3f}]",
+            )
+            for label, m in field.items()
+        ],
+        "max return: the point of the curve whose mean over runs is highest; average return: "
+        "the mean over every point; intervals: Student's t over the runs (EPyMARL's figures)",
+        layout="compact",
+    )
