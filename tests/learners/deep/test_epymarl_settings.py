@@ -13,10 +13,8 @@ torch = pytest.importorskip("torch")
 
 from cmarlcd import ConfigError  # noqa: E402
 from cmarlcd.learners.deep.config import DeepConfig, epsilon  # noqa: E402
-from cmarlcd.learners.deep.value_decomposition import (  # noqa: E402
-    RewardStatistics,
-    ValueDecomposition,
-)
+from cmarlcd.learners.deep.td_options import RewardStatistics  # noqa: E402
+from cmarlcd.learners.deep.value_decomposition import ValueDecomposition  # noqa: E402
 
 #: Q-values (state, agent, action) of the online and target networks (the VDN oracle's of
 #: test_value_decomposition.py, where the online and target greedy actions differ).

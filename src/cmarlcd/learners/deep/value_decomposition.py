@@ -20,9 +20,8 @@ Pieces, each in one place:
 * :class:`ValueDecomposition` -- online and target networks, Adam, the one-step TD loss
   with the target network's greedy legal action (or, with ``double_q``, the online
   network's, valued by the target network), target copies, greedy action tables; and
-  EPyMARL's optional parts: rewards standardised by running statistics
-  (:class:`RewardStatistics`) and each seed's gradient norm clipped
-  (:func:`clip_per_seed`).
+  EPyMARL's optional parts (:mod:`cmarlcd.learners.deep.td_options`): rewards
+  standardised by running statistics and each seed's gradient norm clipped.
 
 Decentralised inputs (``own_dim``): a feature vector may be laid out as the mixer's state
 followed by every agent's own observation, ``[s, o_1, ..., o_n]`` with each ``o_i`` of
@@ -47,6 +46,7 @@ from torch import nn
 
 from cmarlcd.learners.deep.config import DeepConfig, takes_fused_step
 from cmarlcd.learners.deep.fused.step import FusedStep
+from cmarlcd.learners.deep.td_options import RewardStatistics, clip_per_seed
 
 # -------------------------------------------------------------------------- layers
 
@@ -271,8 +271,8 @@ class StackedModel(nn.Module):
 
     def optimise(self, loss: torch.Tensor, clip: float | None = None) -> float:
         """One Adam step on ``loss`` (the seeds' summed losses), each seed's gradient
-        first clipped to norm ``clip`` if given (:func:`clip_per_seed`); the mean loss
-        per seed."""
+        first clipped to norm ``clip`` if given
+        (:func:`~cmarlcd.learners.deep.td_options.clip_per_seed`); the mean loss per seed."""
         self.optimizer.zero_grad(set_to_none=True)  # type: ignore[attr-defined]
         loss.backward()
         if clip is not None:
@@ -470,47 +470,6 @@ class ValueDecomposition(StackedModel):
         self._next_value_table = None
         if self.fused is not None:
             self.fused.targets_changed()
-
-
-class RewardStatistics:
-    """The running mean and variance of the rewards of every replay batch so far, one
-    pair per seed: EPyMARL's ``RunningMeanStd`` (the parallel update of Chan et al.: a
-    count that starts at 1e-4, a mean at 0 and a variance at 1; each batch's variance
-    unbiased, as ``torch.var`` gives it)."""
-
-    #: The count the statistics start from (EPyMARL's ``epsilon``).
-    START_COUNT = 1e-4
-
-    def __init__(self, seeds: int, device: torch.device) -> None:
-        self.mean = torch.zeros(seeds, device=device)
-        self.var = torch.ones(seeds, device=device)
-        self.count = self.START_COUNT
-
-    def standardise(self, reward: torch.Tensor) -> torch.Tensor:
-        """Update with a batch's rewards (B, N), then return them standardised per seed:
-        ``(r - mean) / sqrt(var)``."""
-        n = reward.shape[1]
-        batch_mean, batch_var = reward.mean(dim=1), reward.var(dim=1)
-        delta, total = batch_mean - self.mean, self.count + n
-        spread = self.var * self.count + batch_var * n + delta**2 * self.count * n / total
-        self.mean = self.mean + delta * n / total
-        self.var, self.count = spread / total, total
-        return (reward - self.mean[:, None]) / torch.sqrt(self.var[:, None])
-
-
-def clip_per_seed(params: Sequence[torch.Tensor], seeds: int, max_norm: float) -> None:
-    """Scale each seed's gradients so that their L2 norm over all ``params`` is at most
-    ``max_norm``, by ``torch.nn.utils.clip_grad_norm_``'s rule (a factor ``max_norm /
-    (norm + 1e-6)`` where that is below 1). Every parameter's leading axis holds the
-    seeds, seed-major (per agent within a seed for the agent networks), so a seed's
-    gradient is its rows of each."""
-    grads = [p.grad.view(seeds, -1) for p in params if p.grad is not None]
-    if not grads:
-        return
-    norm = torch.stack([g.pow(2).sum(dim=1) for g in grads]).sum(dim=0).sqrt()
-    scale = (max_norm / (norm + 1e-6)).clamp(max=1.0)
-    for grad in grads:
-        grad.mul_(scale[:, None])
 
 
 def generators_of(seed: np.random.SeedSequence, count: int) -> list[torch.Generator]:

@@ -233,7 +233,7 @@ def clip_seed(grads, b: int, seeds: int, max_norm: float) -> None:
     """Scale seed ``b``'s rows of every gradient so that their joint L2 norm is at most
     ``max_norm``: by ``max_norm / (norm + 1e-6)`` where that is below 1, the rule of
     ``torch.nn.utils.clip_grad_norm_`` (and of
-    :func:`cmarlcd.learners.deep.value_decomposition.clip_per_seed`); the squares are
+    :func:`cmarlcd.learners.deep.td_options.clip_per_seed`); the squares are
     summed in float64."""
     total = 0.0
     for k in range(len(grads)):
