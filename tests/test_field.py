@@ -15,10 +15,12 @@ from pathlib import Path
 import pytest
 
 from cmarlcd import ConfigError, registry
-from cmarlcd.cli.field import evaluation_points, split_tasks, with_preset
+from cmarlcd.cli.field import env_episode_steps, evaluation_points, split_tasks, with_preset
 
 pytest.importorskip("torch")
 
+#: The repository's root: ``tests.tiny_env`` imports from there.
+ROOT = Path(__file__).resolve().parents[1]
 TINY = [
     "--learners", "deep-iql,vdn", "--seeds", "2", "--steps", "3k", "--eval-interval", "1k",
     "--eval-episodes", "5", "--workers", "1", "--no-progress",
@@ -126,6 +128,58 @@ def test_the_epymarl_preset_end_to_end_named_in_the_rows(tmp_path) -> None:
     assert set(task["field"]) == {"VDN (EPyMARL, lr=0.001)", "Deep IQL (EPyMARL)"}
 
 
+def test_an_env_task_beside_a_compiled_one_with_its_random_floor(tmp_path) -> None:
+    done = field(
+        "--tasks", "simple_spread:N=2", "--env", "tests.tiny_env:make", "--envs", "2", *TINY,
+        "--json", "--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "f"),
+        cwd=ROOT,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    doc = json.loads(done.stdout)
+    assert doc["runs_computed"] == 4 + 6  # the env task: 2 learners and the random policy
+    compiled, tiny = doc["tasks"]
+    assert compiled["game"] == "simple_spread:N=2,local_ratio=0.5,max_cycles=25"
+    assert (tiny["env"], tiny["unit"]) == ("tests.tiny_env:make", "steps")
+    assert set(tiny["curves"]) == {"random policy", "Deep IQL", "VDN"}
+    for runs in tiny["curves"].values():  # evaluated before learning, then every interval
+        assert [[point[0] for point in run] for run in runs] == [[0, 1000, 2000, 3000]] * 2
+    vdn = tiny["curves"]["VDN"]
+    averages = [sum(point[1] for point in run) / 4 for run in vdn]
+    assert tiny["field"]["VDN"]["average_return"] == pytest.approx(sum(averages) / 2)
+    assert tiny["field"]["VDN"]["points"] == 4
+    # the same numbers from the store alone
+    again = subprocess.run(
+        [sys.executable, "-m", "cmarlcd", "report", "--store", str(tmp_path / "s.sqlite"),
+         "--figures", str(tmp_path / "g"), "--format", "json"],
+        capture_output=True, text=True, timeout=600, cwd=ROOT,
+    )  # fmt: skip
+    assert again.returncode == 0, again.stderr[-3000:]
+    (stored,) = [task for task in json.loads(again.stdout)["train"] if "env" in task]
+    assert stored["field"] == tiny["field"] and stored["curves"] == tiny["curves"]
+
+
+def test_the_epymarl_preset_on_an_env_task_reads_its_episode_length(tmp_path) -> None:
+    assert env_episode_steps("tests.tiny_env:make_declaring", (), None) == 3
+    assert env_episode_steps("tests.tiny_env:make", (), 7) == 7
+    with pytest.raises(ConfigError, match="declares none"):
+        env_episode_steps("tests.tiny_env:make", (), None)
+    args = [
+        "--learners", "vdn", "--preset", "epymarl", "--seeds", "1", "--steps", "60",
+        "--eval-interval", "30", "--eval-episodes", "2", "--workers", "1", "--no-progress",
+        "--json", "--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "f"),
+    ]  # fmt: skip
+    done = field("--env", "tests.tiny_env:make", *args, cwd=ROOT)
+    assert done.returncode == 2 and "--episode-steps" in done.stderr, done.stderr
+    done = field("--env", "tests.tiny_env:make_declaring", *args, cwd=ROOT)
+    assert done.returncode == 0, done.stderr[-3000:]
+    (task,) = json.loads(done.stdout)["tasks"]
+    assert set(task["field"]) == {"VDN (EPyMARL)"}
+    with sqlite3.connect(tmp_path / "s.sqlite") as db:
+        (config,) = db.execute("select config from runs where algorithm = 'vdn'").fetchone()
+    learner = json.loads(config)["learner"]  # EPyMARL's episodes, in 3-step episodes
+    assert (learner["batch_size"], learner["target_every"]) == (32 * 3, 200 * 3)
+
+
 @pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs SIGKILL")
 def test_killed_with_sigkill_and_resumed_to_the_same_store(tmp_path) -> None:
     store = tmp_path / "s.sqlite"
@@ -173,10 +227,17 @@ def test_killed_with_sigkill_and_resumed_to_the_same_store(tmp_path) -> None:
         (["--tasks", "simple_spread", "--eval-interval", "5M"], "at most the budget"),
         (["--tasks", "simple_spread", "--seeds", "0"], "--seeds"),
         (["--tasks", "simple_spread", "--preset", "pymarl"], "--preset: must be one of"),
+        (["--tasks", "foraging:8x8-2p-2f-coop", "--learners", "iql"], "deep IQL is deep-iql"),
+        ([], "give --tasks"),
+        (["--tasks", "simple_spread", "--envs", "4"], "--envs: applies to --env only"),
+        (["--env", "nowhere:make"], "--env: nowhere:make: cannot import"),
+        (["--env", "tests.tiny_env:make", "--learners", "cmarl-cd"], "--learners: tests.tiny"),
+        (["--env", "tests.tiny_env:make", "--steps", "2k", "--eval-interval", "10"], "--eval-i"),
+        (["--env", "tests.tiny_env:make", "--env-kwargs", "[1]"], "--env-kwargs: expected"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, says) -> None:
-    done = field(*args, "--store", str(tmp_path / "s.sqlite"), cwd=tmp_path)
+    done = field(*args, "--store", str(tmp_path / "s.sqlite"), cwd=ROOT)
     assert done.returncode == 2, done.stderr
     assert says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert not (tmp_path / "s.sqlite").exists()

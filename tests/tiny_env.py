@@ -80,6 +80,14 @@ def make(**kwargs) -> TinyEnv:
     return TinyEnv(**kwargs)
 
 
+def make_declaring(**kwargs) -> TinyEnv:
+    """The tiny game, declaring its episode length as PettingZoo's MPE does (``max_cycles``
+    on the unwrapped environment)."""
+    env = TinyEnv(**kwargs)
+    env.max_cycles = STEPS
+    return env
+
+
 NOT_A_FACTORY = 3
 
 

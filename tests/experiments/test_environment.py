@@ -288,3 +288,24 @@ def test_a_budget_of_steps_end_to_end(paths) -> None:  # noqa: F811
     config = DeepConfig()  # step 450 of 900 is where episode 450 of 900 is
     assert epsilon(1, 900, config, 450, by_steps=True) == epsilon(450, 900, config)
     assert epsilon(1, 900, config, 450, by_steps=True) < epsilon(1, 900, config, 450)
+
+
+@pytest.mark.parametrize("learner", ["vdn", "deep-cmarl-cd"])
+def test_the_evaluation_before_learning_changes_nothing_a_deep_learner_learns(learner) -> None:
+    """``eval_at_start``: one more point at 0, and the same later points, number for number
+    (the evaluation plays copies of its own, and a deep learner acts greedily without a
+    draw); the runs are new ones (the setting is in their identity only when on)."""
+    pytest.importorskip("torch")
+    from cmarlcd import registry
+
+    config = registry.require_learner(learner)
+    runs = {}
+    for at_start in (False, True):
+        settings = envs.EnvRun(
+            TINY, (), config, 120, 3, curve_points=2, inputs="observations", envs=2,
+            unit="steps", eval_at_start=at_start,
+        )  # fmt: skip
+        runs[at_start] = envs.run(settings, np.random.SeedSequence(7))["curve"]
+        assert ("eval_at_start" in settings.to_config()) == at_start
+    assert [point[0] for point in runs[True]] == [0, 60, 120]
+    assert runs[True][1:] == runs[False]

@@ -3,7 +3,9 @@ Papoudakis et al., NeurIPS 2021 Datasets and Benchmarks), beyond the paper. Each
 learns for a budget of environment steps (2.05M) with a greedy evaluation every 50,000
 steps over 100 episodes; the report gives, per task and learner, the maximum and the
 average return of the curve (:mod:`cmarlcd.experiments.field_metrics`). Every run is
-stored as it ends, so a killed study resumes where it stopped."""
+stored as it ends, so a killed study resumes where it stopped. Besides the compiled games,
+one task may be any PettingZoo environment (``--env``), played through ``train --env``'s
+loop (:mod:`cmarlcd.experiments.environment`) at the same protocol."""
 
 from __future__ import annotations
 
@@ -31,12 +33,15 @@ from cmarlcd.cli.sweeps import (
     run_counts,
     with_deep_execution,
 )
+from cmarlcd.cli.train import parse_env_kwargs
 from cmarlcd.errors import ConfigError, require
+from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments import games
 from cmarlcd.experiments.sensor_network import SEED_BATCH
 from cmarlcd.learners.deep.config import DeepConfig
 from cmarlcd.learners.deep.epymarl import epymarl_config
 from cmarlcd.limits import check_seed_batch
+from cmarlcd.reports.environment import environment_section
 from cmarlcd.reports.game_training import game_training_section
 
 #: The learners of the field's comparison: the independent learners, the value
@@ -91,8 +96,11 @@ def with_preset(configs: tuple, preset: str, episode_steps: int) -> tuple:
     )
 
 
+Sweep = games.GameSweep | envs.EnvSweep
+
+
 def run_field(
-    sweeps: list[games.GameSweep], run: Execution, console: Console | None, seed_batch: int
+    sweeps: list[Sweep], run: Execution, console: Console | None, seed_batch: int
 ) -> dict[str, Any]:
     """Run (or resume) every task's runs as one sweep, then report each task."""
     per_task = [sweep.specs() for sweep in sweeps]
@@ -101,8 +109,44 @@ def run_field(
     for sweep, specs in zip(sweeps, per_task, strict=True):
         keys = {spec.key for spec in specs}
         mine = [r for r in records if r.key in keys]
-        sections.append(present(game_training_section(mine, run.figures, sweep.seed), console))
+        if isinstance(sweep, envs.EnvSweep):
+            section = environment_section(mine, run.figures)
+        else:
+            section = game_training_section(mine, run.figures, sweep.seed)
+        sections.append(present(section, console))
     return {"tasks": sections, **run_counts(done, run.store, console)}
+
+
+def env_episode_steps(env: str, kwargs: envs.EnvKwargs, given: int | None) -> int:
+    """The episode length EPyMARL's preset scales by on an ``--env`` task: ``given``, or
+    the one the environment declares (its ``max_cycles``), or one clear error."""
+    if given is not None:
+        require(given >= 1, "episode_steps", f"must be >= 1 (got {given})")
+        return given
+    declared = envs.declared_episode_steps(env, kwargs)
+    require(
+        declared is not None,
+        "episode_steps",
+        f"--preset epymarl scales by the episode length, and {env} declares none (no "
+        "max_cycles): give it with --episode-steps N",
+    )
+    assert declared is not None
+    return declared
+
+
+def env_sweep(
+    env: str, kwargs: envs.EnvKwargs, learners: tuple, copies: int, **protocol: Any
+) -> envs.EnvSweep:
+    """The ``--env`` task's sweep (with the random policy's runs, its floor), its errors
+    named as the field's options."""
+    try:
+        return envs.EnvSweep(
+            env=env, learners=learners, env_kwargs=kwargs, envs=copies, unit="steps", **protocol
+        )
+    except ConfigError as error:
+        names = {"algorithms": "learners", "runs": "seeds", "curve_points": "eval_interval"}
+        parameter = names.get(error.parameter, error.parameter)
+        raise ConfigError(parameter, f"{env}: {error.message}") from None
 
 
 @app.command(short_help="Beyond the paper: the field's protocol on its cooperative benchmarks.")
@@ -110,12 +154,39 @@ def run_field(
 @with_deep_execution
 def field(
     tasks: Annotated[
-        str,
+        str | None,
         typer.Option(
             help="Comma list of compiled tasks, each foraging:TASK[,rule=value...] or "
-            "simple_spread[:N=3,...], e.g. foraging:8x8-2p-2f-coop,simple_spread."
+            "simple_spread[:N=3,...], e.g. foraging:8x8-2p-2f-coop,simple_spread.",
+            show_default=False,
         ),
-    ],
+    ] = None,
+    env: Annotated[
+        str | None,
+        typer.Option(
+            help="One more task (or the only one): MODULE:FACTORY returning a PettingZoo "
+            "ParallelEnv with discrete actions, played through train --env's loop, with a "
+            "uniform random policy's runs as its floor.",
+            show_default=False,
+        ),
+    ] = None,
+    env_kwargs: Annotated[
+        str, typer.Option(help="With --env: the factory's keyword arguments, a JSON object.")
+    ] = "{}",
+    envs_per_run: Annotated[
+        int,
+        typer.Option(
+            "--envs", help="With --env: copies of the environment each run plays at once."
+        ),
+    ] = envs.DEFAULT_ENVS,
+    episode_steps: Annotated[
+        int | None,
+        typer.Option(
+            help="With --env and --preset epymarl: the episode length EPyMARL's settings "
+            "scale by [default: the environment's max_cycles].",
+            show_default=False,
+        ),
+    ] = None,
     learners: Annotated[
         str, typer.Option(help=f"Comma list of {registry.learner_names()}.")
     ] = DEFAULT_LEARNERS,
@@ -163,6 +234,16 @@ def field(
     environment steps with a greedy evaluation at every interval; per task and learner,
     the curve, the maximum return (with its 95 % interval over the seeds) and the average
     return; stored and resumable."""
+    require(
+        tasks is not None or env is not None,
+        "tasks",
+        "give --tasks (e.g. foraging:8x8-2p-2f-coop), --env MODULE:FACTORY, or both",
+    )
+    if env is None:
+        given = {"env_kwargs": env_kwargs, "envs": envs_per_run, "episode_steps": episode_steps}
+        defaults = {"env_kwargs": "{}", "envs": envs.DEFAULT_ENVS, "episode_steps": None}
+        for name, value in given.items():
+            require(value == defaults[name], name, "applies to --env only")
     names = parse_names(learners, "learners")
     configs = tuple(registry.require_learner(name, "learners") for name in names)
     require(preset in PRESETS, "preset", f"must be one of {', '.join(PRESETS)} (got {preset!r})")
@@ -179,7 +260,7 @@ def field(
     )
     apply_settings(settings, configs)  # bad settings refused before any task is made
     sweeps = []
-    for task in split_tasks(tasks):
+    for task in split_tasks(tasks) if tasks is not None else []:
         try:
             family, rules = games.parse_game(task)
             chosen = apply_settings(settings, with_preset(configs, preset, rules.spec().max_steps))
@@ -201,4 +282,13 @@ def field(
         except ConfigError as error:
             parameter = {"algorithms": "learners", "game": "tasks"}.get(error.parameter)
             raise ConfigError(parameter or error.parameter, f"{task}: {error.message}") from None
+    if env is not None:
+        kwargs = parse_env_kwargs(env_kwargs)
+        episode = env_episode_steps(env, kwargs, episode_steps) if preset == "epymarl" else 1
+        chosen = apply_settings(settings, with_preset(configs, preset, episode))
+        protocol = {
+            "episodes": budget, "runs": seeds, "eval_episodes": evaluated, "seed": seed,
+            "curve_points": points, "inputs": inputs, "eval_at_start": eval_at_start,
+        }  # fmt: skip
+        sweeps.append(env_sweep(env, kwargs, chosen, envs_per_run, **protocol))
     print_results(run, lambda console: run_field(sweeps, run, console, seed_batch))

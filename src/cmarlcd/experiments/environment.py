@@ -119,6 +119,18 @@ def make_env(path: str, kwargs: EnvKwargs) -> Any:
     return env
 
 
+def declared_episode_steps(path: str, kwargs: EnvKwargs) -> int | None:
+    """The episode length the environment declares: its ``max_cycles`` (PettingZoo's MPE
+    and Butterfly environments keep it on the unwrapped environment); None where it
+    declares none."""
+    env = make_env(path, kwargs)
+    for holder in (env, getattr(env, "unwrapped", None)):
+        value = getattr(holder, "max_cycles", None)
+        if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
+            return value
+    return None
+
+
 def kwargs_text(kwargs: EnvKwargs) -> str:
     """``(('N', 3),)`` -> ``"N=3"``."""
     return ", ".join(f"{k}={v!r}" for k, v in kwargs)
@@ -200,6 +212,10 @@ class EnvRun(Settings):
     """What ``episodes`` counts: learning episodes, or environment ``"steps"`` (a budget
     of steps ends at the end of the episodes in play when it is reached; the curve's
     points and a deep learner's ε count steps too)."""
+    eval_at_start: bool = added_setting(False, "0.7.0")
+    """Whether the curve starts with a greedy evaluation before any learning (a point at
+    0, as the field's protocol has; the learner's own random draws at that evaluation,
+    the random policy's among them, shift its later draws)."""
 
     @property
     def algorithm(self) -> str:
@@ -232,6 +248,11 @@ class EnvRun(Settings):
         points = max(1, self.curve_points)
         return sorted({round(self.episodes * k / points) for k in range(1, points + 1)} - {0})
 
+    def points(self) -> list[int]:
+        """Every point of the curve: 0 first where it evaluates before learning, then the
+        budgets."""
+        return [0, *self.budgets()] if self.eval_at_start else self.budgets()
+
 
 def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
     """One run: learn, and evaluate greedily at every budget of the curve."""
@@ -246,19 +267,21 @@ def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
         settings.learner, counts, shape, settings.episodes, learner_seed, settings.unit
     )
     reward = REWARDS[settings.reward]
-    curve, trained = [], 0
-    for k, budget in enumerate(settings.budgets()):
-        first = copy_seeds(env_seed, settings.envs) if k == 0 else None
-        if steps:  # to the end of the episodes in play when the budget is reached
-            learned = play_copies(
-                envs, learner, 0, global_reward=reward, seeds=first, steps=budget - trained
-            )
-            trained += int(learned.lengths.sum())
-            report_progress(int(learned.lengths.sum()) / PROGRESS_EPISODE_STEPS)
-        else:
-            play_copies(envs, learner, budget - trained, global_reward=reward, seeds=first)
-            report_progress(budget - trained)
-            trained = budget
+    curve, trained, started = [], 0, False
+    for budget in settings.points():
+        if budget > 0:  # 0: the evaluation before any learning
+            first = None if started else copy_seeds(env_seed, settings.envs)
+            started = True
+            if steps:  # to the end of the episodes in play when the budget is reached
+                learned = play_copies(
+                    envs, learner, 0, global_reward=reward, seeds=first, steps=budget - trained
+                )
+                trained += int(learned.lengths.sum())
+                report_progress(int(learned.lengths.sum()) / PROGRESS_EPISODE_STEPS)
+            else:
+                play_copies(envs, learner, budget - trained, global_reward=reward, seeds=first)
+                report_progress(budget - trained)
+                trained = budget
         point = np.random.SeedSequence(eval_seed.entropy, spawn_key=(*eval_seed.spawn_key, budget))
         stats = play_copies(
             evaluations, learner, settings.eval_episodes, learn=False,
@@ -330,6 +353,8 @@ class EnvSweep:
     envs: int = DEFAULT_ENVS
     unit: str = "episodes"
     """What ``episodes`` counts: learning episodes, or environment ``"steps"``."""
+    eval_at_start: bool = False
+    """Whether each curve starts with a greedy evaluation before learning."""
 
     def __post_init__(self) -> None:
         require(self.unit in BUDGET_UNITS, "unit", f"must be one of {BUDGET_UNITS}")
@@ -381,6 +406,7 @@ class EnvSweep:
         return EnvRun(
             self.env, self.env_kwargs, learner, self.episodes, self.eval_episodes,
             self.curve_points, self.reward, self.inputs, self.envs, self.unit,
+            self.eval_at_start,
         )  # fmt: skip
 
     def specs(self) -> list[RunSpec]:
@@ -396,7 +422,7 @@ def _cost(settings: EnvRun) -> float:
     """[choice] A rough estimate, for progress only: 5 ms per learning episode of a deep
     learner, 1 ms otherwise, and 1 ms per evaluation episode."""
     deep = isinstance(settings.learner, DeepLearnerConfig)
-    evaluated = settings.eval_episodes * len(settings.budgets())
+    evaluated = settings.eval_episodes * len(settings.points())
     return _learned(settings) * (5e-3 if deep else 1e-3) + 1e-3 * evaluated
 
 
@@ -410,7 +436,7 @@ def _learned(settings: EnvRun) -> float:
 
 def _work(settings: EnvRun) -> float:
     """Episodes one run plays: learning and evaluation."""
-    return _learned(settings) + settings.eval_episodes * len(settings.budgets())
+    return _learned(settings) + settings.eval_episodes * len(settings.points())
 
 
 TRAIN = Experiment(

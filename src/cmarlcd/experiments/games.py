@@ -201,10 +201,11 @@ class GameSweep(EpisodicSweep):
                 f"{MAX_POLICY_ENTRIES:,} entries"
             )
             smaller = ", or a smaller task (e.g. 5x5-2p-1f)" if family is FORAGING else ""
+            deep_iql = " (deep IQL is deep-iql; iql is the table)" if "iql" in tabular else ""
             raise ConfigError(
                 "algorithms",
                 f"{', '.join(tabular)}: tabular learners need a table of every state; "
-                f"{family.name} {rules.name} {why}: choose deep learners{smaller}",
+                f"{family.name} {rules.name} {why}: choose deep learners{deep_iql}{smaller}",
             )
 
     @property

@@ -104,7 +104,11 @@ def protocol_key(record: RunRecord) -> tuple:
     s = settings_of(record)
     kwargs = canonical_json(dict(s.env_kwargs))
     return (s.env, kwargs, s.episodes, s.eval_episodes, s.curve_points, s.reward, s.inputs,
-            s.envs, s.unit, record.key.root_seed)  # fmt: skip
+            s.envs, s.unit, s.eval_at_start, record.key.root_seed)  # fmt: skip
+
+
+def _first_point(settings: envs.EnvRun) -> str:
+    return " (the first before learning)" if settings.eval_at_start else ""
 
 
 def _copies(count: int) -> str:
@@ -144,7 +148,8 @@ def environment_section(records: Sequence[RunRecord], figures: Path) -> Section:
     )
     protocol = (
         f"{learnt}, greedy return over {first.eval_episodes:,} "
-        f"episodes at {len(first.budgets())} points, team reward = {first.reward} of the "
+        f"episodes at {len(first.points())} points{_first_point(first)}, team reward = "
+        f"{first.reward} of the "
         f"agents', inputs: {first.inputs}, {_copies(first.envs)}, seed {seed}"
     )
     rows = final_returns(records)
