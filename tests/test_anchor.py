@@ -109,3 +109,66 @@ def test_the_compiled_command_makes_the_runs_of_the_compiled_side() -> None:
         assert ours.checkpoints == (int(option["--episodes"]),) == (40_800,)
         assert (ours.curve_points, ours.eval_episodes) == (10, 50)
         assert (int(option["--curve-points"]), int(option["--eval-episodes"])) == (10, 50)
+
+
+EPYMARL = Path(__file__).parents[1] / "benchmarks/anchors/epymarl_lbf.py"
+
+
+def test_the_epymarl_anchor_shows_its_help_without_epymarl() -> None:
+    done = subprocess.run(
+        [sys.executable, str(EPYMARL), "--help"], capture_output=True, text=True, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert "--epymarl" in done.stdout and "--steps" in done.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--tasks", "9x9"], "--tasks: 9x9"),
+        (["--algorithms", "iql,coma"], "--algorithms: unknown 'coma'"),
+        (["--steps", "1M", "--eval-interval", "300k"], "must divide --steps"),
+        ([], "--epymarl: give the path"),
+        (["--epymarl", "."], "holds no src/main.py"),
+    ],
+)
+def test_the_epymarl_anchor_refuses_bad_input_in_one_line(args, says, tmp_path: Path) -> None:
+    done = subprocess.run(
+        [sys.executable, str(EPYMARL), *args, "--out", str(tmp_path / "out")],
+        capture_output=True, text=True, check=False, cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert says in done.stderr and done.stderr.count("\n") == 1, done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_epymarl_anchor_reads_sacreds_numbers_and_compares_the_kth_tests(tmp_path) -> None:
+    """Two hand-made EPyMARL runs and a cmarl-cd command's curves: the figures are the
+    field's of the k-th points of each side, the verdict against EPyMARL's interval."""
+    spec = importlib.util.spec_from_file_location("epymarl_anchor", EPYMARL)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.value({"py/object": "numpy.float64", "value": 0.25}) == 0.25
+    protocol = {"tasks": ["8x8-2p-2f-coop"], "algorithms": ["vdn"], "sides": ["epymarl"],
+                "seeds": 2, "steps": 100, "eval_interval": 50, "eval_episodes": 5}  # fmt: skip
+    for seed, returns in enumerate(([0.0, 0.2, 0.4], [0.0, 0.4, 0.6])):
+        curve = [[t, r] for t, r in zip((50, 100, 150), returns, strict=True)]
+        module.write(module.job_path(tmp_path, "epymarl", ("8x8-2p-2f-coop", "vdn", seed)), {
+            "protocol": module.protocol_of(protocol, "epymarl"), "seconds": 2.0,
+            "steps_trained": 100, "curve": curve,
+        })  # fmt: skip
+    module.write(module.job_path(tmp_path, "cmarl-cd", ("8x8-2p-2f-coop",)), {
+        "protocol": module.protocol_of(protocol, "cmarl-cd"), "seconds": 1.0,
+        "curves": {"vdn": [[0.0, 0.1, 0.3], [0.0, 0.3, 0.3]]},
+    })  # fmt: skip
+    summary = module.summarise(tmp_path, protocol)
+    (row,) = summary["pairs"]
+    assert row["epymarl"]["max_return"] == pytest.approx(0.5)  # the last test's mean
+    assert row["epymarl"]["max_return_at"] == 100  # the k-th nominal point
+    assert row["epymarl"]["average_return"] == pytest.approx((0.6 + 1.0) / 6)
+    assert row["cmarl-cd"]["max_return"] == pytest.approx(0.3)
+    half = 12.706 * 0.1  # t(1 df) x sd / sqrt(2): sd of 0.4 and 0.6 is 0.1 x sqrt(2)
+    assert row["epymarl"]["max_return_low"] == pytest.approx(0.5 - half, abs=1e-3)
+    assert row["verdict"] == "within or above"  # 0.3 >= 0.5 - 1.271
+    assert summary["steps_per_second"] == {"cmarl-cd": 200.0, "epymarl": 50.0}
+    assert summary["ratio"] == 4.0
