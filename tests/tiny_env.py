@@ -136,3 +136,9 @@ class BreakingEnv(TinyEnv):
 
 def make_breaking(**kwargs) -> TinyEnv:
     return BreakingEnv(**kwargs)
+
+
+def make_random_length(**kwargs) -> RandomLengthEnv:
+    """The tiny game with random lengths and random pay, whose returns depend on the reset
+    seeds: an evaluation replayed with other seeds gives another return."""
+    return RandomLengthEnv(**kwargs)

@@ -63,7 +63,7 @@ LAYERS: list[tuple[str, list[str]]] = [
     ("sweeps", ["sweeps"]),
     ("experiments", ["experiments", "testing"]),
     ("registry", ["registry"]),
-    ("training", ["training"]),
+    ("training", ["training", "policies"]),
     ("learners, games", ["learners", "learners/tabular", "learners/deep", "games"]),
     ("the learners' parts", ["learners/deep/fused", "learners/shared"]),
     (

@@ -3,6 +3,7 @@
 from cmarlcd import _moved, games
 from cmarlcd.errors import ConfigError
 from cmarlcd.learners import CMARLCD, RepeatedConfig
+from cmarlcd.policies import load_policy
 from cmarlcd.training import FitResult, fit
 from cmarlcd.version import __version__
 
@@ -16,4 +17,5 @@ __all__ = [
     "__version__",
     "fit",
     "games",
+    "load_policy",
 ]

@@ -188,6 +188,8 @@ class Experiment:
             the sweep's device (:mod:`cmarlcd.devices`); such a run records the device in
             its metrics, and on Ray its task asks for a share of a GPU (``1 / gpu_tasks``)
             when the device is one.
+        keeps_policies: whether its runs can hand their final greedy policy back
+            (:mod:`cmarlcd.policies`; ``--save-policies``).
     """
 
     name: str
@@ -200,6 +202,7 @@ class Experiment:
     work: Callable[[Any], float | None] = _no_work_reported
     work_unit: str = "runs"
     uses_device: Callable[[Any], bool] = _no_device
+    keeps_policies: bool = False
 
     def settings_of(self, config_json: str) -> Any:
         """The typed settings of a run of this experiment, from its stored config."""
@@ -217,6 +220,9 @@ class RunSpec:
     run_index: int
     stream_json: str = ""
     """The part of the config that defines the random streams (default: all of it)."""
+    keep_policy: bool = field(default=False, compare=False)
+    """Whether the run hands its final greedy policy back to be kept (``--save-policies``;
+    not part of its identity)."""
 
     @classmethod
     def make(

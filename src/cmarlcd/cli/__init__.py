@@ -1,6 +1,7 @@
 """The ``cmarl-cd`` command line: one module per command (:mod:`~.repeated`, :mod:`~.dsn`,
 :mod:`~.tournament`, :mod:`~.readings`, :mod:`~.reproduce`, :mod:`~.compare`,
-:mod:`~.scaling`, :mod:`~.train`, :mod:`~.field`, :mod:`~.report`, :mod:`~.play`, :mod:`~.theory`),
+:mod:`~.scaling`, :mod:`~.train`, :mod:`~.field`, :mod:`~.evaluate`, :mod:`~.report`,
+:mod:`~.play`, :mod:`~.theory`),
 each registering with the app of :mod:`~.app`; :mod:`~.sweeps` (the options and sweep
 every computing command shares), :mod:`~.options` (parsing and clean failures) and
 :mod:`~.progress` (the progress bar)."""
@@ -8,6 +9,7 @@ every computing command shares), :mod:`~.options` (parsing and clean failures) a
 from cmarlcd.cli import (  # noqa: F401  (each registers its command)
     compare,
     dsn,
+    evaluate,
     field,
     play,
     readings,
@@ -36,6 +38,7 @@ ORDER = (
     "scaling",
     "train",
     "field",
+    "evaluate",
     "play",
     "report",
 )

@@ -71,6 +71,15 @@ GpuTasksOption = Annotated[
         "the card, at most all workers but one; on Ray each one's share of a GPU).",
     ),
 ]
+SavePoliciesOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--save-policies",
+        help="Keep each run's final greedy policy in this folder (.npz tables, .safetensors "
+        "networks; runs found in the store keep none); cmarl-cd evaluate --policy plays one.",
+        show_default=False,
+    ),
+]
 DeviceOption = Annotated[
     str,
     typer.Option(

@@ -25,6 +25,7 @@ from cmarlcd.cli.options import (
     GpuTasksOption,
     JsonOption,
     ProgressOption,
+    SavePoliciesOption,
     StoreOption,
     WorkersOption,
     check_outputs,
@@ -33,13 +34,20 @@ from cmarlcd.cli.options import (
 from cmarlcd.cli.progress import RichSweepView
 from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, check_device, resolve
 from cmarlcd.errors import require
+from cmarlcd.experiments import get_experiment
 from cmarlcd.limits import check_gpu_tasks, check_workers
 from cmarlcd.reports.render import say, show_section
 from cmarlcd.reports.section import Section
 from cmarlcd.runs import RunSpec
 from cmarlcd.sweeps.backends import check_backend, ray_cluster
 from cmarlcd.sweeps.runner import SweepResult, run_sweep
-from cmarlcd.sweeps.store import DEFAULT_STORE, ResultStore, RunRecord, discard_if_empty
+from cmarlcd.sweeps.store import (
+    DEFAULT_STORE,
+    ResultStore,
+    RunRecord,
+    check_output_directory,
+    discard_if_empty,
+)
 from cmarlcd.version import __version__
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -60,6 +68,7 @@ class Execution:
     as_json: bool = False
     device: str = DEFAULT_DEVICE
     gpu_tasks: int = GPU_TASKS
+    save_policies: Path | None = None
 
     def check(self) -> None:
         """Every choice is valid and every output path usable, before anything runs."""
@@ -68,6 +77,8 @@ class Execution:
         check_device_here(self.device, self.backend)
         check_gpu_tasks(self.gpu_tasks)
         check_outputs(self.store, self.figures)
+        if self.save_policies is not None:
+            check_output_directory(self.save_policies, "save_policies")
 
 
 #: The options of :class:`Execution`, as a command line shows them (in this order).
@@ -79,6 +90,7 @@ EXECUTION_OPTIONS: dict[str, tuple[Any, Any]] = {
     "store": (StoreOption, DEFAULT_STORE),
     "figures": (FiguresOption, DEFAULT_FIGURES),
     "progress": (ProgressOption, True),
+    "save_policies": (SavePoliciesOption, None),
 }
 #: The options a command that trains deep learners adds (last).
 DEVICE_OPTIONS = {
@@ -139,6 +151,8 @@ def compute_runs(
 ) -> tuple[list[RunRecord], SweepResult]:
     """Compute what the store lacks of ``specs``; return their records and the tally. A
     store this call created is removed again if the sweep ends with nothing in it."""
+    if run.save_policies is not None:
+        check_keeps_policies(specs)
     created = not run.store.exists()
     watching, ray_cluster.on_lost = ray_cluster.on_lost, leave_now  # a lost cluster ends
     try:  # the command, even one blocked inside Ray
@@ -156,6 +170,7 @@ def compute_runs(
                 section=section,
                 device=run.device,
                 gpu_tasks=run.gpu_tasks,
+                policies=run.save_policies,
             )
             return store.get(s.key for s in specs), done
     except BaseException:
@@ -164,6 +179,16 @@ def compute_runs(
         raise
     finally:
         ray_cluster.on_lost = watching
+
+
+def check_keeps_policies(specs: Sequence[RunSpec]) -> None:
+    """``--save-policies`` where every run can keep its policy, else one clear error."""
+    for name in sorted({spec.experiment for spec in specs}):
+        require(
+            get_experiment(name).keeps_policies,
+            "save_policies",
+            f"the runs of {name} keep no policy yet (train --env's do)",
+        )
 
 
 def present(section: Section, console: Console | None) -> dict[str, Any]:

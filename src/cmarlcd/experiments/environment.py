@@ -47,6 +47,8 @@ from cmarlcd.limits import (
     check_seed,
     check_steps,
 )
+from cmarlcd.policies.keeping import POLICY, wanted
+from cmarlcd.policies.learned import policy_of
 from cmarlcd.progress import report_progress
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment, RunSpec, Settings, added_setting, identity
@@ -292,6 +294,11 @@ def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
     result = {"curve": curve, "seconds": time.perf_counter() - start}
     if hasattr(learner, "stored"):  # what a deep learner learned from: replay or memory
         result["stored"] = int(learner.stored)
+    if wanted():  # --save-policies: the greedy policy it ended with (not stored)
+        meta = {"inputs": settings.inputs, "agents": list(envs[0].possible_agents)}
+        policy = policy_of(learner, meta)
+        if policy is not None:
+            result[POLICY] = policy
     return result
 
 
@@ -447,4 +454,5 @@ TRAIN = Experiment(
     work=_work,
     work_unit="episodes",
     uses_device=lambda settings: isinstance(settings.learner, DeepLearnerConfig),
+    keeps_policies=True,
 )

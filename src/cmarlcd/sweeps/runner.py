@@ -34,13 +34,15 @@ import multiprocessing
 import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 from cmarlcd.devices import DEFAULT_DEVICE, GPU_TASKS, resolve
 from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import get_experiment, settings_of
 from cmarlcd.limits import check_gpu_tasks, check_seed_batch, check_workers
+from cmarlcd.policies.files import keep_policy
 from cmarlcd.runs import RunSpec
 from cmarlcd.sweeps.backends import check_backend, default_workers, make_backend
 from cmarlcd.sweeps.backends.tasks import Failure
@@ -142,6 +144,7 @@ def run_sweep(
     claim_timeout: float = CLAIM_TIMEOUT,
     device: str = DEFAULT_DEVICE,
     gpu_tasks: int = GPU_TASKS,
+    policies: Path | None = None,
 ) -> SweepResult:
     """Compute every spec not yet in ``store`` and commit each as it finishes.
 
@@ -155,6 +158,8 @@ def run_sweep(
             ``cuda:N``, ``auto``); a run's identity and seeds do not depend on it.
         gpu_tasks: deep tasks that share one GPU at a time (local worker processes on
             the card, or each one's share of a GPU on Ray).
+        policies: where each run computed now keeps its final greedy policy
+            (:mod:`cmarlcd.policies`; runs found in the store keep none).
 
     Runs of one config whose experiment can batch them are computed ``seed_batch`` at a
     time in one call (the results are the same as one by one).
@@ -169,9 +174,12 @@ def run_sweep(
     if backend != "ray":  # a GPU asked for where there is none: refused before anything runs
         device = resolve(device)
     named = section or (lambda _: description)
+    if policies is not None:
+        specs = [replace(spec, keep_policy=True) for spec in specs]
     sweep = _Sweep(
         specs, store, version, observer or SweepObserver(), one_unit_sections(specs, named)
     )
+    sweep.policies = policies
 
     # local workers with a GPU: one more than the batches, as the GPU's lane leaves one
     # worker to the CPU's, so that as many deep batches as there are run at once
@@ -243,6 +251,7 @@ class _Sweep:
         self.next_tag = 0
         self.inflight: dict[int, list[RunSpec]] = {}
         self.waiting: dict[RunKey, RunSpec] = {}
+        self.policies: Path | None = None
 
     def run(self, seed_batch: int, claim_timeout: float, backend_factory: Callable) -> SweepResult:
         missing = set(self.store.missing(s.key for s in self.specs))
@@ -446,6 +455,7 @@ class _Sweep:
         self.observer.task_progress(task.section, tag, task.kind, task.cost, task.cost)
 
     def _commit(self, spec: RunSpec, metrics: dict[str, Any], seconds: float) -> None:
+        keep_policy(metrics, spec, self.policies, self.version)  # a file, never in the store
         if not self.store.put(spec.key, metrics, seconds, self.version):
             self.result.duplicates += 1
         self.result.computed += 1

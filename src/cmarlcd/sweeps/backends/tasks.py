@@ -22,6 +22,7 @@ from typing import Any
 
 from cmarlcd import devices
 from cmarlcd.experiments import get_experiment
+from cmarlcd.policies.keeping import wanting
 from cmarlcd.progress import Throttled, install_sink
 from cmarlcd.runs import RunSpec
 
@@ -85,7 +86,8 @@ def execute(spec: RunSpec) -> Outcome:
     start = time.perf_counter()
     experiment = get_experiment(spec.experiment)
     settings = experiment.settings_of(spec.config_json)
-    metrics = experiment.run(settings, spec.seed_sequence())
+    with wanting(spec.keep_policy):
+        metrics = experiment.run(settings, spec.seed_sequence())
     return spec, _with_device(experiment, settings, metrics), time.perf_counter() - start
 
 
@@ -96,7 +98,8 @@ def execute_batch(specs: list[RunSpec]) -> list[Outcome]:
         return [execute(spec) for spec in specs]
     start = time.perf_counter()
     settings = experiment.settings_of(specs[0].config_json)
-    results = experiment.run_batch(settings, [s.seed_sequence() for s in specs])
+    with wanting(specs[0].keep_policy):
+        results = experiment.run_batch(settings, [s.seed_sequence() for s in specs])
     seconds = (time.perf_counter() - start) / len(specs)
     return [
         (spec, _with_device(experiment, settings, metrics), seconds)

@@ -1,0 +1,84 @@
+"""``cmarl-cd evaluate``: a policy kept with ``--save-policies`` played greedily again."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+
+from cmarlcd.cli.app import app
+from cmarlcd.cli.options import JsonOption, fails_cleanly
+from cmarlcd.cli.train import parse_env_kwargs
+from cmarlcd.errors import require
+from cmarlcd.sweeps.store import ResultStore
+
+
+@app.command(short_help="Play a kept policy greedily again (train --env --save-policies).")
+@fails_cleanly
+def evaluate(
+    policy: Annotated[
+        Path, typer.Option(help="A policy file kept by --save-policies (.npz or .safetensors).")
+    ],
+    episodes: Annotated[
+        int | None,
+        typer.Option(
+            help="Greedy episodes [default: the run's own last evaluation, its episodes "
+            "and seeds, which gives the store's last curve point].",
+            show_default=False,
+        ),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(
+            help="Seed of the episodes' resets (instead of the run's).", show_default=False
+        ),
+    ] = None,
+    env: Annotated[
+        str | None,
+        typer.Option(
+            help="Another environment of the same shapes, MODULE:FACTORY [default: the run's].",
+            show_default=False,
+        ),
+    ] = None,
+    env_kwargs: Annotated[
+        str | None,
+        typer.Option(help="Its keyword arguments, a JSON object.", show_default=False),
+    ] = None,
+    store: Annotated[
+        Path | None,
+        typer.Option(
+            help="A results store holding the run: its stored figure is shown beside.",
+            show_default=False,
+        ),
+    ] = None,
+    as_json: JsonOption = False,
+) -> None:
+    """Play a kept greedy policy again and print its mean return (with the run's stored
+    figure where --store holds the run)."""
+    from cmarlcd.experiments.policy_evaluation import evaluate_policy, run_spec
+    from cmarlcd.policies import load_policy
+
+    kept = load_policy(policy)
+    kwargs = None if env_kwargs is None else parse_env_kwargs(env_kwargs)
+    doc = evaluate_policy(kept, episodes, seed, env, kwargs)
+    if store is not None:
+        require(store.is_file(), "store", f"{store}: no such results store")
+        with ResultStore(store, create=False) as db:
+            found = db.get([run_spec(kept.metadata).key])
+        doc["stored_return"] = found[0].metrics["curve"][-1][1] if found else None
+    if as_json:
+        print(json.dumps({"policy": str(policy), **doc}, indent=2))
+        return
+    console = Console()
+    console.print(
+        f"{doc['algorithm']} on {doc['env']}: mean greedy return {doc['mean_return']:.4f} "
+        f"(± {doc['std_return']:.4f} over {doc['episodes']} episodes, {doc['mean_steps']:.1f} "
+        f"steps; {doc['seeds']})"
+    )
+    if store is not None:
+        stored = doc["stored_return"]
+        said = "not in it" if stored is None else f"{stored:.4f} at the run's last point"
+        console.print(f"the store {store}: {said}")
