@@ -161,6 +161,10 @@ def _no_device(settings: Any) -> bool:
     return False
 
 
+def _keeps_no_policy(settings: Any) -> bool:
+    return False
+
+
 @dataclass(frozen=True)
 class Experiment:
     """What the runner needs to know about an experiment.
@@ -188,7 +192,7 @@ class Experiment:
             the sweep's device (:mod:`cmarlcd.devices`); such a run records the device in
             its metrics, and on Ray its task asks for a share of a GPU (``1 / gpu_tasks``)
             when the device is one.
-        keeps_policies: whether its runs can hand their final greedy policy back
+        keeps_policies: whether a run of a config can hand its final greedy policy back
             (:mod:`cmarlcd.policies`; ``--save-policies``).
     """
 
@@ -202,7 +206,7 @@ class Experiment:
     work: Callable[[Any], float | None] = _no_work_reported
     work_unit: str = "runs"
     uses_device: Callable[[Any], bool] = _no_device
-    keeps_policies: bool = False
+    keeps_policies: Callable[[Any], bool] = _keeps_no_policy
 
     def settings_of(self, config_json: str) -> Any:
         """The typed settings of a run of this experiment, from its stored config."""

@@ -164,12 +164,36 @@ def test_evaluate_replays_the_runs_last_evaluation(tmp_path) -> None:
     assert other["mean_return"] != stored[files[0]]
 
 
+def test_a_table_kept_on_the_dsn_replays_its_last_curve_point(tmp_path) -> None:
+    """The compiled DSN's CMARL-CD and LA-OCA tables: evaluate gives each run's stored
+    last point (a random game: other seeds give another return)."""
+    store, kept = tmp_path / "s.sqlite", tmp_path / "policies"
+    done = cli(
+        "dsn", "--algorithms", "cmarl-cd,la-oca", "--episodes", "1k", "--runs", "2",
+        "--eval-episodes", "300", "--workers", "1", "--no-progress", "--store", str(store),
+        "--figures", str(tmp_path / "f"), "--save-policies", str(kept),
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    files = sorted(kept.glob("dsn-*.npz"))
+    assert len(files) == 4
+    for path in files:
+        doc = json.loads(cli("evaluate", "--policy", str(path), "--store", str(store),
+                             "--json").stdout)  # fmt: skip
+        assert doc["mean_return"] == doc["stored_return"]
+    other = json.loads(cli("evaluate", "--policy", str(files[0]), "--episodes", "300",
+                           "--seed", "5", "--json").stdout)  # fmt: skip
+    first = json.loads(cli("evaluate", "--policy", str(files[0]), "--json").stdout)
+    assert other["mean_return"] != first["mean_return"]
+
+
 def test_save_policies_where_runs_keep_none_is_refused(tmp_path) -> None:
-    done = cli("dsn", "--episodes", "10", "--save-policies", str(tmp_path / "p"),
-               "--store", str(tmp_path / "s.sqlite"))  # fmt: skip
+    done = cli("dsn", "--algorithms", "cmarl-cd,vdn", "--episodes", "10", "--save-policies",
+               str(tmp_path / "p"), "--store", str(tmp_path / "s.sqlite"), "--figures",
+               str(tmp_path / "f"))  # fmt: skip
     assert done.returncode == 2
-    assert "--save-policies: the runs of dsn keep no policy yet" in done.stderr
+    assert "--save-policies: vdn's runs of dsn keep no policy yet" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "s.sqlite").exists() and not (tmp_path / "p").exists()
 
 
 def test_bad_policy_files_are_one_line_and_exit_2(tmp_path) -> None:

@@ -16,7 +16,7 @@ from cmarlcd.errors import require
 from cmarlcd.sweeps.store import ResultStore
 
 
-@app.command(short_help="Play a kept policy greedily again (train --env --save-policies).")
+@app.command(short_help="Play a policy kept with --save-policies greedily again.")
 @fails_cleanly
 def evaluate(
     policy: Annotated[
@@ -58,7 +58,7 @@ def evaluate(
 ) -> None:
     """Play a kept greedy policy again and print its mean return (with the run's stored
     figure where --store holds the run)."""
-    from cmarlcd.experiments.policy_evaluation import evaluate_policy, run_spec
+    from cmarlcd.experiments.policy_evaluation import evaluate_policy, run_spec, stored_return
     from cmarlcd.policies import load_policy
 
     kept = load_policy(policy)
@@ -68,13 +68,14 @@ def evaluate(
         require(store.is_file(), "store", f"{store}: no such results store")
         with ResultStore(store, create=False) as db:
             found = db.get([run_spec(kept.metadata).key])
-        doc["stored_return"] = found[0].metrics["curve"][-1][1] if found else None
+        doc["stored_return"] = stored_return(found[0]) if found else None
     if as_json:
         print(json.dumps({"policy": str(policy), **doc}, indent=2))
         return
     console = Console()
     console.print(
-        f"{doc['algorithm']} on {doc['env']}: mean greedy return {doc['mean_return']:.4f} "
+        f"{doc['algorithm']} on {doc.get('env') or doc['game']}: mean greedy return "
+        f"{doc['mean_return']:.4f} "
         f"(± {doc['std_return']:.4f} over {doc['episodes']} episodes, {doc['mean_steps']:.1f} "
         f"steps; {doc['seeds']})"
     )

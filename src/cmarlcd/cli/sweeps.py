@@ -183,11 +183,13 @@ def compute_runs(
 
 def check_keeps_policies(specs: Sequence[RunSpec]) -> None:
     """``--save-policies`` where every run can keep its policy, else one clear error."""
-    for name in sorted({spec.experiment for spec in specs}):
+    for spec in specs:
+        experiment = get_experiment(spec.experiment)
         require(
-            get_experiment(name).keeps_policies,
+            experiment.keeps_policies(experiment.settings_of(spec.config_json)),
             "save_policies",
-            f"the runs of {name} keep no policy yet (train --env's do)",
+            f"{spec.algorithm}'s runs of {spec.experiment} keep no policy yet (those of "
+            "train --env and the table learners' on the compiled games do)",
         )
 
 

@@ -454,5 +454,5 @@ TRAIN = Experiment(
     work=_work,
     work_unit="episodes",
     uses_device=lambda settings: isinstance(settings.learner, DeepLearnerConfig),
-    keeps_policies=True,
+    keeps_policies=lambda settings: True,
 )

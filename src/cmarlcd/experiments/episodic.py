@@ -40,6 +40,8 @@ from cmarlcd.limits import (
     check_seed,
     check_steps,
 )
+from cmarlcd.policies.greedy import TablePolicy
+from cmarlcd.policies.keeping import POLICY, wanted
 from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import (
@@ -345,7 +347,7 @@ class EpisodicSweep:
 # ------------------------------------------------------------------------- runs
 
 
-def _keyed_rng(seed: np.random.SeedSequence, *key: int) -> np.random.Generator:
+def keyed_rng(seed: np.random.SeedSequence, *key: int) -> np.random.Generator:
     """A stream that depends only on ``seed`` and ``key`` (e.g. an evaluation at L)."""
     child = np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, *key))
     return np.random.default_rng(child)
@@ -369,10 +371,10 @@ class Recorder:
     def __call__(self, budget: int, policy: GreedyPolicy) -> None:
         settings = self.settings
         if budget in settings.checkpoints:
-            rng = _keyed_rng(self.eval_seed, 0, budget)
+            rng = keyed_rng(self.eval_seed, 0, budget)
             found = self._evaluate(policy, settings.eval_episodes, rng, self.game.also)
             self.checkpoints[str(budget)] = found
-        rng = _keyed_rng(self.eval_seed, 1, budget)
+        rng = keyed_rng(self.eval_seed, 1, budget)
         point = self._evaluate(policy, settings.curve_eval_episodes, rng)
         point_row = [budget, point["success_rate"], point["mean_return"], point["mean_steps"]]
         self.curve.append(point_row)
@@ -424,7 +426,14 @@ def run(game: EpisodicGame, settings: EpisodicRun, seed: np.random.SeedSequence)
             report_progress(learned)
         trained = budget
         record(budget, GreedyPolicy(spec, table=training.greedy_policy()))
-    return record.metrics()
+    metrics = record.metrics()
+    if wanted() and record.policy is not None:  # --save-policies: the final greedy table
+        counts = spec.action_counts
+        fresh = np.zeros(len(counts), np.int64)  # (every state has a row: never used)
+        seen = np.ones(len(record.policy), bool)
+        meta = {"inputs": "state", "game": game.experiment}
+        metrics[POLICY] = TablePolicy(record.policy, seen, fresh, counts, metadata=meta)
+    return metrics
 
 
 def run_batch(
@@ -470,4 +479,5 @@ def experiment(game: EpisodicGame) -> Experiment:
         work=lambda settings: settings.work(game.with_options(settings.options).spec.max_steps),
         work_unit="episodes",
         uses_device=lambda settings: is_deep(settings.learner),
+        keeps_policies=lambda settings: not is_deep(settings.learner),
     )

@@ -1,7 +1,8 @@
-"""A kept policy played greedily again (``cmarl-cd evaluate``): on the environment of the
-run that kept it, by default with that run's own last evaluation (the same copies, reset
-seeds and episodes, so the same return as the store's last curve point), or for
-``episodes`` episodes from ``seed``, or on another environment of the same shapes."""
+"""A kept policy played greedily again (``cmarl-cd evaluate``): on the environment or
+compiled game of the run that kept it, by default with that run's own last evaluation
+(the same episodes and seeds, so the same return as the store's last curve point), or for
+``episodes`` episodes from ``seed``, or (a ``train --env`` policy) on another environment
+of the same shapes."""
 
 from __future__ import annotations
 
@@ -29,12 +30,10 @@ def evaluate_policy(
 ) -> dict[str, Any]:
     """Play ``policy`` greedily; its mean return (the team's, as the run counted it)."""
     meta = policy.metadata
-    require(
-        meta.get("experiment") == envs.EXPERIMENT,
-        "policy",
-        f"a policy of {meta.get('experiment')}'s runs: evaluate plays those of train --env",
-    )
     spec = run_spec(meta)
+    if meta.get("experiment") != envs.EXPERIMENT:
+        require(env is None and env_kwargs is None, "env", "applies to train --env's policies")
+        return evaluate_on_game(policy, spec, episodes, seed)
     settings = envs.EnvRun.from_config(spec.config)
     where, kwargs = env or settings.env, settings.env_kwargs if env_kwargs is None else env_kwargs
     own = episodes is None and seed is None and env is None and env_kwargs is None
@@ -67,3 +66,59 @@ def evaluate_policy(
         "std_return": float(stats.returns.std()), "mean_steps": float(stats.lengths.mean()),
         "seeds": "the run's last evaluation" if own else f"seed {0 if seed is None else seed}",
     }  # fmt: skip
+
+
+def episodic_game(name: str) -> Any:
+    """The compiled game of an episodic experiment, by its store name."""
+    from cmarlcd.experiments.games import FAMILIES
+    from cmarlcd.experiments.scaling import SCALING_GAME
+    from cmarlcd.experiments.sensor_network import DSN_GAME
+
+    games = {
+        g.experiment: g for g in (DSN_GAME, SCALING_GAME, *(f.game for f in FAMILIES.values()))
+    }
+    require(name in games, "policy", f"a policy of {name}'s runs, which evaluate does not play")
+    return games[name]
+
+
+def evaluate_on_game(
+    policy: Any, spec: RunSpec, episodes: int | None, seed: int | None
+) -> dict[str, Any]:
+    """A table kept by a run of a compiled game, played as its last curve point was (the
+    curve's episodes and stream at the last budget), or ``episodes`` from ``seed``."""
+    from cmarlcd.experiments.episodic import EpisodicRun, keyed_rng
+    from cmarlcd.training.greedy import GreedyPolicy
+
+    game = episodic_game(spec.experiment)
+    settings = EpisodicRun.from_config(spec.config)
+    played = game.with_options(settings.options)
+    own = episodes is None and seed is None
+    count = settings.curve_eval_episodes if episodes is None else episodes
+    require(count >= 1, "episodes", f"must be >= 1 (got {count})")
+    if own:  # the run's last curve point: its evaluation stream at the last budget
+        eval_seed = spec.seed_sequence().spawn(3)[2]
+        rng = keyed_rng(eval_seed, 1, settings.schedule()[-1])
+    else:
+        rng = np.random.default_rng(0 if seed is None else seed)
+    table = policy.actions
+    require(
+        table.shape == (played.spec.n_states, len(played.spec.action_counts)),
+        "policy",
+        f"its table is {table.shape}; the game's states x agents {played.spec.n_states} x "
+        f"{len(played.spec.action_counts)}",
+    )
+    stats = GreedyPolicy(played.spec, table=table).evaluate(count, rng)
+    return {
+        "game": spec.experiment, "algorithm": spec.algorithm, "episodes": count,
+        "mean_return": float(stats.returns.sum()) / count,
+        "std_return": float(stats.returns.std()), "mean_steps": float(stats.lengths.mean()),
+        "success_rate": int(game.success(stats).sum()) / count,
+        "seeds": "the run's last evaluation" if own else f"seed {0 if seed is None else seed}",
+    }  # fmt: skip
+
+
+def stored_return(record: Any) -> float:
+    """The mean return at a stored run's last curve point (``train --env``'s curve rows
+    are [budget, return, steps]; a compiled game's [budget, success, return, steps])."""
+    column = 1 if record.key.experiment == envs.EXPERIMENT else 2
+    return float(record.metrics["curve"][-1][column])
