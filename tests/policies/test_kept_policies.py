@@ -6,6 +6,7 @@ loop, and bad files refused in one line."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from dataclasses import replace
@@ -153,6 +154,9 @@ def test_evaluate_replays_the_runs_last_evaluation(tmp_path) -> None:
         assert done.returncode == 0, done.stderr[-3000:]
     files = sorted(kept.iterdir())
     assert [f.suffix for f in files] == [".npz", ".npz", ".safetensors", ".safetensors"]
+    mask = os.umask(0)
+    os.umask(mask)  # as any file the user makes (the library alone writes 0600)
+    assert {f.stat().st_mode & 0o777 for f in files} == {0o666 & ~mask}
     stored = {}
     for path in files:
         shown = cli("evaluate", "--policy", str(path), "--store", str(store), "--json")

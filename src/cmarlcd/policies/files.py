@@ -54,8 +54,15 @@ def write_policy(
 
         arrays = {k: np.ascontiguousarray(v) for k, v in policy.arrays().items()}
         save_file(arrays, str(partial), metadata={"cmarlcd": text})
+    partial.chmod(0o666 & ~_umask())  # as any file the user makes (safetensors writes 0600)
     os.replace(partial, path)
     return path
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def keep_policy(
