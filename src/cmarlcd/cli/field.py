@@ -33,7 +33,7 @@ from cmarlcd.cli.sweeps import (
     run_counts,
     with_deep_execution,
 )
-from cmarlcd.cli.train import parse_env_kwargs
+from cmarlcd.cli.train import ENV_ONLY, parse_env_kwargs
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments import games
@@ -241,7 +241,7 @@ def field(
     )
     if env is None:
         given = {"env_kwargs": env_kwargs, "envs": envs_per_run, "episode_steps": episode_steps}
-        defaults = {"env_kwargs": "{}", "envs": envs.DEFAULT_ENVS, "episode_steps": None}
+        defaults = {**ENV_ONLY, "episode_steps": None}
         for name, value in given.items():
             require(value == defaults[name], name, "applies to --env only")
     names = parse_names(learners, "learners")

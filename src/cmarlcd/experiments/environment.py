@@ -284,7 +284,7 @@ def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
                 play_copies(envs, learner, budget - trained, global_reward=reward, seeds=first)
                 report_progress(budget - trained)
                 trained = budget
-        point = np.random.SeedSequence(eval_seed.entropy, spawn_key=(*eval_seed.spawn_key, budget))
+        point = point_seed(eval_seed, budget)
         stats = play_copies(
             evaluations, learner, settings.eval_episodes, learn=False,
             seeds=copy_seeds(point, evaluating), global_reward=reward,
@@ -300,6 +300,12 @@ def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
         if policy is not None:
             result[POLICY] = policy
     return result
+
+
+def point_seed(eval_seed: np.random.SeedSequence, budget: int) -> np.random.SeedSequence:
+    """The seeds of the greedy evaluation at ``budget``: a stream of its own, which no
+    draw of the learning changes."""
+    return np.random.SeedSequence(eval_seed.entropy, spawn_key=(*eval_seed.spawn_key, budget))
 
 
 def make_copies(path: str, kwargs: EnvKwargs, inputs: str, count: int) -> list[Any]:

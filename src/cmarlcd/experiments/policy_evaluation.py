@@ -41,10 +41,7 @@ def evaluate_policy(
     require(count >= 1, "episodes", f"must be >= 1 (got {count})")
     copies = min(settings.envs, count)
     if own:  # the run's last evaluation: its point's seed sequence
-        eval_seed = spec.seed_sequence().spawn(3)[2]
-        point = np.random.SeedSequence(
-            eval_seed.entropy, spawn_key=(*eval_seed.spawn_key, settings.episodes)
-        )
+        point = envs.point_seed(spec.seed_sequence().spawn(3)[2], settings.episodes)
     else:
         point = np.random.SeedSequence(0 if seed is None else seed)
     played = envs.make_copies(where, kwargs, settings.inputs, copies)
@@ -64,8 +61,12 @@ def evaluate_policy(
         "env": where, "env_kwargs": dict(kwargs), "algorithm": meta["algorithm"],
         "episodes": count, "mean_return": float(stats.returns.mean()),
         "std_return": float(stats.returns.std()), "mean_steps": float(stats.lengths.mean()),
-        "seeds": "the run's last evaluation" if own else f"seed {0 if seed is None else seed}",
+        "seeds": _seeds_said(own, seed),
     }  # fmt: skip
+
+
+def _seeds_said(own: bool, seed: int | None) -> str:
+    return "the run's last evaluation" if own else f"seed {0 if seed is None else seed}"
 
 
 def episodic_game(name: str) -> Any:
@@ -113,7 +114,7 @@ def evaluate_on_game(
         "mean_return": float(stats.returns.sum()) / count,
         "std_return": float(stats.returns.std()), "mean_steps": float(stats.lengths.mean()),
         "success_rate": int(game.success(stats).sum()) / count,
-        "seeds": "the run's last evaluation" if own else f"seed {0 if seed is None else seed}",
+        "seeds": _seeds_said(own, seed),
     }  # fmt: skip
 
 

@@ -176,10 +176,8 @@ def run_sweep(
     named = section or (lambda _: description)
     if policies is not None:
         specs = [replace(spec, keep_policy=True) for spec in specs]
-    sweep = _Sweep(
-        specs, store, version, observer or SweepObserver(), one_unit_sections(specs, named)
-    )
-    sweep.policies = policies
+    sections = one_unit_sections(specs, named)
+    sweep = _Sweep(specs, store, version, observer or SweepObserver(), sections, policies)
 
     # local workers with a GPU: one more than the batches, as the GPU's lane leaves one
     # worker to the CPU's, so that as many deep batches as there are run at once
@@ -244,14 +242,15 @@ class _Sweep:
         version: str,
         observer: SweepObserver,
         section: Callable[[RunSpec], str],
+        policies: Path | None = None,
     ) -> None:
         self.specs, self.store, self.version = list(specs), store, version
+        self.policies = policies  # where runs keep their policies (--save-policies)
         self.observer, self.section = observer, section
         self.owner = Owner.current()
         self.next_tag = 0
         self.inflight: dict[int, list[RunSpec]] = {}
         self.waiting: dict[RunKey, RunSpec] = {}
-        self.policies: Path | None = None
 
     def run(self, seed_batch: int, claim_timeout: float, backend_factory: Callable) -> SweepResult:
         missing = set(self.store.missing(s.key for s in self.specs))
