@@ -168,34 +168,68 @@ def test_evaluate_replays_the_runs_last_evaluation(tmp_path) -> None:
     assert other["mean_return"] != stored[files[0]]
 
 
-def test_a_table_kept_on_the_dsn_replays_its_last_curve_point(tmp_path) -> None:
-    """The compiled DSN's CMARL-CD and LA-OCA tables: evaluate gives each run's stored
-    last point (a random game: other seeds give another return)."""
+def test_policies_kept_on_the_dsn_replay_their_last_curve_point(tmp_path) -> None:
+    """The compiled DSN's CMARL-CD and LA-OCA tables, and VDN's and deep CMARL-CD's
+    greedy tables (one-hot state inputs, seeds trained together): evaluate gives each
+    run's stored last point (a random game: other seeds give another return)."""
     store, kept = tmp_path / "s.sqlite", tmp_path / "policies"
     done = cli(
-        "dsn", "--algorithms", "cmarl-cd,la-oca", "--episodes", "1k", "--runs", "2",
-        "--eval-episodes", "300", "--workers", "1", "--no-progress", "--store", str(store),
-        "--figures", str(tmp_path / "f"), "--save-policies", str(kept),
+        "dsn", "--algorithms", "cmarl-cd,la-oca,vdn,deep-cmarl-cd", "--episodes", "1k",
+        "--runs", "2", "--eval-episodes", "300", "--workers", "1", "--no-progress",
+        "--store", str(store), "--figures", str(tmp_path / "f"), "--save-policies", str(kept),
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-3000:]
     files = sorted(kept.glob("dsn-*.npz"))
-    assert len(files) == 4
+    assert len(files) == 8
+    returns = set()
     for path in files:
         doc = json.loads(cli("evaluate", "--policy", str(path), "--store", str(store),
                              "--json").stdout)  # fmt: skip
         assert doc["mean_return"] == doc["stored_return"]
+        returns.add(doc["mean_return"])
+    assert len(returns) == len(files)  # eight policies, eight figures: the check can fail
     other = json.loads(cli("evaluate", "--policy", str(files[0]), "--episodes", "300",
                            "--seed", "5", "--json").stdout)  # fmt: skip
     first = json.loads(cli("evaluate", "--policy", str(files[0]), "--json").stdout)
     assert other["mean_return"] != first["mean_return"]
 
 
+def test_networks_kept_on_a_compiled_game_replay_their_last_curve_point(tmp_path) -> None:
+    """simple_spread's VDN and QMIX, each agent reading its own observation, and LBF's
+    deep CMARL-CD reading every observation and acting from its memory where it keeps
+    the state: each seed's networks as its last evaluation played them, replayed to the
+    stored return (simple_spread's is continuous: a single different action shows)."""
+    store, kept = tmp_path / "s.sqlite", tmp_path / "policies"
+    for game, learners, inputs, extra in (
+        ("simple_spread:N=3", "vdn,qmix", "own-observations", ()),
+        ("foraging:5x5-2p-1f", "deep-cmarl-cd", "observations",
+         ("--set", "deep-cmarl-cd.act_from=memory")),
+    ):  # fmt: skip
+        done = cli(
+            "train", "--game", game, "--algorithms", learners, "--steps",
+            "1500", "--runs", "2", "--inputs", inputs, *extra, "--workers", "1",
+            "--no-progress", "--store", str(store), "--figures", str(tmp_path / "f"),
+            "--save-policies", str(kept),
+        )  # fmt: skip
+        assert done.returncode == 0, done.stderr[-3000:]
+    files = sorted(kept.glob("*.safetensors"))
+    assert len(files) == 6
+    for path in kept.glob("foraging-deep-cmarl-cd-*"):
+        assert len(load_policy(path).arrays()["memory_keys"]) > 0
+    for path in files:
+        doc = json.loads(cli("evaluate", "--policy", str(path), "--store", str(store),
+                             "--json").stdout)  # fmt: skip
+        assert doc["mean_return"] == doc["stored_return"]
+
+
 def test_save_policies_where_runs_keep_none_is_refused(tmp_path) -> None:
-    done = cli("dsn", "--algorithms", "cmarl-cd,vdn", "--episodes", "10", "--save-policies",
-               str(tmp_path / "p"), "--store", str(tmp_path / "s.sqlite"), "--figures",
-               str(tmp_path / "f"))  # fmt: skip
+    done = cli("tournament", "--algorithms", "cmarl-cd,vdn", "--rounds", "1", "--save-policies",
+               str(tmp_path / "p"), "--store", str(tmp_path / "s.sqlite"))  # fmt: skip
     assert done.returncode == 2
-    assert "--save-policies: vdn's runs of dsn keep no policy yet" in done.stderr
+    assert (
+        "--save-policies: cmarl-cd vs cmarl-cd's runs of tournament keep no policy yet"
+        in done.stderr
+    )
     assert len(done.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "s.sqlite").exists() and not (tmp_path / "p").exists()
 

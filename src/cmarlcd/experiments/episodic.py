@@ -40,8 +40,8 @@ from cmarlcd.limits import (
     check_seed,
     check_steps,
 )
-from cmarlcd.policies.greedy import TablePolicy
 from cmarlcd.policies.keeping import POLICY, wanted
+from cmarlcd.policies.learned import evaluated_policy, full_table
 from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import (
@@ -428,11 +428,8 @@ def run(game: EpisodicGame, settings: EpisodicRun, seed: np.random.SeedSequence)
         record(budget, GreedyPolicy(spec, table=training.greedy_policy()))
     metrics = record.metrics()
     if wanted() and record.policy is not None:  # --save-policies: the final greedy table
-        counts = spec.action_counts
-        fresh = np.zeros(len(counts), np.int64)  # (every state has a row: never used)
-        seen = np.ones(len(record.policy), bool)
         meta = {"inputs": "state", "game": game.experiment}
-        metrics[POLICY] = TablePolicy(record.policy, seen, fresh, counts, metadata=meta)
+        metrics[POLICY] = full_table(record.policy, spec.action_counts, meta)
     return metrics
 
 
@@ -448,12 +445,24 @@ def run_batch(
     learner = settings.learner
     spec = game.with_options(settings.options).spec
     batch = DeepBatch(spec, learner, train_seeds, settings.largest, unit=settings.unit)
+    kept: list[Any] = [None] * len(seeds)
+    meta = {"inputs": "state", "game": game.experiment}
+
+    def evaluate(k: int, budget: int, policy: GreedyPolicy) -> None:
+        records[k](budget, policy)
+        if wanted():  # --save-policies: the latest evaluation's policy (the last stays)
+            kept[k] = evaluated_policy(policy, spec.action_counts, meta)
+
     with unit_cost(learn_seconds(learner) * records[0].scale):  # evaluations say their own
         # a budget 0 (a curve's rounding can give one) is evaluated only where asked for,
         # as before eval_at_start existed
         schedule = [b for b in settings.schedule() if b > 0 or settings.eval_at_start]
-        batch.train(schedule, lambda k, budget, policy: records[k](budget, policy))
-    return [r.metrics() for r in records]
+        batch.train(schedule, evaluate)
+    results = [r.metrics() for r in records]
+    for metrics, policy in zip(results, kept, strict=True):
+        if policy is not None:
+            metrics[POLICY] = policy
+    return results
 
 
 def warm_up(game: EpisodicGame) -> None:
@@ -479,5 +488,5 @@ def experiment(game: EpisodicGame) -> Experiment:
         work=lambda settings: settings.work(game.with_options(settings.options).spec.max_steps),
         work_unit="episodes",
         uses_device=lambda settings: is_deep(settings.learner),
-        keeps_policies=lambda settings: not is_deep(settings.learner),
+        keeps_policies=lambda settings: True,
     )

@@ -87,7 +87,7 @@ def evaluate_on_game(
 ) -> dict[str, Any]:
     """A table kept by a run of a compiled game, played as its last curve point was (the
     curve's episodes and stream at the last budget), or ``episodes`` from ``seed``."""
-    from cmarlcd.experiments.episodic import EpisodicRun, keyed_rng
+    from cmarlcd.experiments.episodic import EpisodicRun, is_deep, keyed_rng
     from cmarlcd.training.greedy import GreedyPolicy
 
     game = episodic_game(spec.experiment)
@@ -97,18 +97,28 @@ def evaluate_on_game(
     count = settings.curve_eval_episodes if episodes is None else episodes
     require(count >= 1, "episodes", f"must be >= 1 (got {count})")
     if own:  # the run's last curve point: its evaluation stream at the last budget
-        eval_seed = spec.seed_sequence().spawn(3)[2]
+        eval_seed = own_eval_seed(spec, is_deep(settings.learner))
         rng = keyed_rng(eval_seed, 1, settings.schedule()[-1])
     else:
         rng = np.random.default_rng(0 if seed is None else seed)
-    table = policy.actions
+    n_agents = len(played.spec.action_counts)
     require(
-        table.shape == (played.spec.n_states, len(played.spec.action_counts)),
+        list(policy.counts) == list(played.spec.action_counts),
         "policy",
-        f"its table is {table.shape}; the game's states x agents {played.spec.n_states} x "
-        f"{len(played.spec.action_counts)}",
+        f"its agents have {list(policy.counts)} actions; the game's "
+        f"{list(played.spec.action_counts)}",
     )
-    stats = GreedyPolicy(played.spec, table=table).evaluate(count, rng)
+    if policy.kind == "table":
+        table = policy.actions
+        require(
+            table.shape == (played.spec.n_states, n_agents),
+            "policy",
+            f"its table is {table.shape}; the game's states x agents {played.spec.n_states} "
+            f"x {n_agents}",
+        )
+        stats = GreedyPolicy(played.spec, table=table).evaluate(count, rng)
+    else:
+        stats = play_network(played.spec, policy, count, rng)
     return {
         "game": spec.experiment, "algorithm": spec.algorithm, "episodes": count,
         "mean_return": float(stats.returns.sum()) / count,
@@ -116,6 +126,47 @@ def evaluate_on_game(
         "success_rate": int(game.success(stats).sum()) / count,
         "seeds": _seeds_said(own, seed),
     }  # fmt: skip
+
+
+def own_eval_seed(spec: RunSpec, deep: bool) -> np.random.SeedSequence:
+    """The evaluation seed of a compiled game's run: a deep run's streams are (training,
+    evaluation), a table learner's (environment, agent, evaluation)."""
+    return spec.seed_sequence().spawn(2)[1] if deep else spec.seed_sequence().spawn(3)[2]
+
+
+def play_network(spec: Any, policy: Any, episodes: int, rng: np.random.Generator) -> Any:
+    """``episodes`` greedy episodes of a network policy on a compiled game, drawn from
+    ``rng`` as the compiled loop's evaluation draws them
+    (:func:`cmarlcd.training.loop.play_greedy`: the game's kernels called in the same
+    order, so the same episodes as the run's own evaluation)."""
+    from cmarlcd.training.tabular import EpisodeStats
+
+    game, env = spec.kernels, spec.new_env()
+    legal = np.zeros((spec.n_agents, spec.width), np.bool_)
+    x = np.zeros(spec.n_features, np.float32)
+    rewards = np.zeros(spec.n_teams)
+    returns, lengths = np.zeros(episodes), np.zeros(episodes, np.int64)
+    terminated = np.zeros(episodes, np.bool_)
+    reads_state = bool(policy.metadata.get("n_states"))
+    for e in range(episodes):
+        game.reset(env, rng)
+        turns, total = 0, 0.0
+        while turns < spec.max_steps:
+            if reads_state:
+                state: Any = game.state(env, 0)
+            else:
+                game.features(env, 0, x)
+                state = x
+            game.legal(env, legal)
+            masks = [row[:count] for row, count in zip(legal, spec.action_counts, strict=True)]
+            joint = policy.greedy_many([state], [masks])[0].astype(np.int64)
+            game.step(env, joint, rng, rewards)
+            total += rewards[0]
+            turns += 1
+            if game.done(env):
+                break
+        returns[e], lengths[e], terminated[e] = total, turns, game.done(env)
+    return EpisodeStats(returns, lengths, terminated)
 
 
 def stored_return(record: Any) -> float:
