@@ -207,7 +207,7 @@ def test_collector_reads_spans_fences_and_continuations() -> None:
         ("cmarl-cd no-such-command --runs 3", "no-such-command"),
         ("cmarl-cd no-such-command [--runs N]", "no-such-command"),
         ("cmarl-cd dsn --runs many", "'--runs'"),
-        ("cmarl-cd play --runs 3", "'--payoffs'"),
+        ("cmarl-cd evaluate --episodes 3", "'--policy'"),
         ("cmarl-cd dsn [--runs] [--json]", "--runs needs a value"),
         ("cmarl-cd dsn [--json N]", "--json is a flag"),
         ("cmarl-cd dsn --runs 3 --no-progress", None),

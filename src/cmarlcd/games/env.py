@@ -111,6 +111,11 @@ class KernelParallelEnv(pettingzoo.ParallelEnv):
             self.agents = []
         return observations, rewards, terminations, truncations, infos
 
+    @property
+    def team_rewards(self) -> np.ndarray:
+        """Each team's reward at the last step, as the game gave it (a copy)."""
+        return self._rewards.copy()
+
     def _team_states(self) -> tuple[int, ...]:
         state = self.spec.kernels.state
         return tuple([int(state(self.env, k)) for k in range(self.spec.n_teams)])

@@ -1,0 +1,102 @@
+"""A kept policy watched (``cmarl-cd play --policy``): played greedily, one episode after
+another, in the PettingZoo environment of the run that kept it (a compiled game's
+``ParallelEnv``: :class:`~cmarlcd.games.foraging.env.ForagingEnv`,
+:class:`~cmarlcd.games.spread.env.SimpleSpreadEnv`,
+:class:`~cmarlcd.games.sensor_network.env.SensorNetworkEnv`, else
+:class:`~cmarlcd.games.env.KernelParallelEnv`; ``train --env``'s factory), with the
+policy's own :meth:`act`, each step a frame: the environment's text picture where it
+draws one (``render_mode="ansi"``), each agent's action and reward."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+from cmarlcd.errors import require
+from cmarlcd.experiments import environment as envs
+from cmarlcd.experiments.policy_evaluation import episodic_game, run_spec
+
+
+@dataclass
+class Frame:
+    """One step of a watched episode (step 0: the state it started in, no actions):
+    ``reward`` is the team's, as the run counted it (the game's team reward; for
+    ``train --env``, its agents' rewards summed or averaged as the run said)."""
+
+    episode: int
+    step: int
+    picture: str | None
+    actions: dict[str, int] = field(default_factory=dict)
+    rewards: dict[str, float] = field(default_factory=dict)
+    reward: float = 0.0
+    done: bool = False
+
+
+def policy_env(policy: Any) -> Any:
+    """The ``ParallelEnv`` the policy's run played, drawing text where it can."""
+    meta = policy.metadata
+    spec = run_spec(meta)
+    if spec.experiment == envs.EXPERIMENT:
+        settings = envs.EnvRun.from_config(spec.config)
+        try:  # its text picture, where the factory draws one
+            return envs.make_env(settings.env, {**dict(settings.env_kwargs), "render_mode": "ansi"})
+        except Exception:
+            return envs.make_env(settings.env, settings.env_kwargs)
+    from cmarlcd.experiments.episodic import EpisodicRun
+    from cmarlcd.experiments.games import FAMILIES
+    from cmarlcd.games.env import KernelParallelEnv
+    from cmarlcd.games.foraging.env import ForagingEnv
+    from cmarlcd.games.sensor_network.env import SensorNetworkEnv
+    from cmarlcd.games.spread.env import SimpleSpreadEnv
+
+    options = EpisodicRun.from_config(spec.config).options
+    family = FAMILIES.get(spec.experiment)
+    if family is not None:  # the task's own environment (its observations: the features)
+        env_of = {"foraging": ForagingEnv, "simple_spread": SimpleSpreadEnv}[family.name]
+        return env_of(family.rules_of(options), render_mode="ansi")
+    game = episodic_game(spec.experiment).with_options(options)
+    if game.spec.name == SensorNetworkEnv.metadata["name"] and not options:
+        return SensorNetworkEnv(render_mode="ansi")
+    return KernelParallelEnv(game.spec, render_mode="ansi")
+
+
+def watch(policy: Any, episodes: int = 1, seed: int = 0) -> Iterator[Frame]:
+    """``episodes`` greedy episodes of ``policy``, the first reset with ``seed`` (the
+    next ones continue its stream), frame by frame."""
+    require(episodes >= 1, "episodes", f"must be >= 1 (got {episodes})")
+    env = policy_env(policy)
+    team_reward = _team_reward(policy, env)
+    reads_state = policy.metadata.get("inputs", "state") == "state"
+    for episode in range(episodes):
+        observations, infos = env.reset(seed=seed if episode == 0 else None)
+        yield Frame(episode, 0, _picture(env))
+        step = 0
+        while env.agents:
+            masks = {a: infos.get(a, {}).get("action_mask") for a in env.agents}
+            given = None if any(m is None for m in masks.values()) else masks
+            state = env.state() if reads_state else None
+            actions = policy.act(observations, state=state, masks=given)
+            observations, rewards, terms, truncs, infos = env.step(actions)
+            step += 1
+            done = not env.agents or all(terms.get(a) or truncs.get(a) for a in actions)
+            said = {a: float(r) for a, r in rewards.items()}
+            yield Frame(episode, step, _picture(env), {a: int(x) for a, x in actions.items()},
+                        said, team_reward(said), done)  # fmt: skip
+            if done:
+                break
+
+
+def _picture(env: Any) -> str | None:
+    if getattr(env, "render_mode", None) != "ansi":
+        return None
+    text = env.render()
+    return text if isinstance(text, str) else None
+
+
+def _team_reward(policy: Any, env: Any) -> Any:
+    """How the run counted a step's team reward from the agents' rewards."""
+    spec = run_spec(policy.metadata)
+    if spec.experiment == envs.EXPERIMENT:
+        return envs.REWARDS[envs.EnvRun.from_config(spec.config).reward]
+    return lambda rewards: float(env.team_rewards[0])  # the game's, for its one team
