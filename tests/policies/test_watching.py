@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cmarlcd.games.sensor_network.env import SensorNetworkEnv
@@ -50,6 +51,10 @@ def kept(tmp_path_factory) -> Path:
         ("train", "--env", "tests.tiny_env:make_random_length", "--algorithms", "iql",
          "--episodes", "60", "--runs", "1", "--curve-points", "2"),
         ("dsn", "--algorithms", "cmarl-cd", "--episodes", "2k", "--runs", "1"),
+        ("train", "--game", "simple_spread:N=3", "--algorithms", "qmix", "--inputs",
+         "own-observations", "--steps", "600", "--runs", "1"),
+        ("scaling", "--algorithms", "vdn", "--sizes", "3x4/3", "--episodes", "100", "--runs",
+         "1"),
     ):  # fmt: skip
         done = cli(*command, "--workers", "1", "--no-progress", "--store",
                    str(where / "s.sqlite"), "--figures", str(where / "f"), "--save-policies",
@@ -80,6 +85,20 @@ def test_watching_a_dsn_policy_shows_the_grid_step_by_step(kept) -> None:
     text = cli("play", "--policy", str(path), "--seed", "7").stdout
     assert "captured:" in text and "step 1: sensor_0=" in text  # the grid, then the actions
     assert f"episode 0: return {expected[0]:g}" in text
+
+
+@pytest.mark.parametrize("pattern", ["dsn-cmarl-cd-*", "simple_spread-qmix-*", "scaling-vdn-*"])
+def test_watching_plays_the_episodes_evaluate_plays(kept, pattern) -> None:
+    """The same seed, the same episodes: watched in the run's PettingZoo environment
+    (reset with the seed, then its stream), played by evaluate in the compiled loop or
+    the environment's copies (a table, QMIX's own-observation networks, VDN reading the
+    scaled DSN's features); two paths, one return."""
+    path = str(next(kept.glob(pattern)))
+    watched = json.loads(cli("play", "--policy", path, "--episodes", "5", "--seed", "3",
+                             "--json").stdout)  # fmt: skip
+    played = json.loads(cli("evaluate", "--policy", path, "--episodes", "5", "--seed", "3",
+                            "--json").stdout)  # fmt: skip
+    assert np.mean(watched["returns"]) == pytest.approx(played["mean_return"], abs=1e-9)
 
 
 @pytest.mark.parametrize(

@@ -13,9 +13,12 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from cmarlcd.errors import require
 from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments.policy_evaluation import episodic_game, run_spec
+from cmarlcd.games.env import KernelParallelEnv
 
 
 @dataclass
@@ -45,7 +48,6 @@ def policy_env(policy: Any) -> Any:
             return envs.make_env(settings.env, settings.env_kwargs)
     from cmarlcd.experiments.episodic import EpisodicRun
     from cmarlcd.experiments.games import FAMILIES
-    from cmarlcd.games.env import KernelParallelEnv
     from cmarlcd.games.foraging.env import ForagingEnv
     from cmarlcd.games.sensor_network.env import SensorNetworkEnv
     from cmarlcd.games.spread.env import SimpleSpreadEnv
@@ -68,6 +70,12 @@ def watch(policy: Any, episodes: int = 1, seed: int = 0) -> Iterator[Frame]:
     env = policy_env(policy)
     team_reward = _team_reward(policy, env)
     reads_state = policy.metadata.get("inputs", "state") == "state"
+    features = (
+        np.zeros(env.spec.n_features, np.float32)
+        if isinstance(env, KernelParallelEnv) and policy.kind == "network"
+        and not policy.metadata.get("n_states")
+        else None
+    )  # fmt: skip
     for episode in range(episodes):
         observations, infos = env.reset(seed=seed if episode == 0 else None)
         yield Frame(episode, 0, _picture(env))
@@ -75,8 +83,13 @@ def watch(policy: Any, episodes: int = 1, seed: int = 0) -> Iterator[Frame]:
         while env.agents:
             masks = {a: infos.get(a, {}).get("action_mask") for a in env.agents}
             given = None if any(m is None for m in masks.values()) else masks
-            state = env.state() if reads_state else None
-            actions = policy.act(observations, state=state, masks=given)
+            if features is not None:  # a compiled game's features, as the run read them
+                env.spec.kernels.features(env.env, 0, features)
+                legal = None if given is None else [given[a] for a in env.agents]
+                actions = dict(zip(env.agents, policy.greedy(features, legal), strict=True))
+            else:
+                state = env.state() if reads_state else None
+                actions = policy.act(observations, state=state, masks=given)
             observations, rewards, terms, truncs, infos = env.step(actions)
             step += 1
             done = not env.agents or all(terms.get(a) or truncs.get(a) for a in actions)
