@@ -222,6 +222,40 @@ def test_networks_kept_on_a_compiled_game_replay_their_last_curve_point(tmp_path
         assert doc["mean_return"] == doc["stored_return"]
 
 
+def test_greedy_joint_actions_kept_on_repeated_games_give_the_stored_payoff(tmp_path) -> None:
+    """compare's and repeated's runs keep their greedy joint action: on the fully
+    stochastic climbing game its expected payoff, on random games (remade from each run's
+    seeds: a wrong game gives another payoff) the payoff the run stored; deep
+    CMARL-CD's too."""
+    store, kept = tmp_path / "s.sqlite", tmp_path / "policies"
+    for games, learners in (("climbing-fs,case1", "cmarl-cd,hysteretic"),
+                            ("climbing-fs", "deep-cmarl-cd")):  # fmt: skip
+        done = cli("compare", "--games", games, "--learners", learners, "--runs", "1",
+                   "--workers", "1", "--no-progress", "--store", str(store), "--figures",
+                   str(tmp_path / "f"), "--save-policies", str(kept))  # fmt: skip
+        assert done.returncode == 0, done.stderr[-3000:]
+    files = sorted(kept.glob("compare-*.npz"))
+    assert any("deep-cmarl-cd" in f.name for f in files) and len(files) > 10
+    payoffs = set()
+    for path in files[::3]:
+        doc = json.loads(cli("evaluate", "--policy", str(path), "--store", str(store),
+                             "--json").stdout)  # fmt: skip
+        assert doc["mean_return"] == doc["stored_return"]
+        payoffs.add(doc["mean_return"])
+    assert len(payoffs) > 2  # random games, other payoffs: the check can fail
+    done = cli("repeated", "--case", "2", "--agents", "3", "--actions", "4", "--runs", "3",
+               "--workers", "1", "--no-progress", "--store", str(store), "--figures",
+               str(tmp_path / "f"), "--save-policies", str(kept))  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    joints = set()
+    for path in kept.glob("repeated-*.npz"):  # each an optimum (1) of its own random game
+        doc = json.loads(cli("evaluate", "--policy", str(path), "--store", str(store),
+                             "--json").stdout)  # fmt: skip
+        assert doc["mean_return"] == doc["stored_return"] == 1.0 and doc["optimal"]
+        joints.add(tuple(doc["greedy_joint_action"]))
+    assert len(joints) == 3  # three games, three optima: a game remade wrong would miss
+
+
 def test_save_policies_where_runs_keep_none_is_refused(tmp_path) -> None:
     done = cli("tournament", "--algorithms", "cmarl-cd,vdn", "--rounds", "1", "--save-policies",
                str(tmp_path / "p"), "--store", str(tmp_path / "s.sqlite"))  # fmt: skip

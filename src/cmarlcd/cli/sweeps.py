@@ -189,7 +189,7 @@ def check_keeps_policies(specs: Sequence[RunSpec]) -> None:
             experiment.keeps_policies(experiment.settings_of(spec.config_json)),
             "save_policies",
             f"{spec.algorithm}'s runs of {spec.experiment} keep no policy yet (those of "
-            "train, field, dsn and scaling do)",
+            "every command's but tournament's do)",
         )
 
 

@@ -37,6 +37,8 @@ from cmarlcd.experiments.sensor_network import DSN_GAME, DsnSweep
 from cmarlcd.learners.deep.config import DeepLearnerConfig
 from cmarlcd.learners.tabular import joint_action
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
+from cmarlcd.policies.keeping import POLICY, wanted
+from cmarlcd.policies.learned import full_table
 from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.repeated import play_watching_greedy
@@ -245,14 +247,23 @@ def run_compare(cell: CompareRun, seed: np.random.SeedSequence) -> dict[str, Any
         greedy,
     )
     joint = tuple(int(a) for a in greedy)
-    return {
+    return kept({
         "optimal": bool(game.is_optimal(joint)),
         "greedy_payoff": game.payoff(joint),
         "max_payoff": game.max_payoff,
         "games": int(games),
         "settled": int(settled),
         "converged": bool(converged),
-    }
+    }, joint, counts)  # fmt: skip
+
+
+def kept(metrics: dict[str, Any], joint: tuple[int, ...], counts: Any) -> dict[str, Any]:
+    """``metrics`` with the run's greedy joint action as its policy where it keeps one
+    (``--save-policies``: a table of the game's one state)."""
+    if wanted():
+        meta = {"inputs": "state", "game": EXPERIMENT}
+        metrics[POLICY] = full_table(np.array([joint], np.int64), counts, meta)
+    return metrics
 
 
 def _run_deep(cell: CompareRun, game: Any, seed: np.random.SeedSequence) -> dict[str, Any]:
@@ -275,14 +286,14 @@ def _run_deep(cell: CompareRun, game: Any, seed: np.random.SeedSequence) -> dict
     joint = seen[-1][1]
     settled = max((g for (g, j), (_, before) in zip(seen[1:], seen, strict=False) if j != before),
                   default=seen[0][0])  # fmt: skip
-    return {
+    return kept({
         "optimal": bool(game.is_optimal(joint)),
         "greedy_payoff": game.payoff(joint),
         "max_payoff": game.max_payoff,
         "games": cell.budget,
         "settled": int(settled),
         "converged": False,
-    }
+    }, joint, game.spec().action_counts)  # fmt: skip
 
 
 def _warm_up() -> None:
@@ -328,7 +339,17 @@ COMPARE = Experiment(
     _warm_up,
     _cost,
     uses_device=lambda cell: isinstance(cell.learner, DeepLearnerConfig),
+    keeps_policies=lambda cell: True,
 )
+
+
+def game_of_run(spec: Any) -> Any:
+    """The repeated game a stored run of the comparison played (a random one remade from
+    the run's game stream)."""
+    cell = CompareRun.from_config(spec.config)
+    make = GAMES[cell.game].make
+    assert make is not None
+    return make(cell.size, np.random.default_rng(spec.seed_sequence().spawn(3)[0]))
 
 
 # ------------------------------------------------------------------------ summary

@@ -33,6 +33,8 @@ def evaluate_policy(
     spec = run_spec(meta)
     if meta.get("experiment") != envs.EXPERIMENT:
         require(env is None and env_kwargs is None, "env", "applies to train --env's policies")
+        if spec.experiment in REPEATED_GAMES:
+            return evaluate_on_repeated_game(policy, spec)
         return evaluate_on_game(policy, spec, episodes, seed)
     settings = envs.EnvRun.from_config(spec.config)
     where, kwargs = env or settings.env, settings.env_kwargs if env_kwargs is None else env_kwargs
@@ -128,6 +130,37 @@ def evaluate_on_game(
     }  # fmt: skip
 
 
+#: The experiments whose runs play one repeated game, each kept policy a greedy joint action.
+REPEATED_GAMES = ("compare", "repeated")
+
+
+def repeated_game(spec: RunSpec) -> Any:
+    """The repeated game a stored run of ``compare`` or ``repeated`` played."""
+    from cmarlcd.experiments import compare, repeated
+
+    return {"compare": compare, "repeated": repeated}[spec.experiment].game_of_run(spec)
+
+
+def evaluate_on_repeated_game(policy: Any, spec: RunSpec) -> dict[str, Any]:
+    """A greedy joint action kept by a run of ``compare`` or ``repeated``: its expected
+    payoff on the game the run played (a random game remade from the run's seeds), as
+    the run stored it."""
+    game = repeated_game(spec)
+    require(
+        list(policy.counts) == list(game.action_counts),
+        "policy",
+        f"its agents have {list(policy.counts)} actions; the game's {list(game.action_counts)}",
+    )
+    joint = tuple(int(a) for a in policy.greedy(0))
+    return {
+        "game": spec.config.get("game", spec.experiment), "algorithm": spec.algorithm,
+        "episodes": 1,
+        "greedy_joint_action": list(joint), "mean_return": float(game.payoff(joint)),
+        "std_return": 0.0, "mean_steps": 1.0, "optimal": bool(game.is_optimal(joint)),
+        "seeds": "the run's game (the expected payoff of its greedy joint action)",
+    }  # fmt: skip
+
+
 def own_eval_seed(spec: RunSpec, deep: bool) -> np.random.SeedSequence:
     """The evaluation seed of a compiled game's run: a deep run's streams are (training,
     evaluation), a table learner's (environment, agent, evaluation)."""
@@ -172,5 +205,7 @@ def play_network(spec: Any, policy: Any, episodes: int, rng: np.random.Generator
 def stored_return(record: Any) -> float:
     """The mean return at a stored run's last curve point (``train --env``'s curve rows
     are [budget, return, steps]; a compiled game's [budget, success, return, steps])."""
+    if record.key.experiment in REPEATED_GAMES:
+        return float(record.metrics["greedy_payoff"])
     column = 1 if record.key.experiment == envs.EXPERIMENT else 2
     return float(record.metrics["curve"][-1][column])

@@ -17,7 +17,12 @@ import numpy as np
 
 from cmarlcd.errors import require
 from cmarlcd.experiments import environment as envs
-from cmarlcd.experiments.policy_evaluation import episodic_game, run_spec
+from cmarlcd.experiments.policy_evaluation import (
+    REPEATED_GAMES,
+    episodic_game,
+    repeated_game,
+    run_spec,
+)
 from cmarlcd.games.env import KernelParallelEnv
 
 
@@ -46,6 +51,10 @@ def policy_env(policy: Any) -> Any:
             return envs.make_env(settings.env, {**dict(settings.env_kwargs), "render_mode": "ansi"})
         except Exception:
             return envs.make_env(settings.env, settings.env_kwargs)
+    if spec.experiment in REPEATED_GAMES:  # the repeated game the run played
+        from cmarlcd.games.matrix.env import MatrixGameEnv
+
+        return MatrixGameEnv(repeated_game(spec), render_mode="ansi")
     from cmarlcd.experiments.episodic import EpisodicRun
     from cmarlcd.experiments.games import FAMILIES
     from cmarlcd.games.foraging.env import ForagingEnv

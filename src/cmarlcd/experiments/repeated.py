@@ -21,6 +21,8 @@ from cmarlcd.games.matrix import MatrixGame, check_size, climbing_game, random_g
 from cmarlcd.learners.tabular.coordination import CMARLCD, RepeatedConfig
 from cmarlcd.limits import check_run_count, check_seed
 from cmarlcd.paper import repeated_success
+from cmarlcd.policies.keeping import POLICY, wanted
+from cmarlcd.policies.learned import full_table
 from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.repeated import fit
 
@@ -121,7 +123,7 @@ def run_cell(cell: RepeatedCell, seed: np.random.SeedSequence) -> dict[str, Any]
     """One run: a fresh random game, CMARL-CD until pure, the paper's success test."""
     game, learner = prepare_run(cell, seed)
     result = fit(learner, game)
-    return {
+    metrics = {
         "success": result.success,
         "converged": result.converged,
         "games": result.games,
@@ -129,6 +131,16 @@ def run_cell(cell: RepeatedCell, seed: np.random.SeedSequence) -> dict[str, Any]
         "max_reward_seen": learner.max_reward,
         "optima": len(game.optimal_joint_actions),
     }
+    if wanted():  # --save-policies: the greedy joint action, a table of the one state
+        joint = np.array([result.greedy_joint_action], np.int64)
+        meta = {"inputs": "state", "game": EXPERIMENT}
+        metrics[POLICY] = full_table(joint, np.asarray(game.action_counts), meta)
+    return metrics
+
+
+def game_of_run(spec: RunSpec) -> MatrixGame:
+    """The random game a stored run played, remade from its seeds."""
+    return prepare_run(RepeatedCell.from_config(spec.config), spec.seed_sequence())[0]
 
 
 def _warm_up() -> None:
@@ -145,7 +157,9 @@ def _cost(cell: RepeatedCell) -> float:
     return 1.6e-4 * cell.agents * cell.actions
 
 
-REPEATED = Experiment(EXPERIMENT, RepeatedCell, run_cell, _warm_up, _cost)
+REPEATED = Experiment(
+    EXPERIMENT, RepeatedCell, run_cell, _warm_up, _cost, keeps_policies=lambda cell: True
+)
 
 
 @dataclass(frozen=True)
