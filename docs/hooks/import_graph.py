@@ -68,7 +68,17 @@ LAYERS: list[tuple[str, list[str]]] = [
     ("the learners' parts", ["learners/deep/fused", "learners/shared"]),
     (
         "foundations",
-        ["runs", "theory", "progress", "limits", "devices", "compiled", "paper", "version"],
+        [
+            "runs",
+            "theory",
+            "progress",
+            "run_logs",
+            "limits",
+            "devices",
+            "compiled",
+            "paper",
+            "version",
+        ],
     ),
     ("leaves", ["errors", "plugins", "_moved"]),
 ]

@@ -213,6 +213,14 @@ class Experiment:
         return parse_settings(self.settings, config_json)
 
 
+def run_name(
+    experiment: str, algorithm: str, config_json: str, root_seed: int, run_index: int
+) -> str:
+    """A run's identity as a file name (:attr:`RunSpec.name`)."""
+    digest = hashlib.sha256(config_json.encode()).hexdigest()[:8]
+    return f"{experiment}-{algorithm}-seed{root_seed}-run{run_index}-{digest}"
+
+
 @dataclass(frozen=True)
 class RunSpec:
     """One run: everything needed to compute it, and its identity in the store."""
@@ -227,6 +235,9 @@ class RunSpec:
     keep_policy: bool = field(default=False, compare=False)
     """Whether the run hands its final greedy policy back to be kept (``--save-policies``;
     not part of its identity)."""
+    log_dir: str | None = field(default=None, compare=False)
+    """Where the run writes its live curves as it computes (``--log-dir``, in a folder of
+    its :attr:`name`; :mod:`cmarlcd.run_logs`), or None; not part of its identity."""
 
     @classmethod
     def make(
@@ -247,6 +258,13 @@ class RunSpec:
     @property
     def config(self) -> dict[str, Any]:
         return json.loads(self.config_json)
+
+    @property
+    def name(self) -> str:
+        """``train-vdn-seed0-run2-1a2b3c4d``: the run's identity as a file name, its
+        config's digest last (a kept policy's, a live log's folder)."""
+        return run_name(self.experiment, self.algorithm, self.config_json, self.root_seed,
+                        self.run_index)  # fmt: skip
 
     def seed_sequence(self) -> np.random.SeedSequence:
         """The run's root of randomness: (root seed; digest of experiment+stream, index)."""

@@ -80,6 +80,15 @@ SavePoliciesOption = Annotated[
         show_default=False,
     ),
 ]
+LogDirOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--log-dir",
+        help="Write each run's live curves as it computes (TensorBoard event files and a "
+        "CSV, a folder a run; pip install 'cmarl-cd[logs]'): tensorboard --logdir DIR.",
+        show_default=False,
+    ),
+]
 DeviceOption = Annotated[
     str,
     typer.Option(

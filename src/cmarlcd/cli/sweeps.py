@@ -24,6 +24,7 @@ from cmarlcd.cli.options import (
     FiguresOption,
     GpuTasksOption,
     JsonOption,
+    LogDirOption,
     ProgressOption,
     SavePoliciesOption,
     StoreOption,
@@ -38,6 +39,7 @@ from cmarlcd.experiments import get_experiment
 from cmarlcd.limits import check_gpu_tasks, check_workers
 from cmarlcd.reports.render import say, show_section
 from cmarlcd.reports.section import Section
+from cmarlcd.run_logs import check_available
 from cmarlcd.runs import RunSpec
 from cmarlcd.sweeps.backends import check_backend, ray_cluster
 from cmarlcd.sweeps.runner import SweepResult, run_sweep
@@ -69,6 +71,7 @@ class Execution:
     device: str = DEFAULT_DEVICE
     gpu_tasks: int = GPU_TASKS
     save_policies: Path | None = None
+    log_dir: Path | None = None
 
     def check(self) -> None:
         """Every choice is valid and every output path usable, before anything runs."""
@@ -79,6 +82,9 @@ class Execution:
         check_outputs(self.store, self.figures)
         if self.save_policies is not None:
             check_output_directory(self.save_policies, "save_policies")
+        if self.log_dir is not None:
+            check_available()
+            check_output_directory(self.log_dir, "log_dir")
 
 
 #: The options of :class:`Execution`, as a command line shows them (in this order).
@@ -91,6 +97,7 @@ EXECUTION_OPTIONS: dict[str, tuple[Any, Any]] = {
     "figures": (FiguresOption, DEFAULT_FIGURES),
     "progress": (ProgressOption, True),
     "save_policies": (SavePoliciesOption, None),
+    "log_dir": (LogDirOption, None),
 }
 #: The options a command that trains deep learners adds (last).
 DEVICE_OPTIONS = {
@@ -171,6 +178,7 @@ def compute_runs(
                 device=run.device,
                 gpu_tasks=run.gpu_tasks,
                 policies=run.save_policies,
+                logs=run.log_dir,
             )
             return store.get(s.key for s in specs), done
     except BaseException:

@@ -39,6 +39,7 @@ from cmarlcd.learners.tabular import joint_action
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.policies.keeping import POLICY, wanted
 from cmarlcd.policies.learned import full_table
+from cmarlcd.run_logs import log_point
 from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.repeated import play_watching_greedy
@@ -259,7 +260,10 @@ def run_compare(cell: CompareRun, seed: np.random.SeedSequence) -> dict[str, Any
 
 def kept(metrics: dict[str, Any], joint: tuple[int, ...], counts: Any) -> dict[str, Any]:
     """``metrics`` with the run's greedy joint action as its policy where it keeps one
-    (``--save-policies``: a table of the game's one state)."""
+    (``--save-policies``: a table of the game's one state), its payoff in its live
+    curves (``--log-dir``)."""
+    log_point(0, metrics["games"], {"eval/greedy_payoff": metrics["greedy_payoff"],
+              "eval/optimal": float(metrics["optimal"])}, "episodes")  # fmt: skip
     if wanted():
         meta = {"inputs": "state", "game": EXPERIMENT}
         metrics[POLICY] = full_table(np.array([joint], np.int64), counts, meta)

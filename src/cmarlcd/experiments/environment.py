@@ -51,6 +51,7 @@ from cmarlcd.policies.keeping import POLICY, wanted
 from cmarlcd.policies.learned import policy_of
 from cmarlcd.progress import report_progress
 from cmarlcd.registry import LearnerConfig
+from cmarlcd.run_logs import log_point
 from cmarlcd.runs import Experiment, RunSpec, Settings, added_setting, identity
 from cmarlcd.training.episodes import play_copies
 from cmarlcd.training.loop import BUDGET_UNITS
@@ -291,6 +292,8 @@ def run(settings: EnvRun, seed: np.random.SeedSequence) -> dict[str, Any]:
         )  # fmt: skip
         report_progress(settings.eval_episodes)
         curve.append([budget, float(stats.returns.mean()), float(stats.lengths.mean())])
+        log_point(0, budget, {"eval/return": curve[-1][1], "eval/episode_steps": curve[-1][2]},
+                  settings.unit)  # the live curves (--log-dir)  # fmt: skip
     result = {"curve": curve, "seconds": time.perf_counter() - start}
     if hasattr(learner, "stored"):  # what a deep learner learned from: replay or memory
         result["stored"] = int(learner.stored)

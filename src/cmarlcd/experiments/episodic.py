@@ -44,6 +44,7 @@ from cmarlcd.policies.keeping import POLICY, wanted
 from cmarlcd.policies.learned import evaluated_policy, full_table
 from cmarlcd.progress import report_progress, unit_cost
 from cmarlcd.registry import LearnerConfig
+from cmarlcd.run_logs import log_point, logging
 from cmarlcd.runs import (
     Experiment,
     RunRecord,
@@ -83,6 +84,7 @@ def _no_paper_value(algorithm: str, episodes: int, metric: str) -> float | None:
 #: Further per-episode measures of a checkpoint's evaluation, by name (each stored as the
 #: share of episodes it holds for).
 Metrics = tuple[tuple[str, Callable[[EpisodeStats], np.ndarray]], ...]
+Scalars = Mapping[str, float | None] | None
 
 #: A game's options (e.g. a larger DSN's grid and targets), as sorted (name, value) pairs
 #: of JSON values; empty: the game as the paper plays it.
@@ -357,18 +359,16 @@ class Recorder:
     """Evaluates a run's greedy policy at each budget: the checkpoints with
     ``eval_episodes`` episodes, every budget with ``curve_eval_episodes`` for the curve."""
 
-    def __init__(
-        self, game: EpisodicGame, settings: EpisodicRun, eval_seed: np.random.SeedSequence
-    ) -> None:
+    def __init__(self, game: EpisodicGame, settings: EpisodicRun, eval_seed, index: int = 0):
         self.scale = episode_scale(game, settings)
         game = game.with_options(settings.options)
-        self.game, self.settings, self.eval_seed = game, settings, eval_seed
+        self.game, self.settings, self.eval_seed, self.index = game, settings, eval_seed, index
         self.checkpoints: dict[str, dict[str, float]] = {}
         self.curve: list[list[float]] = []
         self.policy: np.ndarray | None = None
         self.start = time.perf_counter()
 
-    def __call__(self, budget: int, policy: GreedyPolicy) -> None:
+    def __call__(self, budget: int, policy: GreedyPolicy, also: Scalars = None) -> None:
         settings = self.settings
         if budget in settings.checkpoints:
             rng = keyed_rng(self.eval_seed, 0, budget)
@@ -378,6 +378,9 @@ class Recorder:
         point = self._evaluate(policy, settings.curve_eval_episodes, rng)
         point_row = [budget, point["success_rate"], point["mean_return"], point["mean_steps"]]
         self.curve.append(point_row)
+        found = {"eval/return": point["mean_return"], "eval/success": point["success_rate"],
+                 "eval/episode_steps": point["mean_steps"], **(also or {})}  # fmt: skip
+        log_point(self.index, budget, found, settings.unit)  # the live curves (--log-dir)
         self.policy = policy.table
 
     def _evaluate(
@@ -441,7 +444,7 @@ def run_batch(
     from cmarlcd.training.deep import DeepBatch  # needs the [deep] extra
 
     train_seeds, eval_seeds = zip(*(s.spawn(2) for s in seeds), strict=True)
-    records = [Recorder(game, settings, e) for e in eval_seeds]
+    records = [Recorder(game, settings, e, k) for k, e in enumerate(eval_seeds)]
     learner = settings.learner
     spec = game.with_options(settings.options).spec
     batch = DeepBatch(spec, learner, train_seeds, settings.largest, unit=settings.unit)
@@ -449,7 +452,7 @@ def run_batch(
     meta = {"inputs": "state", "game": game.experiment}
 
     def evaluate(k: int, budget: int, policy: GreedyPolicy) -> None:
-        records[k](budget, policy)
+        records[k](budget, policy, batch.scalars(k) if logging() else None)
         if wanted():  # --save-policies: the latest evaluation's policy (the last stays)
             kept[k] = evaluated_policy(policy, spec.action_counts, meta)
 

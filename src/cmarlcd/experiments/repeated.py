@@ -23,6 +23,7 @@ from cmarlcd.limits import check_run_count, check_seed
 from cmarlcd.paper import repeated_success
 from cmarlcd.policies.keeping import POLICY, wanted
 from cmarlcd.policies.learned import full_table
+from cmarlcd.run_logs import log_point
 from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.repeated import fit
 
@@ -131,6 +132,8 @@ def run_cell(cell: RepeatedCell, seed: np.random.SeedSequence) -> dict[str, Any]
         "max_reward_seen": learner.max_reward,
         "optima": len(game.optimal_joint_actions),
     }
+    log_point(0, result.games, {"eval/greedy_payoff": result.greedy_payoff,
+              "eval/success": float(result.success)}, "episodes")  # --log-dir  # fmt: skip
     if wanted():  # --save-policies: the greedy joint action, a table of the one state
         joint = np.array([result.greedy_joint_action], np.int64)
         meta = {"inputs": "state", "game": EXPERIMENT}

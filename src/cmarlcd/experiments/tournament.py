@@ -41,6 +41,7 @@ from cmarlcd.games.battlefield import GUNNER, MARINE, Battlefield, Unit
 from cmarlcd.learners.tabular.coordination import BATTLEFIELD_CMARLCD
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
 from cmarlcd.registry import LearnerConfig
+from cmarlcd.run_logs import log_point
 from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
 from cmarlcd.training.match import Match, MatchBatch
 from cmarlcd.training.tabular_side import UNSEEN_MODES, check_unseen
@@ -369,6 +370,10 @@ def play_rounds(
     for match, order, (_, _, _, eval_rng) in zip(batch.matches, positions, streams, strict=True):
         evaluated = time.perf_counter()
         result = match.evaluate(pairing.eval_episodes, eval_rng)
+        shares = [w / max(1, result.episodes) for w in (*result.wins, result.ties)]
+        tags = ("eval/win_rate_side0", "eval/win_rate_side1", "eval/ties")
+        scalars = dict(zip(tags, shares, strict=True))
+        log_point(len(results), pairing.learn_episodes, scalars, "episodes")  # --log-dir
         results.append(
             {
                 "sides": [pair[p].name for p in order],

@@ -8,7 +8,6 @@ refused in one line."""
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from pathlib import Path
@@ -19,7 +18,7 @@ import numpy as np
 from cmarlcd.errors import ConfigError, require
 from cmarlcd.policies.greedy import NetworkPolicy, TablePolicy
 from cmarlcd.policies.keeping import POLICY
-from cmarlcd.runs import RunSpec
+from cmarlcd.runs import RunSpec, run_name
 
 #: The policy files' format (a file of a larger one is refused).
 FORMAT = 1
@@ -28,9 +27,8 @@ SUFFIXES = {"table": ".npz", "network": ".safetensors"}
 
 def file_name(identity: dict[str, Any]) -> str:
     """``train-vdn-seed0-run2-1a2b3c4d``: the run's identity, its config's digest last."""
-    digest = hashlib.sha256(identity["config_json"].encode()).hexdigest()[:8]
-    return (f"{identity['experiment']}-{identity['algorithm']}-seed{identity['root_seed']}"
-            f"-run{identity['run_index']}-{digest}")  # fmt: skip
+    return run_name(identity["experiment"], identity["algorithm"], identity["config_json"],
+                    identity["root_seed"], identity["run_index"])  # fmt: skip
 
 
 def write_policy(

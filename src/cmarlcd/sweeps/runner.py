@@ -145,6 +145,7 @@ def run_sweep(
     device: str = DEFAULT_DEVICE,
     gpu_tasks: int = GPU_TASKS,
     policies: Path | None = None,
+    logs: Path | None = None,
 ) -> SweepResult:
     """Compute every spec not yet in ``store`` and commit each as it finishes.
 
@@ -160,6 +161,7 @@ def run_sweep(
             the card, or each one's share of a GPU on Ray).
         policies: where each run computed now keeps its final greedy policy
             (:mod:`cmarlcd.policies`; runs found in the store keep none).
+        logs: where each run computed now writes its live curves (:mod:`cmarlcd.run_logs`).
 
     Runs of one config whose experiment can batch them are computed ``seed_batch`` at a
     time in one call (the results are the same as one by one).
@@ -174,8 +176,9 @@ def run_sweep(
     if backend != "ray":  # a GPU asked for where there is none: refused before anything runs
         device = resolve(device)
     named = section or (lambda _: description)
-    if policies is not None:
-        specs = [replace(spec, keep_policy=True) for spec in specs]
+    if policies is not None or logs is not None:
+        kept, logged = policies is not None, None if logs is None else str(logs)
+        specs = [replace(spec, keep_policy=kept, log_dir=logged) for spec in specs]
     sections = one_unit_sections(specs, named)
     sweep = _Sweep(specs, store, version, observer or SweepObserver(), sections, policies)
 

@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep.config import DeepLearnerConfig
+from cmarlcd.learners.deep.config import DeepConfig, DeepLearnerConfig, epsilon
 from cmarlcd.training.deep_side import DeepGroup
 from cmarlcd.training.greedy import GreedyPolicy
 from cmarlcd.training.loop import Play, PlayBatch
@@ -86,6 +86,17 @@ class DeepBatch:
     def inputs(self) -> str:
         """What the seeds read: ``"features"`` or ``"index"``."""
         return self.group.inputs
+
+    def scalars(self, k: int) -> dict[str, float | None]:
+        """Seed ``k``'s learning now, for its live curves: the latest gradient step's
+        loss (the mean over the seeds, which step together; None before the first) and,
+        for a learner exploring ε-greedily, ε (eq. 18) at its next turn."""
+        found: dict[str, float | None] = {"train/loss": self.group.last_loss}
+        if isinstance(self.config, DeepConfig):
+            play, steps = self.plays[k], self.unit == "steps"
+            found["train/epsilon"] = epsilon(play.episodes + 1, self.total_episodes,
+                                             self.config, play.turns + 1, steps)  # fmt: skip
+        return found
 
     def greedy_tables(self) -> np.ndarray:
         """(B, n_states, n_agents) (index inputs): each seed's greedy joint action in

@@ -170,6 +170,7 @@ class DeepGroup(Group):
         self.alone = False
         """Whether the group trains itself between loop calls (a play on its own) rather
         than when its batch says (:class:`cmarlcd.training.loop.PlayBatch`)."""
+        self.last_loss: float | None = None  # the latest gradient step's (live curves)
         new_kernels, new_model, self.replay_kind = parts_of(config)
         device = devices.current() if device is None else device
         # VDN's and QMIX's agents read their own observation where the game lays the
@@ -221,7 +222,7 @@ class DeepGroup(Group):
         stored = min(self.replay_kind.stored(self.ring, view.index) for view in due)
         step, copy = scheduled_work(before, after, stored, self.config)
         if step:
-            self.model.learn(self.sample())
+            self.last_loss = self.model.learn(self.sample())
             self._copy_weights()
             self.replay_kind.refresh(self.ring, self.model, self.inputs)
         if copy:

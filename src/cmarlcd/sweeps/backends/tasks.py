@@ -24,6 +24,7 @@ from cmarlcd import devices
 from cmarlcd.experiments import get_experiment
 from cmarlcd.policies.keeping import wanting
 from cmarlcd.progress import Throttled, install_sink
+from cmarlcd.run_logs import logging_runs, run_log_dir
 from cmarlcd.runs import RunSpec
 
 Outcome = tuple[RunSpec, dict[str, Any], float]
@@ -86,7 +87,7 @@ def execute(spec: RunSpec) -> Outcome:
     start = time.perf_counter()
     experiment = get_experiment(spec.experiment)
     settings = experiment.settings_of(spec.config_json)
-    with wanting(spec.keep_policy):
+    with wanting(spec.keep_policy), logging_runs([run_log_dir(spec.log_dir, spec.name)]):
         metrics = experiment.run(settings, spec.seed_sequence())
     return spec, _with_device(experiment, settings, metrics), time.perf_counter() - start
 
@@ -98,7 +99,8 @@ def execute_batch(specs: list[RunSpec]) -> list[Outcome]:
         return [execute(spec) for spec in specs]
     start = time.perf_counter()
     settings = experiment.settings_of(specs[0].config_json)
-    with wanting(specs[0].keep_policy):
+    logs = [run_log_dir(spec.log_dir, spec.name) for spec in specs]
+    with wanting(specs[0].keep_policy), logging_runs(logs):
         results = experiment.run_batch(settings, [s.seed_sequence() for s in specs])
     seconds = (time.perf_counter() - start) / len(specs)
     return [
