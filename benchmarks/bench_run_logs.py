@@ -7,8 +7,9 @@ Two measurements, in one process:
   mean and the worst microseconds a point;
 * **a run**: the same runs (``--algorithms`` on ``--game`` for ``--steps`` environment
   steps, ``--curve-points`` evaluations, 1 worker) computed into a fresh store with and
-  without ``--log-dir``, alternately ``--repeats`` times (the baseline measured in the same
-  run); the runs' own compute seconds from each store, their medians and the ratio.
+  without ``--log-dir``, alternately ``--repeats`` times after one warm-up computation (the
+  baseline measured in the same run); the runs' own compute seconds from each store, their
+  medians and the ratio.
 
 The share of a run that logging costs is then ``points x cost of a point / run seconds``
 (printed), which does not depend on the noise of two whole runs; the end-to-end ratio is
@@ -76,6 +77,7 @@ def main() -> None:
     args = parser.parse_args()
     cost = point_cost(args.points)
     without, with_logs = [], []
+    run_seconds(args, logs=True)  # warm-up: numba's cache and the kernels compiled
     for _ in range(args.repeats):
         without.append(run_seconds(args, logs=False))
         with_logs.append(run_seconds(args, logs=True))

@@ -106,3 +106,25 @@ def test_an_experiment_registered_outside_the_package_runs_on_ray(local_ray, tmp
             assert run_sweep(todo, store, workers=2, backend=backend).computed == len(todo)
             stored[backend] = {r.key: r.metrics for r in store.records()}
     assert stored["ray"] == stored["process"]
+
+
+def test_ray_and_local_processes_write_the_same_live_curves(local_ray, tmp_path) -> None:
+    """--log-dir: one folder a run, its scalars (but the rates, wall-clock) the same."""
+    import csv
+
+    specs, seed_batch = tiny_sweeps()["dsn"]
+    found = {}
+    for backend in ("process", "ray"):
+        logs = tmp_path / f"{backend}-logs"
+        with ResultStore(tmp_path / f"{backend}.sqlite") as store:
+            run_sweep(specs, store, workers=2, backend=backend, seed_batch=seed_batch, logs=logs)
+        found[backend] = {
+            folder.name: {
+                (row["tag"], row["step"], row["value"])
+                for row in csv.DictReader((folder / "scalars.csv").open())
+                if not row["tag"].startswith("rate/")
+            }
+            for folder in logs.iterdir()
+        }
+    assert len(found["ray"]) == len(specs) and all(found["ray"].values())
+    assert found["ray"] == found["process"]

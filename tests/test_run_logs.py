@@ -132,7 +132,7 @@ def test_no_run_writes_where_none_asked_and_others_are_untouched(tmp_path) -> No
 
 
 def test_log_dir_without_the_writer_is_one_line(tmp_path) -> None:
-    blocked = ("import sys; sys.modules['tensorboardX'] = None; sys.argv[0] = 'cmarl-cd'; "
+    blocked = ("import sys; sys.modules['tensorboard'] = None; sys.argv[0] = 'cmarl-cd'; "
                "from cmarlcd.cli import app; app()")  # fmt: skip
     done = subprocess.run(
         [sys.executable, "-c", blocked, "repeated", "--runs", "1", "--store",
@@ -141,7 +141,8 @@ def test_log_dir_without_the_writer_is_one_line(tmp_path) -> None:
     )  # fmt: skip
     assert done.returncode == 2
     assert done.stderr.strip() == (
-        "error: --log-dir: writes TensorBoard logs with tensorboardX: pip install 'cmarl-cd[logs]'"
+        "error: --log-dir: writes TensorBoard logs with the tensorboard package: "
+        "pip install 'cmarl-cd[logs]'"
     )
     assert not (tmp_path / "s.sqlite").exists() and not (tmp_path / "logs").exists()
 

@@ -19,10 +19,9 @@ budget counts):
 A run killed and computed again (an unfinished run starts over, with the same seeds and
 the same numbers) appends to its folder without writing a point twice: the CSV says which
 points are written, and a point is written to the event file first, then to the CSV. The
-writer is tensorboardX's (the ``[logs]`` extra); without it ``--log-dir`` is refused in
-one line. Each point is written and flushed at once, by the package's synchronous event
-writer (its ``SummaryWriter`` hands events to a thread, which a run's end or a kill can
-leave unwritten).
+writer is TensorBoard's own (``tensorboard``, the ``[logs]`` extra, which also views
+them: ``tensorboard --logdir DIR``); without it ``--log-dir`` is refused in one line. Each
+point is on disk (the event file flushed, then the CSV) before the run goes on.
 """
 
 from __future__ import annotations
@@ -47,9 +46,9 @@ INSTALL = "pip install 'cmarl-cd[logs]'"
 def check_available() -> None:
     """``--log-dir`` only where TensorBoard's writer is installed."""
     try:
-        import tensorboardX  # noqa: F401
+        import tensorboard  # noqa: F401
     except ImportError:
-        message = f"writes TensorBoard logs with tensorboardX: {INSTALL}"
+        message = f"writes TensorBoard logs with the tensorboard package: {INSTALL}"
         raise ConfigError("log_dir", message) from None
 
 
@@ -61,6 +60,7 @@ class RunLog:
         self.directory, self.csv_path = directory, directory / CSV_NAME
         self.written = self._written()
         self._writer: Any = None
+        self._csv: Any = None
         self._last = (0.0, time.time())  # the learning and wall time of the last point
 
     def _written(self) -> set[tuple[str, int]]:
@@ -90,28 +90,31 @@ class RunLog:
         ]
         if not rows:
             return
-        from tensorboardX.proto.event_pb2 import Event
-        from tensorboardX.summary import scalar
+        from tensorboard.compat.proto.event_pb2 import Event
+        from tensorboard.compat.proto.summary_pb2 import Summary
 
         if self._writer is None:  # a new event file, named by the process too
-            from tensorboardX.event_file_writer import EventsWriter
+            from tensorboard.summary.writer.event_file_writer import EventFileWriter
 
-            prefix = str(self.directory / "events")
-            self._writer = EventsWriter(prefix, f".{os.getpid()}")
-        for tag, value in rows:  # written and flushed now (SummaryWriter's thread would not)
-            self._writer.write_event(Event(wall_time=now, step=step, summary=scalar(tag, value)))
-        self._writer.flush()
-        new = not self.csv_path.exists()
-        with self.csv_path.open("a", newline="") as out:
-            table = csv.writer(out)
+            self._writer = EventFileWriter(str(self.directory), filename_suffix=f".{os.getpid()}")
+        for tag, value in rows:
+            summary = Summary(value=[Summary.Value(tag=tag, simple_value=value)])
+            self._writer.add_event(Event(wall_time=now, step=step, summary=summary))
+        self._writer.flush()  # on disk before the CSV says the point is written
+        if self._csv is None:
+            new = not self.csv_path.exists()
+            self._csv = self.csv_path.open("a", newline="")
             if new:
-                table.writerow(CSV_HEADER)
-            table.writerows((step, tag, repr(value), f"{now:.3f}") for tag, value in rows)
+                csv.writer(self._csv).writerow(CSV_HEADER)
+        csv.writer(self._csv).writerows((step, tag, repr(v), f"{now:.3f}") for tag, v in rows)
+        self._csv.flush()
         self.written.update((tag, step) for tag, _ in rows)
 
     def close(self) -> None:
         if self._writer is not None:
             self._writer.close()
+        if self._csv is not None:
+            self._csv.close()
 
 
 _active: list[RunLog | None] = []
