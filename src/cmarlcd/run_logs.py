@@ -27,7 +27,6 @@ point is on disk (the event file flushed, then the CSV) before the run goes on.
 from __future__ import annotations
 
 import csv
-import math
 import os
 import time
 from collections.abc import Iterator, Mapping, Sequence
@@ -86,7 +85,7 @@ class RunLog:
         rows = [
             (tag, float(value))
             for tag, value in found.items()
-            if value is not None and math.isfinite(value) and (tag, step) not in self.written
+            if value is not None and (tag, step) not in self.written  # NaN too: a divergence
         ]
         if not rows:
             return
