@@ -12,7 +12,7 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
-from cmarlcd import reports
+from cmarlcd import provenance, reports
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
     DEFAULT_FIGURES,
@@ -85,10 +85,13 @@ def report_command(
     with ResultStore(store, create=False) as db:
         check_outputs(figures=figures)
         groups = _report_groups(db, case, seed)
+        where = db.provenances()
     if output_format == "text":
         _text_report(groups, store, figures)
+        for line in provenance.store_lines(where) if groups else []:
+            print(line)
         return
-    text = _document(groups, output_format, store, figures, output)
+    text = _document(groups, output_format, store, figures, output, where)
     if output is None:
         print(text)
     else:
@@ -203,6 +206,7 @@ def _document(
     store: Path,
     figures: Path,
     output: Path | None,
+    where: list[tuple[dict[str, Any] | None, int]],
 ) -> str:
     """The whole report in one format other than text."""
     from collections import Counter
@@ -236,9 +240,12 @@ def _document(
     warning = version_warning(every)
     if warning is not None:
         preamble.append(warning)
+    preamble += provenance.store_lines(where)
     title = "CMARL-CD: reproduction report"
     if output_format == "json":
-        return json.dumps({"store": str(store), "versions": dict(every), **docs}, indent=2)
+        computed = {"provenance": provenance.as_json(where)}
+        return json.dumps({"store": str(store), "versions": dict(every), **computed, **docs},
+                          indent=2)  # fmt: skip
     only = [section for _, section in sections]
     if output_format == "markdown":
         return document.render_markdown(title, preamble, only, output)

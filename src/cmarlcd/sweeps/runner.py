@@ -45,7 +45,7 @@ from cmarlcd.limits import check_gpu_tasks, check_seed_batch, check_workers
 from cmarlcd.policies.files import keep_policy
 from cmarlcd.runs import RunSpec
 from cmarlcd.sweeps.backends import check_backend, default_workers, make_backend
-from cmarlcd.sweeps.backends.tasks import Failure
+from cmarlcd.sweeps.backends.tasks import PROVENANCE, Failure
 from cmarlcd.sweeps.claims import CLAIM_TIMEOUT, Owner
 from cmarlcd.sweeps.heartbeat import Heartbeat
 from cmarlcd.sweeps.outcome import RunFailed, SweepInterrupted, SweepResult
@@ -458,7 +458,8 @@ class _Sweep:
 
     def _commit(self, spec: RunSpec, metrics: dict[str, Any], seconds: float) -> None:
         keep_policy(metrics, spec, self.policies, self.version)  # a file, never in the store
-        if not self.store.put(spec.key, metrics, seconds, self.version):
+        where = metrics.pop(PROVENANCE, None)  # stored beside the metrics
+        if not self.store.put(spec.key, metrics, seconds, self.version, where):
             self.result.duplicates += 1
         self.result.computed += 1
         self.result.run_seconds.append(seconds)

@@ -6,7 +6,9 @@ that differ in any field are different experiments. Each run is committed in its
 transaction the moment it finishes (WAL journal), so a killed sweep loses at most the
 runs that were in flight, and re-running the same command recomputes nothing stored.
 A stored run is never changed: the first result written for a key is kept. Each row
-records the package version that computed it.
+records the package version that computed it, and a table beside records where it was
+computed (:mod:`cmarlcd.provenance`: the library versions and the machine, kept once per
+machine).
 
 Sweeps that share a store share its work through *claims* (:mod:`cmarlcd.sweeps.claims`): a
 sweep claims a run before computing it, and another sweep leaves a claimed run to its
@@ -55,6 +57,19 @@ CREATE TABLE IF NOT EXISTS runs (
     wall_seconds   REAL    NOT NULL,
     version        TEXT    NOT NULL,
     finished_at    REAL    NOT NULL,
+    PRIMARY KEY (experiment, algorithm, config, root_seed, run_index)
+);
+CREATE TABLE IF NOT EXISTS provenances (
+    id             INTEGER PRIMARY KEY,
+    info           TEXT    NOT NULL UNIQUE
+);
+CREATE TABLE IF NOT EXISTS run_provenance (
+    experiment     TEXT    NOT NULL,
+    algorithm      TEXT    NOT NULL,
+    config         TEXT    NOT NULL,
+    root_seed      INTEGER NOT NULL,
+    run_index      INTEGER NOT NULL,
+    provenance     INTEGER NOT NULL REFERENCES provenances (id),
     PRIMARY KEY (experiment, algorithm, config, root_seed, run_index)
 );
 CREATE TABLE IF NOT EXISTS claims (
@@ -314,8 +329,10 @@ class ResultStore:
         metrics: Mapping[str, Any],
         wall_seconds: float,
         version: str,
+        provenance: Mapping[str, Any] | None = None,
     ) -> bool:
-        """Commit one finished run and drop its claim, atomically. Returns False, storing
+        """Commit one finished run (and where it was computed,
+        :mod:`cmarlcd.provenance`) and drop its claim, atomically. Returns False, storing
         nothing, when the run is already stored (the first result is kept)."""
         row = (
             *key.values(),
@@ -328,8 +345,27 @@ class ResultStore:
             added = conn.execute(
                 "INSERT INTO runs VALUES (?,?,?,?,?,?,?,?,?) ON CONFLICT DO NOTHING", row
             ).rowcount
+            if added and provenance is not None:  # each machine's record kept once
+                info = json.dumps(dict(provenance), sort_keys=True)
+                conn.execute("INSERT INTO provenances (info) VALUES (?) ON CONFLICT DO NOTHING",
+                             (info,))  # fmt: skip
+                conn.execute(
+                    "INSERT INTO run_provenance SELECT ?,?,?,?,?, id FROM provenances "
+                    "WHERE info = ?", (*key.values(), info),
+                )  # fmt: skip
             conn.execute(f"DELETE FROM claims WHERE {KEY}", key.values())
         return added == 1
+
+    def provenances(self) -> list[tuple[dict[str, Any] | None, int]]:
+        """Where the stored runs were computed: each provenance with its number of runs,
+        most runs first (None: runs stored before provenance was recorded)."""
+        rows = self._conn.execute(
+            "SELECT p.info, COUNT(*) FROM runs r LEFT JOIN run_provenance rp USING "
+            "(experiment, algorithm, config, root_seed, run_index) "
+            "LEFT JOIN provenances p ON p.id = rp.provenance GROUP BY p.info "
+            "ORDER BY COUNT(*) DESC, p.info"
+        )
+        return [(None if info is None else json.loads(info), int(n)) for info, n in rows]
 
     # ---------------------------------------------------------------- claims
 

@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from cmarlcd import devices
+from cmarlcd import devices, provenance
 from cmarlcd.experiments import get_experiment
 from cmarlcd.policies.keeping import wanting
 from cmarlcd.progress import Throttled, install_sink
@@ -75,6 +75,10 @@ def _pickles(exc: BaseException) -> bool:
     return True
 
 
+#: The metrics' key a run's provenance travels under from its worker (never in metrics).
+PROVENANCE = "_provenance"
+
+
 def warm_up(specs: Sequence[RunSpec]) -> None:
     """Compile (or load from numba's cache) the kernels of the experiments of ``specs``
     in this process."""
@@ -110,10 +114,14 @@ def execute_batch(specs: list[RunSpec]) -> list[Outcome]:
 
 
 def _with_device(experiment: Any, settings: Any, metrics: dict[str, Any]) -> dict[str, Any]:
-    """A deep run's metrics say which device computed it."""
+    """A deep run's metrics say which device computed it; every run's, under
+    :data:`PROVENANCE` (taken out before the metrics are stored, and stored beside them),
+    where it was computed (:mod:`cmarlcd.provenance`; torch's version where it is deep)."""
+    info = dict(provenance.current())
     if not experiment.uses_device(settings):
-        return metrics
-    return {**metrics, "device": devices.describe(devices.current())}
+        return {**metrics, PROVENANCE: {**info, "torch": None, "device": "cpu"}}
+    device = devices.describe(devices.current())
+    return {**metrics, "device": device, PROVENANCE: {**info, "device": device}}
 
 
 def uses_device(task: Task) -> bool:
