@@ -73,6 +73,7 @@ LAYERS: list[tuple[str, list[str]]] = [
             "theory",
             "progress",
             "run_logs",
+            "provenance",
             "limits",
             "devices",
             "compiled",
