@@ -228,10 +228,12 @@ def test_a_deep_run_records_its_device_and_a_tabular_one_none(tmp_path) -> None:
 # ------------------------------------------------------------- on a GPU (skipped here)
 
 
+#: Each learner's model, its step and the batch it learns from (deep CMARL-CD's keyed
+#: update: a batch of its memory, not a TD batch).
 STEPPED_MODELS = {
-    "vdn": (lambda device: _value_decomposition("vdn", device), "td_step"),
-    "qmix": (lambda device: _value_decomposition("qmix", device), "td_step"),
-    "deep-cmarl-cd": (lambda device: _degree_model(False, device), "learn"),
+    "vdn": (lambda device: _value_decomposition("vdn", device), "td_step", "td"),
+    "qmix": (lambda device: _value_decomposition("qmix", device), "td_step", "td"),
+    "deep-cmarl-cd": (lambda device: _degree_model(False, device), "learn", "memory"),
 }
 
 
@@ -241,10 +243,11 @@ STEPPED_MODELS = {
 def test_one_gradient_step_agrees_on_cpu_and_gpu(learner: str, integer: bool) -> None:
     """From the same weights and batch, one Adam step (a TD step of VDN or QMIX, a step of
     deep CMARL-CD) gives the same loss and the same new weights within float tolerance."""
-    build, step = STEPPED_MODELS[learner]
+    build, step, kind = STEPPED_MODELS[learner]
+    batch = {"td": _td_batch, "memory": _memory_batch}[kind]
     on_cpu, on_gpu = build("cpu"), build("cuda:0")
-    loss_cpu = getattr(on_cpu, step)(_td_batch(2, 16, 3, integer, "cpu"))
-    loss_gpu = getattr(on_gpu, step)(_td_batch(2, 16, 3, integer, "cuda:0"))
+    loss_cpu = getattr(on_cpu, step)(batch(2, 16, 3, integer, "cpu"))
+    loss_gpu = getattr(on_gpu, step)(batch(2, 16, 3, integer, "cuda:0"))
     assert loss_gpu == pytest.approx(loss_cpu, rel=1e-4, abs=1e-6)
     for cpu_param, gpu_param in zip(on_cpu.parameters(), on_gpu.parameters(), strict=True):
         torch.testing.assert_close(gpu_param.cpu(), cpu_param, rtol=1e-4, atol=1e-5)
