@@ -104,12 +104,7 @@ def evaluate_on_game(
     else:
         rng = np.random.default_rng(0 if seed is None else seed)
     n_agents = len(played.spec.action_counts)
-    require(
-        list(policy.counts) == list(played.spec.action_counts),
-        "policy",
-        f"its agents have {list(policy.counts)} actions; the game's "
-        f"{list(played.spec.action_counts)}",
-    )
+    check_actions(policy, played.spec.action_counts)
     if policy.kind == "table":
         table = policy.actions
         require(
@@ -146,11 +141,7 @@ def evaluate_on_repeated_game(policy: Any, spec: RunSpec) -> dict[str, Any]:
     payoff on the game the run played (a random game remade from the run's seeds), as
     the run stored it."""
     game = repeated_game(spec)
-    require(
-        list(policy.counts) == list(game.action_counts),
-        "policy",
-        f"its agents have {list(policy.counts)} actions; the game's {list(game.action_counts)}",
-    )
+    check_actions(policy, game.action_counts)
     joint = tuple(int(a) for a in policy.greedy(0))
     return {
         "game": spec.config.get("game", spec.experiment), "algorithm": spec.algorithm,
@@ -159,6 +150,12 @@ def evaluate_on_repeated_game(policy: Any, spec: RunSpec) -> dict[str, Any]:
         "std_return": 0.0, "mean_steps": 1.0, "optimal": bool(game.is_optimal(joint)),
         "seeds": "the run's game (the expected payoff of its greedy joint action)",
     }  # fmt: skip
+
+
+def check_actions(policy: Any, counts: Any) -> None:
+    """A kept policy plays a game whose agents have the actions it learned with."""
+    theirs, ours = [int(c) for c in policy.counts], [int(c) for c in counts]
+    require(theirs == ours, "policy", f"its agents have {theirs} actions; the game's {ours}")
 
 
 def own_eval_seed(spec: RunSpec, deep: bool) -> np.random.SeedSequence:
