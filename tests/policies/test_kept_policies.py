@@ -71,13 +71,16 @@ def test_a_table_of_integer_states_keeps_the_states_it_met(tmp_path) -> None:
         ("own", "qmix"),
         ("integers", "deep-iql"),
         ("features", "hysteretic-dqn"),
+        ("own", "vdn-shared"),
     ],
 )
 def test_a_network_acts_as_its_learner_on_sampled_inputs(tmp_path, inputs, learner_name) -> None:
     pytest.importorskip("torch")
     from cmarlcd.learners.deep.agent import DeepAgent
 
-    config = registry.require_learner(learner_name)
+    config = registry.require_learner(learner_name.removesuffix("-shared"))
+    if learner_name.endswith("-shared"):
+        config = replace(config, share=True)
     shape = {"features": {"state_dim": 6}, "own": {"state_dim": 6, "own_dim": 2},
              "integers": {"n_states": 40}}[inputs]  # fmt: skip
     learner = DeepAgent([3, 4], config, 10, seed=5, **shape)
@@ -195,13 +198,15 @@ def test_policies_kept_on_the_dsn_replay_their_last_curve_point(tmp_path) -> Non
 
 
 def test_networks_kept_on_a_compiled_game_replay_their_last_curve_point(tmp_path) -> None:
-    """simple_spread's VDN and QMIX, each agent reading its own observation, and LBF's
+    """simple_spread's VDN and QMIX (one network shared by the agents), each agent
+    reading its own observation, and LBF's
     deep CMARL-CD reading every observation and acting from its memory where it keeps
     the state: each seed's networks as its last evaluation played them, replayed to the
     stored return (simple_spread's is continuous: a single different action shows)."""
     store, kept = tmp_path / "s.sqlite", tmp_path / "policies"
     for game, learners, inputs, extra in (
-        ("simple_spread:N=3", "vdn,qmix", "own-observations", ()),
+        ("simple_spread:N=3", "vdn,qmix", "own-observations",
+         ("--set", "qmix.share=true")),
         ("foraging:5x5-2p-1f", "deep-cmarl-cd", "observations",
          ("--set", "deep-cmarl-cd.act_from=memory")),
     ):  # fmt: skip

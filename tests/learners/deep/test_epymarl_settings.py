@@ -217,11 +217,13 @@ def test_the_settings_stay_out_of_the_identity_of_runs_that_leave_them_off() -> 
     defaults has the identity it had; one that sets them is a new run."""
     from cmarlcd.runs import identity
 
-    names = {"double_q", "grad_clip", "standardise_rewards", "anneal_steps"}
+    names = {"double_q", "grad_clip", "standardise_rewards", "anneal_steps", "share"}
     assert not names & set(identity(DeepConfig()))
     assert names <= set(
         identity(
-            DeepConfig(double_q=True, grad_clip=10.0, standardise_rewards=True, anneal_steps=5)
+            DeepConfig(
+                double_q=True, grad_clip=10.0, standardise_rewards=True, anneal_steps=5, share=True
+            )
         )
     )
 

@@ -183,6 +183,11 @@ class DeepConfig(DeepLearnerConfig):
     """[choice] ε linear from ``eps_start`` to ``eps_end`` over this many environment
     steps, then ``eps_end``, whatever the budget (EPyMARL's ``epsilon_anneal_time``);
     None: eq. (18) over the budget (``anneal_fraction``, ``eps_after``)."""
+    share: bool = added_setting(False, "0.7.0")
+    """[choice] One agent network per seed for every agent, the agent's one-hot index
+    appended to its input (parameter sharing: EPyMARL's default, ``obs_agent_id``), rather
+    than one network per agent (the paper's VDN and QMIX). Its gradient step is
+    autograd's: the fused step covers per-agent networks only."""
     negative_rate: float | None = added_setting(None, "0.7.0")
     """Hysteretic DQN's β/α ([choice]): each squared TD error whose TD error
     ``r + γ max Q' − Q`` is negative is weighed by it, so with plain gradient descent
@@ -225,8 +230,9 @@ class DeepConfig(DeepLearnerConfig):
 
     @property
     def auto_fuses(self) -> bool:
-        """Whether ``step=auto`` takes the fused step on a CPU (:data:`AUTO_FUSED_MIXERS`)."""
-        return self.mixer in AUTO_FUSED_MIXERS
+        """Whether ``step=auto`` takes the fused step on a CPU (:data:`AUTO_FUSED_MIXERS`,
+        per-agent networks)."""
+        return self.mixer in AUTO_FUSED_MIXERS and not self.share
 
     def schedule(self, learn_episodes: int) -> list[float]:
         """ε schedule (start, end, anneal fraction, after), the length it anneals over (L,
@@ -238,6 +244,12 @@ class DeepConfig(DeepLearnerConfig):
         require(self.mixer in MIXERS, "mixer", f"must be one of {known} (got {self.mixer!r})")
         steps = ", ".join(STEPS)
         require(self.step in STEPS, "step", f"must be one of {steps} (got {self.step!r})")
+        require(
+            not (self.share and self.step == "fused"),
+            "step",
+            "the fused step covers per-agent networks only; with share=true use "
+            "step=autograd (or auto, which falls back to it)",
+        )
         if self.grad_clip is not None:
             require(self.grad_clip > 0, "grad_clip", f"must be > 0 (got {self.grad_clip})")
         if self.anneal_steps is not None:

@@ -3,8 +3,9 @@
 The settings and the rule in words are in :mod:`cmarlcd.learners.deep.coordination`.
 Like :class:`cmarlcd.learners.deep.value_decomposition.ValueDecomposition`, every tensor has a
 leading seed axis and no parameter is shared between seeds, so each seed learns exactly
-what it would alone; the degree networks are that module's :class:`AgentNetworks` (or
-:class:`SharedAgentNetwork`), so the compiled loops act with them in the same way.
+what it would alone; the degree networks are those of
+:mod:`cmarlcd.learners.deep.agent_networks` (per agent, or one shared with the agent's
+index), so the compiled loops act with them in the same way.
 """
 
 from __future__ import annotations
@@ -16,77 +17,16 @@ import numpy as np
 import torch
 from torch import nn
 
+from cmarlcd.learners.deep.agent_networks import (
+    AgentNetworks,
+    GroupLinear,
+    SharedAgentNetwork,
+    per_state,
+)
 from cmarlcd.learners.deep.config import takes_fused_step
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.learners.deep.fused.step import FusedDegreeStep
-from cmarlcd.learners.deep.value_decomposition import (
-    AgentNetworks,
-    GroupLinear,
-    StackedModel,
-    per_state,
-    rows,
-)
-
-
-class SharedAgentNetwork(nn.Module):
-    """One MLP per seed for every agent: input the state and the agent's one-hot index,
-    output one value per action; the same interface as :class:`AgentNetworks`."""
-
-    def __init__(
-        self,
-        seeds: int,
-        n_agents: int,
-        in_dim: int,
-        hidden: int,
-        n_actions: int,
-        generators: Sequence[torch.Generator],
-    ) -> None:
-        super().__init__()
-        self.seeds, self.n_agents, self.in_dim = seeds, n_agents, in_dim
-        self.first = GroupLinear(in_dim + n_agents, hidden, generators)
-        self.second = GroupLinear(hidden, n_actions, generators)
-
-    def _hidden(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, N, H) -> ReLU of every agent's hidden layer, (B, N, n, H)."""
-        agent = self.first.weight[:, self.in_dim :]  # (B, n, H): each agent's index row
-        return torch.relu(x[:, :, None, :] + agent[:, None])
-
-    def forward(self, state: torch.Tensor) -> torch.Tensor:
-        """``state``: (B, N) int64 or (B, N, in_dim) -> values (B, N, n_agents, n_actions)."""
-        if state.dtype == torch.int64:
-            return rows(self.tables(), state)
-        x = torch.baddbmm(self.first.bias[:, None], state, self.first.weight[:, : self.in_dim])
-        hidden = self._hidden(x)
-        b, n = state.shape[:2]
-        out = torch.baddbmm(
-            self.second.bias[:, None], hidden.reshape(b, -1, hidden.shape[-1]), self.second.weight
-        )
-        return out.view(b, n, self.n_agents, -1)
-
-    def tables(self) -> torch.Tensor:
-        """Values of every integer (one-hot) state: (B, in_dim, n_agents, n_actions)."""
-        x = self.first.weight[:, : self.in_dim] + self.first.bias[:, None]  # (B, S, H)
-        hidden = self._hidden(x)
-        b, s = x.shape[:2]
-        out = torch.baddbmm(
-            self.second.bias[:, None], hidden.reshape(b, -1, hidden.shape[-1]), self.second.weight
-        )
-        return out.view(b, s, self.n_agents, -1)
-
-    def copy_tables(self, out: np.ndarray) -> None:
-        """``out`` (B, in_dim, n_agents, n_actions) := :meth:`tables`."""
-        with torch.no_grad():
-            np.copyto(out, self.tables().cpu().numpy())
-
-    def feature_weights(self) -> tuple[torch.Tensor, ...]:
-        """The per-agent layers the compiled loop reads, agent-major (B * n, ...): the
-        shared weights, each agent's index row folded into its first bias."""
-        n, f = self.n_agents, self.in_dim
-        w1 = self.first.weight[:, :f].repeat_interleave(n, dim=0)
-        b1 = (self.first.bias[:, None] + self.first.weight[:, f:]).reshape(-1, w1.shape[-1])
-        w2 = self.second.weight.repeat_interleave(n, dim=0)
-        b2 = self.second.bias.repeat_interleave(n, dim=0)
-        return w1, b1, w2, b2
+from cmarlcd.learners.deep.value_decomposition import StackedModel
 
 
 class RecordNetwork(nn.Module):

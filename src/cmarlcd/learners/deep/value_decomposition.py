@@ -9,12 +9,9 @@ update, which is element-wise) is exactly what it would be alone.
 
 Pieces, each in one place:
 
-* :class:`GroupLinear` -- B independent linear layers applied in one ``bmm``; for one-hot
-  inputs (integer states), :meth:`GroupLinear.table` gives the layer's output for every
-  state, so a network is evaluated once per distinct state and then looked up.
-* :class:`AgentNetworks` -- per-agent MLPs, no parameter sharing ([choice]): state ->
-  hidden (ReLU) -> Q-values over the agent's actions; or, for decentralised execution,
-  each agent's own observation -> hidden -> Q (``own_dim``, below).
+* the agent networks (:mod:`cmarlcd.learners.deep.agent_networks`): one MLP per agent
+  (:class:`AgentNetworks`, the paper's), or with ``share`` one per seed for every agent,
+  the agent's one-hot index in its input (:class:`SharedAgentNetwork`, EPyMARL's);
 * :class:`VDNMixer` (``Q_tot = Σ_i Q_i``) and :class:`QMixer` (hypernetworks on the state,
   non-negative weights via ``abs``, an ELU hidden layer, a state-dependent bias).
 * :class:`ValueDecomposition` -- online and target networks, Adam, the one-step TD loss
@@ -37,143 +34,22 @@ hypernetwork's table weighted by ``Q_i``, so no per-sample weight matrix is ever
 from __future__ import annotations
 
 import copy
-import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import torch
 from torch import nn
 
+from cmarlcd.learners.deep.agent_networks import (
+    AgentNetworks,
+    GroupLinear,
+    SharedAgentNetwork,
+    identity,
+    per_state,
+)
 from cmarlcd.learners.deep.config import DeepConfig, takes_fused_step
 from cmarlcd.learners.deep.fused.step import FusedStep
 from cmarlcd.learners.deep.td_options import RewardStatistics, clip_per_seed
-
-# -------------------------------------------------------------------------- layers
-
-
-class GroupLinear(nn.Module):
-    """``groups`` independent linear layers ``in_dim -> out_dim``, applied with one bmm.
-
-    Initialised like :class:`torch.nn.Linear` (uniform ±1/sqrt(in_dim)), group by group
-    from that group's generator, so a group's parameters do not depend on the others.
-    """
-
-    def __init__(self, in_dim: int, out_dim: int, generators: Sequence[torch.Generator]) -> None:
-        super().__init__()
-        bound = 1.0 / math.sqrt(in_dim)
-        weights, biases = [], []
-        for gen in generators:
-            weights.append(_uniform((in_dim, out_dim), bound, gen))
-            biases.append(_uniform((out_dim,), bound, gen))
-        self.weight = nn.Parameter(torch.stack(weights))
-        self.bias = nn.Parameter(torch.stack(biases))
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """``x``: (groups, N, in_dim) -> (groups, N, out_dim)."""
-        return torch.baddbmm(self.bias[:, None, :], x, self.weight)
-
-    def table(self) -> torch.Tensor:
-        """The layer's output for every one-hot input: (groups, in_dim, out_dim)."""
-        return self.weight + self.bias[:, None, :]
-
-
-def rows(table: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
-    """``table`` (B, S, ...) at the integer states ``state`` (B, N) -> (B, N, ...)."""
-    b, count = table.shape[:2]
-    flat = table.reshape(b, count, -1)
-    picked = torch.gather(flat, 1, state[:, :, None].expand(-1, -1, flat.shape[2]))
-    return picked.view(*state.shape, *table.shape[2:])
-
-
-def _uniform(shape: tuple[int, ...], bound: float, gen: torch.Generator) -> torch.Tensor:
-    return (torch.rand(shape, generator=gen) * 2.0 - 1.0) * bound
-
-
-def per_state(
-    first: GroupLinear, state: torch.Tensor, rest: Callable[[torch.Tensor], torch.Tensor]
-) -> torch.Tensor:
-    """``rest(first(x))`` for the states: feature vectors go through as they are; integer
-    states (one-hot encoding) are evaluated once per distinct state and then looked up,
-    which gives the same values at a fraction of the cost."""
-    if state.dtype == torch.int64:
-        return rows(rest(first.table()), state)
-    return rest(first(state))
-
-
-def _same(x: torch.Tensor) -> torch.Tensor:
-    return x
-
-
-class AgentNetworks(nn.Module):
-    """Per-agent MLPs for B seeds: state -> Linear -> ReLU -> Linear -> Q over actions.
-
-    With ``own_dim``, agent ``i`` reads only its own observation, the ``i``-th of the
-    last ``n_agents * own_dim`` features of the input (the layout ``[s, o_1, ..., o_n]``
-    of the module's docstring). Rows are padded to the largest action count; padded
-    actions are masked by callers.
-    """
-
-    def __init__(
-        self,
-        seeds: int,
-        n_agents: int,
-        in_dim: int,
-        hidden: int,
-        n_actions: int,
-        generators: Sequence[Sequence[torch.Generator]],
-        own_dim: int | None = None,
-    ) -> None:
-        super().__init__()
-        self.seeds, self.n_agents, self.own_dim = seeds, n_agents, own_dim
-        flat = [gens[i] for gens in generators for i in range(n_agents)]
-        self.first = GroupLinear(in_dim if own_dim is None else own_dim, hidden, flat)
-        self.second = GroupLinear(hidden, n_actions, flat)
-        self._scratch: tuple[torch.Tensor, torch.Tensor] | None = None
-        """:meth:`copy_tables`' hidden layer and outputs, made at its first call."""
-
-    def forward(self, state: torch.Tensor) -> torch.Tensor:
-        """``state``: (B, N) int64 or (B, N, in_dim) -> Q (B, N, n_agents, n_actions)."""
-        if state.dtype == torch.int64:
-            return rows(self.tables(), state)
-        return self._by_seed(self.second(torch.relu(self.first(self._inputs(state)))))
-
-    def _inputs(self, state: torch.Tensor) -> torch.Tensor:
-        """(B, N, in_dim) -> each agent's input, (B*n, N, in) grouped seed-major."""
-        if self.own_dim is None:
-            return state.repeat_interleave(self.n_agents, dim=0)
-        b, count, n = state.shape[0], state.shape[1], self.n_agents
-        own = state[..., state.shape[2] - n * self.own_dim :].reshape(b, count, n, self.own_dim)
-        return own.transpose(1, 2).reshape(b * n, count, self.own_dim)
-
-    def tables(self) -> torch.Tensor:
-        """Q of every integer (one-hot) state: (B, in_dim, n_agents, n_actions)."""
-        return self._by_seed(self.second(torch.relu(self.first.table())))
-
-    def copy_tables(self, out: np.ndarray) -> None:
-        """``out`` (B, in_dim, n_agents, n_actions) := :meth:`tables`, bit for bit (the
-        same operations), computed in scratch kept between calls: the loop's copy after
-        every gradient step spent most of its time getting fresh memory for them."""
-        weight = self.first.weight
-        if self._scratch is None or self._scratch[0].device != weight.device:
-            groups, states = weight.shape[:2]
-            self._scratch = (
-                torch.empty((groups, states, self.first.weight.shape[2]), device=weight.device),
-                torch.empty((groups, states, self.second.weight.shape[2]), device=weight.device),
-            )
-        hidden, q = self._scratch
-        with torch.no_grad():
-            torch.add(weight, self.first.bias[:, None, :], out=hidden)
-            hidden.relu_()
-            torch.baddbmm(self.second.bias[:, None, :], hidden, self.second.weight, out=q)
-        np.copyto(out, self._by_seed(q).cpu().numpy())
-
-    def feature_weights(self) -> tuple[torch.Tensor, ...]:
-        """The per-agent layers the compiled loop reads (w1, b1, w2, b2), agent-major."""
-        return self.first.weight, self.first.bias, self.second.weight, self.second.bias
-
-    def _by_seed(self, q: torch.Tensor) -> torch.Tensor:
-        """(B*n, N, A), grouped seed-major -> (B, N, n, A)."""
-        return q.view(self.seeds, self.n_agents, *q.shape[1:]).transpose(1, 2)
 
 
 class VDNMixer(nn.Module):
@@ -215,7 +91,7 @@ class QMixer(nn.Module):
 
     def forward(self, q: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
         """``q``: (B, N, n_agents), ``state``: (B, N[, in]) -> Q_tot (B, N)."""
-        b1 = per_state(self.hyper_b1, state, _same)
+        b1 = per_state(self.hyper_b1, state, identity)
         hidden = nn.functional.elu(self._first_layer(q, state) + b1)
         w2 = per_state(self.hyper_w2, state, torch.abs)
         value = per_state(self.value_1, state, lambda x: self.value_2(torch.relu(x)))[..., 0]
@@ -323,9 +199,16 @@ class ValueDecomposition(StackedModel):
     ) -> None:
         super().__init__(action_counts, config, seeds, device)
         gens, width = self.generators, self.width
-        self.agents = AgentNetworks(
-            self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens, own_dim
-        )
+        self.agents: AgentNetworks | SharedAgentNetwork
+        if config.share:
+            shared = [g[0] for g in gens]  # each seed's first generator, as deep CMARL-CD's
+            self.agents = SharedAgentNetwork(
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, shared, own_dim
+            )
+        else:
+            self.agents = AgentNetworks(
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens, own_dim
+            )
         self.mixer_dim = in_dim - (0 if own_dim is None else self.n_agents * own_dim)
         self.mixer: nn.Module = (
             QMixer(self.n_seeds, self.n_agents, self.mixer_dim, config.mixer_hidden, gens)
