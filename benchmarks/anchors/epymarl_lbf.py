@@ -58,6 +58,10 @@ STAND_INS = {
     '    raise RuntimeError("torch_scatter stand-in: not for PAC-DCG")\n',
 }
 SIDES = ("cmarl-cd", "epymarl")
+#: EPyMARL's agent networks: ``rnn``, its configs as they are (``use_rnn: True``, a GRU
+#: for the second layer), or ``mlp``, the same configs with ``use_rnn=False`` (a ReLU
+#: layer there: a feed-forward network, the model class of cmarl-cd's agents).
+AGENTS = {"rnn": (), "mlp": ("use_rnn=False",)}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -73,9 +77,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             for job in jobs(side, protocol):
                 run_job(side, job, protocol, out, args)
     summary = summarise(out, protocol)
-    write(out / "anchor.json", summary)
-    (out / "anchor.md").write_text(table(summary) + "\n")
-    figure(summary, out / "anchor.png")
+    name = "anchor" if protocol["agent"] == "rnn" else f"anchor-{protocol['agent']}"
+    write(out / f"{name}.json", summary)
+    (out / f"{name}.md").write_text(table(summary) + "\n")
+    figure(summary, out / f"{name}.png")
     print(table(summary))
     return 0
 
@@ -90,6 +95,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--eval-interval", default="50k", help="steps between greedy tests")
     p.add_argument("--eval-episodes", default="100", help="episodes a greedy test")
     p.add_argument("--sides", default=",".join(SIDES), help="which sides to compute")
+    p.add_argument("--agent", default="rnn", help="EPyMARL's agents: rnn (its configs: a "
+                   "GRU) or mlp (use_rnn=False: feed-forward, as cmarl-cd's)")  # fmt: skip
     p.add_argument("--out", default="results/anchor-epymarl", help="where runs are kept")
     p.add_argument("--any-commit", action="store_true", help="allow another EPyMARL commit")
     p.add_argument("--report-only", action="store_true", help="compute nothing, report")
@@ -127,6 +134,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     for side in sides:
         if side not in SIDES:
             raise ValueError(f"--sides: unknown {side!r} (one of {', '.join(SIDES)})")
+    if args.agent not in AGENTS:
+        raise ValueError(f"--agent: unknown {args.agent!r} (one of {', '.join(AGENTS)})")
     if not (tasks and algorithms and sides) or args.seeds < 1:
         raise ValueError("needs a task, an algorithm, a side and --seeds >= 1")
     steps, interval = count(args.steps, "steps"), count(args.eval_interval, "eval-interval")
@@ -134,7 +143,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
         raise ValueError(f"--eval-interval must divide --steps (got {interval} and {steps})")
     if "epymarl" in sides and not args.report_only:
         checkout_commit(args.epymarl, args.any_commit)
-    protocol = {"tasks": tasks, "algorithms": algorithms, "sides": sides, "seeds": args.seeds}
+    protocol = {"tasks": tasks, "algorithms": algorithms, "sides": sides, "seeds": args.seeds,
+                "agent": args.agent}  # fmt: skip
     episodes = count(args.eval_episodes, "eval-episodes")
     return {**protocol, "steps": steps, "eval_interval": interval, "eval_episodes": episodes}
 
@@ -156,13 +166,25 @@ def checkout_commit(path: str | None, any_commit: bool) -> str:
 
 def jobs(side: str, protocol: dict) -> list[tuple]:
     if side == "cmarl-cd":  # one command per task: its learners' seeds stacked
-        return [(task,) for task in protocol["tasks"]]
+        return [cmarlcd_job(task) for task in protocol["tasks"]]
     return [
-        (task, algorithm, seed)
+        epymarl_job(task, algorithm, seed, protocol)
+        for seed in range(protocol["seeds"])  # seed 0 of every pair first
         for task in protocol["tasks"]
         for algorithm in protocol["algorithms"]
-        for seed in range(protocol["seeds"])
     ]
+
+
+def cmarlcd_job(task: str) -> tuple:
+    """cmarl-cd's job on a task: its agents share one network (EPyMARL's configs do; the
+    jobs before 0.7.0's ``share``, a network per agent, are kept as ``(task,)``)."""
+    return (task, "shared")
+
+
+def epymarl_job(task: str, algorithm: str, seed: int, protocol: dict) -> tuple:
+    """An EPyMARL run: its configs' GRU agents keep the jobs' first names."""
+    agent = protocol["agent"]
+    return (task, algorithm, seed) if agent == "rnn" else (task, algorithm, seed, agent)
 
 
 def job_path(out: Path, side: str, job: tuple) -> Path:
@@ -181,7 +203,7 @@ def run_job(side: str, job: tuple, protocol: dict, out: Path, args: argparse.Nam
     if side == "cmarl-cd":
         result = ours(job[0], protocol, out, log)
     else:
-        result = epymarl(*job, protocol, Path(args.epymarl), log, args.any_commit)
+        result = epymarl(*job[:3], protocol, Path(args.epymarl), log, args.any_commit)
     seconds = time.perf_counter() - start
     write(path, {
         "side": side, "job": list(job), "protocol": protocol_of(protocol, side),
@@ -218,6 +240,7 @@ def ours(task: str, protocol: dict, out: Path, log: Path) -> dict[str, Any]:
     learners = ",".join(ALGORITHMS[a] for a in protocol["algorithms"])
     command = [
         "field", "--tasks", f"foraging:{task}", "--learners", learners, "--preset", "epymarl",
+        "--set", ",".join(f"{ALGORITHMS[a]}.share=true" for a in protocol["algorithms"]),
         "--inputs", "own-observations", "--seeds", str(protocol["seeds"]),
         "--steps", str(protocol["steps"]), "--eval-interval", str(protocol["eval_interval"]),
         "--eval-episodes", str(protocol["eval_episodes"]), "--workers", "1", "--no-progress",
@@ -258,7 +281,7 @@ def epymarl(
         f"env_args.time_limit={TIME_LIMIT}", f"env_args.key={key}", f"seed={seed}",
         f"t_max={protocol['steps']}", f"test_interval={protocol['eval_interval']}",
         f"log_interval={protocol['eval_interval']}", f"test_nepisode={protocol['eval_episodes']}",
-        "use_cuda=False", "save_model=False", f"label={tag}",
+        "use_cuda=False", "save_model=False", f"label={tag}", *AGENTS[protocol["agent"]],
     ]  # fmt: skip
     environment = {**os.environ, "PYTHONPATH": str(stand_ins.resolve())}
     with log.open("w") as output:
@@ -304,13 +327,13 @@ def summarise(out: Path, protocol: dict) -> dict[str, Any]:
     nominal = [k * protocol["eval_interval"] for k in range(points)]
     pairs, rates = [], {"cmarl-cd": [], "epymarl": []}
     for task in protocol["tasks"]:
-        mine = load(job_path(out, "cmarl-cd", (task,)), protocol, "cmarl-cd")
+        mine = load(job_path(out, "cmarl-cd", cmarlcd_job(task)), protocol, "cmarl-cd")
         if mine:
             seeds = protocol["seeds"] * len(protocol["algorithms"])
             rates["cmarl-cd"].append(seeds * protocol["steps"] / mine["seconds"])
         for algorithm in protocol["algorithms"]:
-            theirs = [load(job_path(out, "epymarl", (task, algorithm, s)), protocol, "epymarl")
-                      for s in range(protocol["seeds"])]  # fmt: skip
+            theirs = [load(job_path(out, "epymarl", epymarl_job(task, algorithm, s, protocol)),
+                           protocol, "epymarl") for s in range(protocol["seeds"])]  # fmt: skip
             theirs = [r for r in theirs if r]
             rates["epymarl"] += [r["steps_trained"] / r["seconds"] for r in theirs]
             row: dict[str, Any] = {"task": task, "algorithm": algorithm}
@@ -350,7 +373,8 @@ def table(summary: dict) -> str:
 
     p = summary["protocol"]
     lines = [
-        f"EPyMARL {COMMIT} and cmarl-cd on LBF: {p['steps']:,} steps, {p['seeds']} seeds, "
+        f"EPyMARL {COMMIT} ({p['agent']} agents) and cmarl-cd (one shared network) on LBF: "
+        f"{p['steps']:,} steps, {p['seeds']} seeds, "
         f"{p['eval_episodes']} greedy episodes every {p['eval_interval']:,} steps",
         "",
         "| task | algorithm | max return, EPyMARL | max return, cmarl-cd | average, EPyMARL "
@@ -396,7 +420,8 @@ def figure(summary: dict, path: Path) -> None:
                 ax.plot(x, mean, style, color=colours[row["algorithm"]], label=name)
         ax.set(title=f"LBF {task}", xlabel="environment steps (millions)",
                ylabel="greedy return (mean over seeds)")  # fmt: skip
-        ax.legend(fontsize=7)
+        if ax.get_legend_handles_labels()[0]:  # nothing done yet: no legend
+            ax.legend(fontsize=7)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
