@@ -261,16 +261,13 @@ def test_greedy_joint_actions_kept_on_repeated_games_give_the_stored_payoff(tmp_
     assert len(joints) == 3  # three games, three optima: a game remade wrong would miss
 
 
-def test_save_policies_where_runs_keep_none_is_refused(tmp_path) -> None:
-    done = cli("tournament", "--algorithms", "cmarl-cd,vdn", "--rounds", "1", "--save-policies",
-               str(tmp_path / "p"), "--store", str(tmp_path / "s.sqlite"))  # fmt: skip
-    assert done.returncode == 2
-    assert (
-        "--save-policies: cmarl-cd vs cmarl-cd's runs of tournament keep no policy yet"
-        in done.stderr
-    )
-    assert len(done.stderr.strip().splitlines()) == 1
-    assert not (tmp_path / "s.sqlite").exists() and not (tmp_path / "p").exists()
+def test_save_policies_where_no_run_keeps_one_is_refused() -> None:
+    from cmarlcd.cli.sweeps import check_keeps_policies
+    from cmarlcd.experiments import theorem
+
+    checks = theorem.specs(seed=0)
+    with pytest.raises(ConfigError, match="the runs of theorem1 keep no policy"):
+        check_keeps_policies(checks)
 
 
 def test_bad_policy_files_are_one_line_and_exit_2(tmp_path) -> None:

@@ -113,14 +113,17 @@ def watch_policy(path: Path, episodes: int, seed: int, delay: float, as_json: bo
 
     from cmarlcd.experiments.policy_watching import watch
     from cmarlcd.policies import load_policy
+    from cmarlcd.policies.files import load_partner
 
     check_seed(seed)
     check_at_most(episodes, MAX_RUNS, "episodes")
     require(0 <= delay <= 10, "delay", f"must be in [0, 10] seconds (got {delay})")
     kept = load_policy(path)
     meta = kept.metadata
+    part = meta.get("partner_part")  # a match's other team
+    partner = None if part is None else load_partner(path, kept, part)
     out, doc, returns = Console(), [], {}
-    for frame in watch(kept, episodes, seed):
+    for frame in watch(kept, episodes, seed, partner):
         returns[frame.episode] = returns.get(frame.episode, 0.0) + frame.reward
         if as_json:
             doc.append({"episode": frame.episode, "step": frame.step, "actions": frame.actions,

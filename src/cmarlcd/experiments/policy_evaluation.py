@@ -27,12 +27,18 @@ def evaluate_policy(
     seed: int | None = None,
     env: str | None = None,
     env_kwargs: envs.EnvKwargs | None = None,
+    partner: Any = None,
 ) -> dict[str, Any]:
-    """Play ``policy`` greedily; its mean return (the team's, as the run counted it)."""
+    """Play ``policy`` greedily; its mean return (the team's, as the run counted it), or
+    for a tournament match's policy (with the other team's, ``partner``) the wins."""
     meta = policy.metadata
     spec = run_spec(meta)
     if meta.get("experiment") != envs.EXPERIMENT:
         require(env is None and env_kwargs is None, "env", "applies to train --env's policies")
+        if spec.experiment == MATCHES:
+            from cmarlcd.experiments.match_policies import evaluate_match
+
+            return evaluate_match(policy, partner, spec, episodes, seed)
         if spec.experiment in REPEATED_GAMES:
             return evaluate_on_repeated_game(policy, spec)
         return evaluate_on_game(policy, spec, episodes, seed)
@@ -125,6 +131,8 @@ def evaluate_on_game(
     }  # fmt: skip
 
 
+#: The experiment whose runs are matches, each keeping one policy a team.
+MATCHES = "tournament"
 #: The experiments whose runs play one repeated game, each kept policy a greedy joint action.
 REPEATED_GAMES = ("compare", "repeated")
 

@@ -18,6 +18,7 @@ import numpy as np
 from cmarlcd.errors import require
 from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments.policy_evaluation import (
+    MATCHES,
     REPEATED_GAMES,
     episodic_game,
     repeated_game,
@@ -51,6 +52,11 @@ def policy_env(policy: Any) -> Any:
             return envs.make_env(settings.env, {**dict(settings.env_kwargs), "render_mode": "ansi"})
         except Exception:
             return envs.make_env(settings.env, settings.env_kwargs)
+    if spec.experiment == MATCHES:  # the battlefield of the match's readings
+        from cmarlcd.experiments.tournament import Pairing
+        from cmarlcd.games.battlefield.env import BattlefieldEnv
+
+        return BattlefieldEnv(Pairing.from_config(spec.config).rules, render_mode="ansi")
     if spec.experiment in REPEATED_GAMES:  # the repeated game the run played
         from cmarlcd.games.matrix.env import MatrixGameEnv
 
@@ -72,12 +78,16 @@ def policy_env(policy: Any) -> Any:
     return KernelParallelEnv(game.spec, render_mode="ansi")
 
 
-def watch(policy: Any, episodes: int = 1, seed: int = 0) -> Iterator[Frame]:
+def watch(policy: Any, episodes: int = 1, seed: int = 0, partner: Any = None) -> Iterator[Frame]:
     """``episodes`` greedy episodes of ``policy``, the first reset with ``seed`` (the
-    next ones continue its stream), frame by frame."""
+    next ones continue its stream), frame by frame; a match's policy plays against the
+    other team's kept policy ``partner`` (the reward: the policy's team's)."""
     require(episodes >= 1, "episodes", f"must be >= 1 (got {episodes})")
     env = policy_env(policy)
     team_reward = _team_reward(policy, env)
+    if run_spec(policy.metadata).experiment == MATCHES:
+        require(partner is not None, "policy", "a match's policy plays with its partner's file")
+        policy = _MatchPlayers(policy, partner, env, seed)
     reads_state = policy.metadata.get("inputs", "state") == "state"
     features = (
         np.zeros(env.spec.n_features, np.float32)
@@ -109,6 +119,32 @@ def watch(policy: Any, episodes: int = 1, seed: int = 0) -> Iterator[Frame]:
                 break
 
 
+class _MatchPlayers:
+    """Both teams of a match, acting as one policy in :func:`watch`'s loop: each team's
+    kept policy as its side played at evaluation (a tabular side's unseen states by its
+    reading, its draws from a stream of ``seed``)."""
+
+    kind = "match"
+
+    def __init__(self, policy: Any, partner: Any, env: Any, seed: int) -> None:
+        self.teams = sorted((policy, partner), key=lambda p: int(p.metadata["team"]))
+        self.metadata = {"inputs": "observations"}
+        self.env, self.rngs = env, np.random.default_rng([seed, 1]).spawn(2)
+        spec = env.spec
+        self.legal = np.zeros((spec.n_agents, spec.width), np.bool_)
+        self.x = np.zeros(spec.n_features, np.float32)
+
+    def act(self, observations: Any, state: Any = None, masks: Any = None) -> dict[str, int]:
+        from cmarlcd.experiments.match_policies import team_action
+
+        spec, env, joint, offset = self.env.spec, self.env.env, [], 0
+        for team, kept in enumerate(self.teams):
+            joint += list(team_action(kept, spec.kernels, env, team, offset, self.legal,
+                                       self.x, self.rngs[team], spec.action_counts))  # fmt: skip
+            offset += len(kept.counts)
+        return {a: int(x) for a, x in zip(self.env.agents, joint, strict=True)}
+
+
 def _picture(env: Any) -> str | None:
     if getattr(env, "render_mode", None) != "ansi":
         return None
@@ -121,4 +157,5 @@ def _team_reward(policy: Any, env: Any) -> Any:
     spec = run_spec(policy.metadata)
     if spec.experiment == envs.EXPERIMENT:
         return envs.REWARDS[envs.EnvRun.from_config(spec.config).reward]
-    return lambda rewards: float(env.team_rewards[0])  # the game's, for its one team
+    team = int(policy.metadata.get("team", 0))  # a match's: its own team's
+    return lambda rewards: float(env.team_rewards[team])  # the game's, for its team

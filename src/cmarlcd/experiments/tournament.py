@@ -36,10 +36,12 @@ import numpy as np
 
 from cmarlcd import registry
 from cmarlcd.errors import check_discount, check_tolerance, require
+from cmarlcd.experiments.match_policies import match_policies
 from cmarlcd.games import battlefield
 from cmarlcd.games.battlefield import GUNNER, MARINE, Battlefield, Unit
 from cmarlcd.learners.tabular.coordination import BATTLEFIELD_CMARLCD
 from cmarlcd.limits import check_episodes, check_run_count, check_seed
+from cmarlcd.policies.keeping import POLICY, wanted
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.run_logs import log_point
 from cmarlcd.runs import Experiment, RunRecord, RunSpec, Settings, identity, parse_settings
@@ -368,6 +370,10 @@ def play_rounds(
     learn_seconds = (time.perf_counter() - start) / len(seeds)
     results = []
     for match, order, (_, _, _, eval_rng) in zip(batch.matches, positions, streams, strict=True):
+        kept = None
+        if wanted():  # --save-policies: each team's policy as it is evaluated
+            kept = match_policies(match, (pair[order[0]].name, pair[order[1]].name),
+                                  pairing.unseen)  # fmt: skip
         evaluated = time.perf_counter()
         result = match.evaluate(pairing.eval_episodes, eval_rng)
         shares = [w / max(1, result.episodes) for w in (*result.wins, result.ties)]
@@ -390,6 +396,8 @@ def play_rounds(
                 "seconds": learn_seconds + time.perf_counter() - evaluated,
             }
         )
+        if kept is not None:
+            results[-1][POLICY] = kept
     return results
 
 
@@ -444,4 +452,5 @@ TOURNAMENT = Experiment(
     work=_work,
     work_unit="episodes",
     uses_device=lambda pairing: pairing.has_deep,
+    keeps_policies=lambda pairing: True,
 )

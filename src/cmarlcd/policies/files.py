@@ -32,16 +32,22 @@ def file_name(identity: dict[str, Any]) -> str:
 
 
 def write_policy(
-    directory: Path, policy: TablePolicy | NetworkPolicy, identity: dict[str, Any], version: str
+    directory: Path,
+    policy: TablePolicy | NetworkPolicy,
+    identity: dict[str, Any],
+    version: str,
+    part: str | None = None,
 ) -> Path:
     """Write ``policy`` of the run ``identity`` (experiment, algorithm, config_json,
-    stream_json, root_seed, run_index) into ``directory``, whole or not at all."""
+    stream_json, root_seed, run_index) into ``directory``, whole or not at all; ``part``:
+    which of a run's policies it is (a match's team), appended to the file's name."""
     directory.mkdir(parents=True, exist_ok=True)
     meta = {**policy.metadata, **identity, "format": FORMAT, "kind": policy.kind,
             "version": version}  # fmt: skip
     if isinstance(policy, TablePolicy):
         meta["keys"] = None if policy.keys is None else [_plain(k) for k in policy.keys]
-    path = directory / (file_name(identity) + SUFFIXES[policy.kind])
+    stem = file_name(identity) if part is None else f"{file_name(identity)}-{part}"
+    path = directory / (stem + SUFFIXES[policy.kind])
     partial = path.with_name(f".{path.name}.{os.getpid()}.part")
     text = json.dumps(meta)
     if policy.kind == "table":
@@ -67,14 +73,33 @@ def keep_policy(
     metrics: dict[str, Any], spec: RunSpec, directory: Path | None, version: str
 ) -> Path | None:
     """Take a run's policy out of its ``metrics`` (it is never stored) and write it into
-    ``directory`` where one is given; the file, or None."""
+    ``directory`` where one is given; the file (a run of several policies, a match's
+    ``{part: policy}``, writes one file a part, each naming the others' files under
+    ``partners``: the last is returned), or None."""
     policy = metrics.pop(POLICY, None)
     if policy is None or directory is None:
         return None
     identity = {"experiment": spec.experiment, "algorithm": spec.algorithm,
                 "config_json": spec.config_json, "stream_json": spec.stream_json,
                 "root_seed": spec.root_seed, "run_index": spec.run_index}  # fmt: skip
-    return write_policy(directory, policy, identity, version)
+    if not isinstance(policy, dict):
+        return write_policy(directory, policy, identity, version)
+    names = {part: f"{file_name(identity)}-{part}{SUFFIXES[p.kind]}" for part, p in policy.items()}
+    path = None
+    for part, one in policy.items():
+        one.metadata["partners"] = {k: v for k, v in names.items() if k != part}
+        path = write_policy(directory, one, identity, version, part)
+    return path
+
+
+def load_partner(path: Path, policy: TablePolicy | NetworkPolicy, part: str) -> Any:
+    """The policy of ``part`` kept beside ``policy`` (read from ``path``) by the same
+    run, or one clear error."""
+    partners = policy.metadata.get("partners") or {}
+    require(part in partners, "policy", f"{path}: its run kept no {part} policy")
+    other = Path(path).parent / partners[part]
+    require(other.is_file(), "policy", f"{path}: its {part} policy {other.name} is not beside it")
+    return load_policy(other)
 
 
 def load_policy(path: str | os.PathLike) -> TablePolicy | NetworkPolicy:
