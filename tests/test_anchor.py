@@ -151,14 +151,15 @@ def test_the_epymarl_anchor_reads_sacreds_numbers_and_compares_the_kth_tests(tmp
     assert module.value({"py/object": "numpy.float64", "value": 0.25}) == 0.25
     protocol = {"tasks": ["8x8-2p-2f-coop"], "algorithms": ["vdn"], "sides": ["epymarl"],
                 "seeds": 2, "steps": 100, "eval_interval": 50, "eval_episodes": 5,
-                "agent": "rnn"}  # fmt: skip
+                "agent": "rnn", "ours": "shared"}  # fmt: skip
     for seed, returns in enumerate(([0.0, 0.2, 0.4], [0.0, 0.4, 0.6])):
         curve = [[t, r] for t, r in zip((50, 100, 150), returns, strict=True)]
         module.write(module.job_path(tmp_path, "epymarl", ("8x8-2p-2f-coop", "vdn", seed)), {
             "protocol": module.protocol_of(protocol, "epymarl"), "seconds": 2.0,
             "steps_trained": 100, "curve": curve,
         })  # fmt: skip
-    module.write(module.job_path(tmp_path, "cmarl-cd", module.cmarlcd_job("8x8-2p-2f-coop")), {
+    ours = module.cmarlcd_job("8x8-2p-2f-coop", protocol)
+    module.write(module.job_path(tmp_path, "cmarl-cd", ours), {
         "protocol": module.protocol_of(protocol, "cmarl-cd"), "seconds": 1.0,
         "curves": {"vdn": [[0.0, 0.1, 0.3], [0.0, 0.3, 0.3]]},
     })  # fmt: skip
@@ -177,3 +178,6 @@ def test_the_epymarl_anchor_reads_sacreds_numbers_and_compares_the_kth_tests(tmp
     assert module.summarise(tmp_path, {**protocol, "agent": "mlp"})["pairs"][0]["curves"] == {
         "cmarl-cd": [[0.0, 0.1, 0.3], [0.0, 0.3, 0.3]], "epymarl": []}  # fmt: skip
     assert module.AGENTS["mlp"] == ("use_rnn=False",)
+    # and cmarl-cd's per-agent networks are other jobs than its shared one's
+    per_agent = module.summarise(tmp_path, {**protocol, "ours": "per-agent"})["pairs"][0]
+    assert per_agent["curves"]["cmarl-cd"] == [] and len(per_agent["curves"]["epymarl"]) == 2

@@ -62,6 +62,10 @@ SIDES = ("cmarl-cd", "epymarl")
 #: for the second layer), or ``mlp``, the same configs with ``use_rnn=False`` (a ReLU
 #: layer there: a feed-forward network, the model class of cmarl-cd's agents).
 AGENTS = {"rnn": (), "mlp": ("use_rnn=False",)}
+#: cmarl-cd's agent networks: ``shared``, one network for every agent with the agent's
+#: one-hot index in its input (``share=true``, as EPyMARL's configs), or ``per-agent``,
+#: one network an agent (the preset's; the anchor's jobs before ``share`` existed).
+OURS = ("shared", "per-agent")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -77,7 +81,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             for job in jobs(side, protocol):
                 run_job(side, job, protocol, out, args)
     summary = summarise(out, protocol)
-    name = "anchor" if protocol["agent"] == "rnn" else f"anchor-{protocol['agent']}"
+    name = "-".join(["anchor", *(() if protocol["agent"] == "rnn" else (protocol["agent"],)),
+                     *(() if protocol["ours"] == "shared" else (protocol["ours"],))])  # fmt: skip
     write(out / f"{name}.json", summary)
     (out / f"{name}.md").write_text(table(summary) + "\n")
     figure(summary, out / f"{name}.png")
@@ -97,6 +102,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--sides", default=",".join(SIDES), help="which sides to compute")
     p.add_argument("--agent", default="rnn", help="EPyMARL's agents: rnn (its configs: a "
                    "GRU) or mlp (use_rnn=False: feed-forward, as cmarl-cd's)")  # fmt: skip
+    p.add_argument("--ours", default="shared", help="cmarl-cd's agents: shared (one "
+                   "network, the agent's id in its input) or per-agent")  # fmt: skip
     p.add_argument("--out", default="results/anchor-epymarl", help="where runs are kept")
     p.add_argument("--any-commit", action="store_true", help="allow another EPyMARL commit")
     p.add_argument("--report-only", action="store_true", help="compute nothing, report")
@@ -134,6 +141,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     for side in sides:
         if side not in SIDES:
             raise ValueError(f"--sides: unknown {side!r} (one of {', '.join(SIDES)})")
+    if args.ours not in OURS:
+        raise ValueError(f"--ours: unknown {args.ours!r} (one of {', '.join(OURS)})")
     if args.agent not in AGENTS:
         raise ValueError(f"--agent: unknown {args.agent!r} (one of {', '.join(AGENTS)})")
     if not (tasks and algorithms and sides) or args.seeds < 1:
@@ -144,7 +153,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     if "epymarl" in sides and not args.report_only:
         checkout_commit(args.epymarl, args.any_commit)
     protocol = {"tasks": tasks, "algorithms": algorithms, "sides": sides, "seeds": args.seeds,
-                "agent": args.agent}  # fmt: skip
+                "agent": args.agent, "ours": args.ours}  # fmt: skip
     episodes = count(args.eval_episodes, "eval-episodes")
     return {**protocol, "steps": steps, "eval_interval": interval, "eval_episodes": episodes}
 
@@ -166,7 +175,7 @@ def checkout_commit(path: str | None, any_commit: bool) -> str:
 
 def jobs(side: str, protocol: dict) -> list[tuple]:
     if side == "cmarl-cd":  # one command per task: its learners' seeds stacked
-        return [cmarlcd_job(task) for task in protocol["tasks"]]
+        return [cmarlcd_job(task, protocol) for task in protocol["tasks"]]
     return [
         epymarl_job(task, algorithm, seed, protocol)
         for seed in range(protocol["seeds"])  # seed 0 of every pair first
@@ -175,10 +184,11 @@ def jobs(side: str, protocol: dict) -> list[tuple]:
     ]
 
 
-def cmarlcd_job(task: str) -> tuple:
-    """cmarl-cd's job on a task: its agents share one network (EPyMARL's configs do; the
-    jobs before 0.7.0's ``share``, a network per agent, are kept as ``(task,)``)."""
-    return (task, "shared")
+def cmarlcd_job(task: str, protocol: dict) -> tuple:
+    """cmarl-cd's job on a task: ``(task, "shared")`` where its agents share one network
+    (as EPyMARL's configs), ``(task,)`` where each has its own (the jobs before ``share``
+    existed)."""
+    return (task, "shared") if protocol["ours"] == "shared" else (task,)
 
 
 def epymarl_job(task: str, algorithm: str, seed: int, protocol: dict) -> tuple:
@@ -240,7 +250,8 @@ def ours(task: str, protocol: dict, out: Path, log: Path) -> dict[str, Any]:
     learners = ",".join(ALGORITHMS[a] for a in protocol["algorithms"])
     command = [
         "field", "--tasks", f"foraging:{task}", "--learners", learners, "--preset", "epymarl",
-        "--set", ",".join(f"{ALGORITHMS[a]}.share=true" for a in protocol["algorithms"]),
+        *(("--set", ",".join(f"{ALGORITHMS[a]}.share=true" for a in protocol["algorithms"]))
+          if protocol["ours"] == "shared" else ()),
         "--inputs", "own-observations", "--seeds", str(protocol["seeds"]),
         "--steps", str(protocol["steps"]), "--eval-interval", str(protocol["eval_interval"]),
         "--eval-episodes", str(protocol["eval_episodes"]), "--workers", "1", "--no-progress",
@@ -327,7 +338,7 @@ def summarise(out: Path, protocol: dict) -> dict[str, Any]:
     nominal = [k * protocol["eval_interval"] for k in range(points)]
     pairs, rates = [], {"cmarl-cd": [], "epymarl": []}
     for task in protocol["tasks"]:
-        mine = load(job_path(out, "cmarl-cd", cmarlcd_job(task)), protocol, "cmarl-cd")
+        mine = load(job_path(out, "cmarl-cd", cmarlcd_job(task, protocol)), protocol, "cmarl-cd")
         if mine:
             seeds = protocol["seeds"] * len(protocol["algorithms"])
             rates["cmarl-cd"].append(seeds * protocol["steps"] / mine["seconds"])
@@ -373,7 +384,7 @@ def table(summary: dict) -> str:
 
     p = summary["protocol"]
     lines = [
-        f"EPyMARL {COMMIT} ({p['agent']} agents) and cmarl-cd (one shared network) on LBF: "
+        f"EPyMARL {COMMIT} ({p['agent']} agents) and cmarl-cd ({p['ours']} agents) on LBF: "
         f"{p['steps']:,} steps, {p['seeds']} seeds, "
         f"{p['eval_episodes']} greedy episodes every {p['eval_interval']:,} steps",
         "",
