@@ -49,6 +49,7 @@ from cmarlcd.learners.deep.config import (
 )
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.learners.deep.degree_model import DegreeModel
+from cmarlcd.learners.deep.threads import intra_op_threads
 from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
 from cmarlcd.learners.tabular.protocol import full_legal
 from cmarlcd.plugins import note
@@ -221,12 +222,13 @@ class DeepGroup(Group):
         self.masks_changed()
         stored = min(self.replay_kind.stored(self.ring, view.index) for view in due)
         step, copy = scheduled_work(before, after, stored, self.config)
-        if step:
-            self.last_loss = self.model.learn(self.sample())
-            self._copy_weights()
-            self.replay_kind.refresh(self.ring, self.model, self.inputs)
-        if copy:
-            self.model.sync_target()
+        with intra_op_threads(self.model.step_threads()):
+            if step:
+                self.last_loss = self.model.learn(self.sample())
+                self._copy_weights()
+                self.replay_kind.refresh(self.ring, self.model, self.inputs)
+            if copy:
+                self.model.sync_target()
 
     def masks_changed(self) -> None:
         """Tell the model when a side has read the masks of a new state (index inputs:

@@ -16,6 +16,7 @@ from cmarlcd import devices
 from cmarlcd.errors import require
 from cmarlcd.learners.deep.config import DeepConfig, epsilon, scheduled_work
 from cmarlcd.learners.deep.replay import new_ring, push, push_row, sample, seed_view
+from cmarlcd.learners.deep.threads import intra_op_threads
 from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
 
 
@@ -208,7 +209,8 @@ class DeepAgent(StepAgent):
         """The schedule of every deep learner, one environment step at a time."""
         self.steps += 1
         step, copy = scheduled_work(self.steps - 1, self.steps, self.stored, self.config)
-        if step:
-            self.model.td_step(self._replay_batch())
-        if copy:
-            self.model.sync_target()
+        with intra_op_threads(self.model.step_threads()):
+            if step:
+                self.model.td_step(self._replay_batch())
+            if copy:
+                self.model.sync_target()

@@ -33,6 +33,7 @@ from cmarlcd.learners.deep.degree_memory import (
 )
 from cmarlcd.learners.deep.degree_model import DegreeModel
 from cmarlcd.learners.deep.replay import new_ring, push_visit, push_visit_row, seed_view
+from cmarlcd.learners.deep.threads import intra_op_threads
 
 
 class DegreeAgent(StepAgent):
@@ -133,10 +134,11 @@ class DegreeAgent(StepAgent):
         self._visits.setdefault(copy, []).append(visit)
         self.steps += 1
         step, sync = scheduled_work(self.steps - 1, self.steps, self.stored, self.config)
-        if step:
-            self.model.learn(self._replay_batch())
-        if sync:
-            self.model.sync_target()
+        with intra_op_threads(self.model.step_threads()):
+            if step:
+                self.model.learn(self._replay_batch())
+            if sync:
+                self.model.sync_target()
 
     def end_episode(self, final_state=None, terminated: bool = True, copy: int = 0) -> None:
         """Fold ``copy``'s episode into the keyed memory (``keyed``), or store every

@@ -50,6 +50,7 @@ from cmarlcd.learners.deep.agent_networks import (
 from cmarlcd.learners.deep.config import DeepConfig, takes_fused_step
 from cmarlcd.learners.deep.fused.step import FusedStep
 from cmarlcd.learners.deep.td_options import RewardStatistics, clip_per_seed
+from cmarlcd.learners.deep.threads import step_threads, step_work
 
 
 class VDNMixer(nn.Module):
@@ -144,6 +145,18 @@ class StackedModel(nn.Module):
         self.register_buffer("valid", torch.arange(self.width)[None, :] < counts[:, None])
         self.generators = [generators_of(s, self.n_agents + 1) for s in seeds]
         self.state_legal: torch.Tensor | None = None
+        self._threads: int | None = None  # see step_threads
+
+    def step_threads(self) -> int:
+        """The intra-op threads its steps take (:mod:`cmarlcd.learners.deep.threads`),
+        chosen at the first call from their work and the threads the process allows:
+        one for the fused step and on a GPU."""
+        if self._threads is None:
+            if self.device.type != "cpu" or getattr(self, "fused", None) is not None:
+                self._threads = 1
+            else:
+                self._threads = step_threads(step_work(self), torch.get_num_threads())
+        return self._threads
 
     def optimise(self, loss: torch.Tensor, clip: float | None = None) -> float:
         """One Adam step on ``loss`` (the seeds' summed losses), each seed's gradient
