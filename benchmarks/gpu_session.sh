@@ -84,6 +84,12 @@ EOF
 }
 step "a tournament over GPU workers (--gpu-tasks 2 of --workers 4)" sweep
 
+threads() {  # a CPU step's time with 1 to 16 intra-op threads (the threads' rule)
+    "$python" benchmarks/bench_threads.py --max-threads "$(nproc)" --seeds 1 10 30 \
+        --repeats 5 2>&1 | tee "$OUT/threads.log"
+}
+step "a gradient step's time by threads, on the CPU" threads
+
 bench() {
     # shellcheck disable=SC2086  # BENCH_ARGS is a list of options
     PYTHONUNBUFFERED=1 "$python" benchmarks/bench_gpu.py --device "$DEVICE" ${BENCH_ARGS:-} \
