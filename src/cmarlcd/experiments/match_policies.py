@@ -54,7 +54,9 @@ def visited_table(side: Any, metadata: Mapping[str, Any]) -> TablePolicy:
     visited = np.flatnonzero(data.rows >= 0)
     actions = greedy_policy(side.config, data.tables, data.counts)[data.rows[visited]]
     counts = data.counts
-    fresh = np.zeros(len(counts), np.int64)  # unseen: resolved by the replay (its reading)
+    # a state it never visited: each agent's lowest legal action (the "lowest" reading,
+    # which a PettingZoo loop's act() plays); evaluate and play follow the match's reading
+    fresh = np.zeros(len(counts), np.int64)
     keys = [int(s) for s in visited]
     return TablePolicy(actions, np.ones(len(keys), bool), fresh, counts, keys, metadata)
 
