@@ -130,6 +130,9 @@ def test_the_epymarl_anchor_shows_its_help_without_epymarl() -> None:
         (["--steps", "1M", "--eval-interval", "300k"], "must divide --steps"),
         ([], "--epymarl: give the path"),
         (["--epymarl", "."], "holds no src/main.py"),
+        (["--parallel", "0"], "--parallel: must be >= 1"),
+        (["--agent", "gru"], "--agent: unknown 'gru'"),
+        (["--ours", "twin"], "--ours: unknown 'twin'"),
     ],
 )
 def test_the_epymarl_anchor_refuses_bad_input_in_one_line(args, says, tmp_path: Path) -> None:
@@ -181,3 +184,19 @@ def test_the_epymarl_anchor_reads_sacreds_numbers_and_compares_the_kth_tests(tmp
     # and cmarl-cd's per-agent networks are other jobs than its shared one's
     per_agent = module.summarise(tmp_path, {**protocol, "ours": "per-agent"})["pairs"][0]
     assert per_agent["curves"]["cmarl-cd"] == [] and len(per_agent["curves"]["epymarl"]) == 2
+
+
+def test_the_epymarl_anchor_runs_each_job_once_however_many_at_a_time(monkeypatch) -> None:
+    spec = importlib.util.spec_from_file_location("epymarl_anchor", EPYMARL)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    protocol = {"tasks": ["8x8-2p-2f-coop", "10x10-3p-3f"], "algorithms": ["iql", "vdn"],
+                "seeds": 2, "agent": "mlp"}  # fmt: skip
+    todo = module.jobs("epymarl", protocol)
+    assert todo[:4] == [(t, a, 0, "mlp") for t in protocol["tasks"] for a in ("iql", "vdn")]
+    done: list[tuple] = []
+    monkeypatch.setattr(module, "run_job", lambda side, job, *rest: done.append(job))
+    for parallel in (1, 3):
+        done.clear()
+        module.run_jobs("epymarl", todo, protocol, Path("."), type("A", (), {"parallel": parallel}))
+        assert sorted(done) == sorted(todo) and len(done) == 8

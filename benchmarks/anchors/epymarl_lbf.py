@@ -78,8 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     out = Path(args.out)
     if not args.report_only:
         for side in protocol["sides"]:
-            for job in jobs(side, protocol):
-                run_job(side, job, protocol, out, args)
+            run_jobs(side, jobs(side, protocol), protocol, out, args)
     summary = summarise(out, protocol)
     name = "-".join(["anchor", *(() if protocol["agent"] == "rnn" else (protocol["agent"],)),
                      *(() if protocol["ours"] == "shared" else (protocol["ours"],))])  # fmt: skip
@@ -106,6 +105,8 @@ def parser() -> argparse.ArgumentParser:
                    "network, the agent's id in its input) or per-agent")  # fmt: skip
     p.add_argument("--out", default="results/anchor-epymarl", help="where runs are kept")
     p.add_argument("--any-commit", action="store_true", help="allow another EPyMARL commit")
+    p.add_argument("--parallel", type=int, default=1, help="EPyMARL runs at a time (one "
+                   "core each)")  # fmt: skip
     p.add_argument("--report-only", action="store_true", help="compute nothing, report")
     return p
 
@@ -141,6 +142,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     for side in sides:
         if side not in SIDES:
             raise ValueError(f"--sides: unknown {side!r} (one of {', '.join(SIDES)})")
+    if args.parallel < 1:
+        raise ValueError(f"--parallel: must be >= 1 (got {args.parallel})")
     if args.ours not in OURS:
         raise ValueError(f"--ours: unknown {args.ours!r} (one of {', '.join(OURS)})")
     if args.agent not in AGENTS:
@@ -199,6 +202,21 @@ def epymarl_job(task: str, algorithm: str, seed: int, protocol: dict) -> tuple:
 
 def job_path(out: Path, side: str, job: tuple) -> Path:
     return out / side / ("-".join(map(str, job)) + ".json")
+
+
+def run_jobs(side: str, todo: list[tuple], protocol: dict, out: Path, args) -> None:
+    """The side's jobs, ``--parallel`` at a time (each EPyMARL run takes one core), in
+    order; the first that fails ends the anchor once those under way have ended."""
+    if args.parallel == 1:
+        for job in todo:
+            run_job(side, job, protocol, out, args)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=args.parallel) as pool:
+        futures = [pool.submit(run_job, side, job, protocol, out, args) for job in todo]
+        for future in futures:
+            future.result()
 
 
 def run_job(side: str, job: tuple, protocol: dict, out: Path, args: argparse.Namespace) -> None:
