@@ -8,7 +8,6 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from cmarlcd import ConfigError  # noqa: E402
 from cmarlcd.learners.deep.config import DeepConfig  # noqa: E402
 from cmarlcd.learners.deep.value_decomposition import ValueDecomposition  # noqa: E402
 
@@ -113,14 +112,40 @@ def test_stacked_seeds_share_nothing_between_them() -> None:
         torch.testing.assert_close(a[1], b[0], rtol=1e-5, atol=1e-7)
 
 
-def test_the_fused_step_is_refused_and_auto_falls_back_to_autograds() -> None:
-    with pytest.raises(ConfigError) as info:
-        DeepConfig(share=True, step="fused")
-    assert info.value.parameter == "step" and "share" in str(info.value)
+def test_auto_takes_autograds_step_with_sharing() -> None:
     config = DeepConfig(share=True)  # step=auto
     assert not config.auto_fuses
     model = ValueDecomposition([2, 2], 10, config, seeds(0), own_dim=3)
     assert model.fused is None
+
+
+@pytest.mark.parametrize("mixer", ["vdn", "qmix", "independent", "hysteretic"])
+@pytest.mark.parametrize("inputs", ["own", "integers"])
+def test_the_fused_step_of_a_shared_network_is_autograds(mixer: str, inputs: str) -> None:
+    """Three steps of the fused kernels and of autograd from the same weights, with the
+    EPyMARL options on: the same losses and parameters to float32 rounding."""
+    settings = dict(mixer=mixer, hidden=5, share=True, double_q=True, grad_clip=1.0)
+    models = []
+    for step in ("autograd", "fused"):
+        config = DeepConfig(step=step, **settings)
+        if inputs == "own":
+            model = ValueDecomposition([3, 3], STATE + AGENTS * OWN, config, seeds(0, 1),
+                                       own_dim=OWN)  # fmt: skip
+        else:
+            model = ValueDecomposition([3, 3], 7, config, seeds(0, 1))
+        models.append(model)
+    assert models[0].fused is None and models[1].fused is not None
+    generator = torch.Generator().manual_seed(11)
+    for _ in range(3):
+        batch = batch_of(8, generator, seeds_=2)
+        if inputs == "integers":
+            batch["state"] = torch.randint(0, 7, (2, 8), generator=generator)
+            batch["next_state"] = torch.randint(0, 7, (2, 8), generator=generator)
+        losses = [model.td_step(batch) for model in models]
+        assert losses[1] == pytest.approx(losses[0], rel=1e-4, abs=1e-6)
+    for (name, a), (_, b) in zip(models[0].named_parameters(), models[1].named_parameters(),
+                                 strict=True):  # fmt: skip
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-5, msg=name)
 
 
 def test_sharing_works_on_integer_states_too() -> None:

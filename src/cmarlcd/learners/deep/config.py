@@ -186,8 +186,9 @@ class DeepConfig(DeepLearnerConfig):
     share: bool = added_setting(False, "0.7.0")
     """[choice] One agent network per seed for every agent, the agent's one-hot index
     appended to its input (parameter sharing: EPyMARL's default, ``obs_agent_id``), rather
-    than one network per agent (the paper's VDN and QMIX). Its gradient step is
-    autograd's: the fused step covers per-agent networks only."""
+    than one network per agent (the paper's VDN and QMIX). ``step=auto`` takes autograd's
+    step with it (the fused step covers it, ``step=fused``, equal per step to float32
+    rounding, but no study has compared their runs yet)."""
     negative_rate: float | None = added_setting(None, "0.7.0")
     """Hysteretic DQN's β/α ([choice]): each squared TD error whose TD error
     ``r + γ max Q' − Q`` is negative is weighed by it, so with plain gradient descent
@@ -244,12 +245,6 @@ class DeepConfig(DeepLearnerConfig):
         require(self.mixer in MIXERS, "mixer", f"must be one of {known} (got {self.mixer!r})")
         steps = ", ".join(STEPS)
         require(self.step in STEPS, "step", f"must be one of {steps} (got {self.step!r})")
-        require(
-            not (self.share and self.step == "fused"),
-            "step",
-            "the fused step covers per-agent networks only; with share=true use "
-            "step=autograd (or auto, which falls back to it)",
-        )
         if self.grad_clip is not None:
             require(self.grad_clip > 0, "grad_clip", f"must be > 0 (got {self.grad_clip})")
         if self.anneal_steps is not None:

@@ -355,7 +355,41 @@ def agents_backward(agents, grads, b, inputs, grad_c, hidden) -> None:
 
 
 @fused
-def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache) -> float:
+def spread_shared(shared, agents, n: int) -> None:
+    """Each agent's layers (``agents``: B*n groups, seed-major) from one network shared by
+    the agents (``shared``: B groups, the agent's one-hot index the first layer's last
+    ``n`` inputs): agent ``i``'s index row folded into its first bias."""
+    w1, b1, w2, b2 = shared
+    aw1, ab1, aw2, ab2 = agents
+    inputs = aw1.shape[1]
+    for b in range(w1.shape[0]):
+        for i in range(n):
+            g = b * n + i
+            aw1[g] = w1[b, :inputs]
+            ab1[g] = b1[b] + w1[b, inputs + i]
+            aw2[g] = w2[b]
+            ab2[g] = b2[b]
+
+
+@fused
+def gather_shared(agent_grads, shared_grads, b: int, n: int) -> None:
+    """Seed ``b``'s shared gradients += its agents' (the chain rule through
+    :func:`spread_shared`), the agents' then zeroed for the next step."""
+    gw1, gb1, gw2, gb2 = shared_grads
+    aw1, ab1, aw2, ab2 = agent_grads
+    inputs = aw1.shape[1]
+    for i in range(n):
+        g = b * n + i
+        gw1[b, :inputs] += aw1[g]
+        gw1[b, inputs + i] += ab1[g]
+        gb1[b] += ab1[g]
+        gw2[b] += aw2[g]
+        gb2[b] += ab2[g]
+        aw1[g], ab1[g], aw2[g], ab2[g] = 0.0, 0.0, 0.0, 0.0
+
+
+@fused
+def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache, shared) -> float:
     """One step: the summed TD losses of every seed (paper Section V-A/B), their
     gradients left in ``grads``, and Adam's update of every parameter, seed by seed.
 
@@ -375,7 +409,10 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache) -> flo
     states with masks per state, each seed's target ``Q_tot`` at every state, kept
     between steps (it changes only when the target networks or the masks do) and
     recomputed where ``refresh`` (at every step with double Q: the online networks
-    choose the actions).
+    choose the actions). ``shared``: (whether the agents share one network, its
+    gradients): where they do, ``nets``' agents are its per-agent layers
+    (:func:`spread_shared`), their gradients gathered into its own before the seed's
+    update (:func:`gather_shared`), and ``optimiser`` holds its parameters.
     """
     agents, target_agents, mixer, target_mixer = nets
     refresh, target_table = cache
@@ -448,6 +485,8 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache) -> flo
                 qmix, mixer, mixer_grads, b, c, mixed, states[b], index, scratch, work, grad, grad_c
             )
         agents_backward(agents, agent_grads, b, inputs, grad_c, hidden)
+        if shared[0]:
+            gather_shared(agent_grads, shared[1], b, n)
         if clip > 0.0:
             clip_seed(optimiser[1], b, seeds, clip)
         update_seed(optimiser, b, seeds)

@@ -39,14 +39,24 @@ class FusedStep:
         self.model = model
         self.qmix = model.config.mixer == "qmix"
         self.agents, self.target_agents = _arrays(model.agents), _arrays(model.target_agents)
+        self.share = bool(model.config.share)
+        self.shared, self.target_shared = self.agents, self.target_agents
+        if self.share:  # the kernels step per-agent layers spread from the shared network
+            n = model.n_agents
+            self.agents, self.target_agents = _per_agent(self.shared, n), _per_agent(self.shared, n)
         if self.qmix:
             self.mixer, self.target_mixer = _arrays(model.mixer), _arrays(model.target_mixer)
         else:  # VDN has no parameters: empty arrays of the kernels' types
             self.mixer = self.target_mixer = _no_mixer(model.n_seeds)
         self.agent_grads = tuple(np.zeros_like(p) for p in self.agents)
+        self.shared_grads = (
+            tuple(np.zeros_like(p) for p in self.shared) if self.share else _no_shared()
+        )
         self.mixer_grads = tuple(np.zeros_like(p) for p in self.mixer)
-        params = [*self.agents, *(self.mixer if self.qmix else ())]
-        grads = [*self.agent_grads, *(self.mixer_grads if self.qmix else ())]
+        own = self.shared if self.share else self.agents
+        params = [*own, *(self.mixer if self.qmix else ())]
+        grads = [*(self.shared_grads if self.share else self.agent_grads),
+                 *(self.mixer_grads if self.qmix else ())]  # fmt: skip
         self.flat = _flat(params, grads)
         self.rates = np.full(len(params), model.optimizer.param_groups[0]["lr"], np.float64)
         self.adam = adam_settings(model.optimizer)
@@ -66,6 +76,10 @@ class FusedStep:
         the mean loss per seed."""
         self.steps += 1
         per_state = batch["state"].dtype == torch.int64 and "next_legal" not in batch
+        n = self.model.n_agents
+        if self.share:  # the shared networks as they are now, per agent
+            fused_kernels.spread_shared(self.shared, self.agents, n)
+            fused_kernels.spread_shared(self.target_shared, self.target_agents, n)
         arguments = (
             (self.agents, self.target_agents, self.mixer, self.target_mixer),
             (self.agent_grads, self.mixer_grads),
@@ -75,6 +89,7 @@ class FusedStep:
             self._shape(batch),
             (*self.flat, self.rates, (self.steps, *self.adam)),
             (self.refresh, self.target_table),
+            (self.share, self.shared_grads),
         )
         with subnormals_flushed():
             loss = fused_kernels.td_step(*arguments)
@@ -212,6 +227,25 @@ def split_states(state: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
     if array.dtype == np.int64:
         return np.empty((seeds, count, 0), np.float32), array
     return np.ascontiguousarray(array, np.float32), np.zeros((seeds, count), np.int64)
+
+
+def _per_agent(shared: tuple[np.ndarray, ...], n: int) -> tuple[np.ndarray, ...]:
+    """Per-agent layers (B*n groups) for a network shared by ``n`` agents: its first
+    layer without the agents' index rows, the others as they are."""
+    w1, b1, w2, b2 = shared
+    seeds, inputs = w1.shape[0], w1.shape[1] - n
+    return (
+        np.zeros((seeds * n, inputs, w1.shape[2]), np.float32),
+        np.zeros((seeds * n, b1.shape[1]), np.float32),
+        np.zeros((seeds * n, *w2.shape[1:]), np.float32),
+        np.zeros((seeds * n, b2.shape[1]), np.float32),
+    )
+
+
+def _no_shared() -> tuple[np.ndarray, ...]:
+    """Empty stand-ins of a shared network's gradients, of the kernels' types."""
+    return (np.zeros((0, 0, 0), np.float32), np.zeros((0, 0), np.float32),
+            np.zeros((0, 0, 0), np.float32), np.zeros((0, 0), np.float32))  # fmt: skip
 
 
 def _on_the_cpu(model) -> None:
