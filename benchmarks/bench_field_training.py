@@ -81,16 +81,16 @@ def timed(seconds: dict[str, float]):
 
 def one_run(
     name: str, step: str, task: str, preset: str, steps: int, seeds: int, interval: int,
-    episodes: int,
+    episodes: int, share: bool = False, inputs: str = "observations",
 ):  # fmt: skip
     """(wall seconds, seconds per part, the learner's settings, the runs' metrics)."""
     family, rules = games.parse_game(task)
     base = registry.require_learner(name)
     (learner,) = with_preset((base,), preset, rules.spec().max_steps)
-    learner = replace(learner, step=step)
+    learner = replace(learner, step=step, share=share)
     settings = EpisodicRun(
         learner, (steps,), episodes, evaluation_points(steps, interval), episodes,
-        family.options(rules, "observations"), unit="steps",
+        family.options(rules, inputs), unit="steps",
     )  # fmt: skip
     sequences = [np.random.SeedSequence(k) for k in range(seeds)]
     seconds: dict[str, float] = defaultdict(float)
@@ -111,6 +111,8 @@ def main() -> None:
     parser.add_argument("--presets", default="paper,epymarl")
     parser.add_argument("--eval-interval", default="50k")
     parser.add_argument("--eval-episodes", type=int, default=100)
+    parser.add_argument("--share", action="store_true", help="one network for the agents")
+    parser.add_argument("--inputs", default="observations", help="or own-observations")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     import torch
@@ -121,9 +123,10 @@ def main() -> None:
     rows = []
     for preset in args.presets.split(","):
         what = (args.learner, args.step, args.task, preset)
-        one_run(*what, 2_000, 1, 1_000, 2)  # compiled outside the clock
+        form = (args.share, args.inputs)
+        one_run(*what, 2_000, 1, 1_000, 2, *form)  # compiled outside the clock
         wall, seconds, learner, metrics = one_run(
-            *what, steps, args.seeds, interval, args.eval_episodes
+            *what, steps, args.seeds, interval, args.eval_episodes, *form
         )
         acting = wall - sum(seconds.get(part, 0.0) for part in PARTS)
         last = [run["curve"][-1][2] for run in metrics]
