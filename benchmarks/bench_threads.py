@@ -8,6 +8,7 @@ multiply-adds of the step's forward pass (:func:`cmarlcd.learners.deep.threads.s
 beside them, so the work per thread below which more threads cost more can be read off.
 
     python benchmarks/bench_threads.py --max-threads 2 --seeds 1 5 30
+    python benchmarks/bench_threads.py --threads 1 2 4 8 16 --seeds 1 30 --repeats 3
 """
 
 from __future__ import annotations
@@ -66,12 +67,13 @@ def step_ms(model: ValueDecomposition, batch: dict, threads: int, repeats: int) 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--max-threads", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--threads", type=int, nargs="+", help="these counts instead of 1..max")
     p.add_argument("--seeds", type=int, nargs="+", default=[1, 5, 30])
     p.add_argument("--repeats", type=int, default=20)
     args = p.parse_args()
     print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch "
           f"{torch.__version__}, load {os.getloadavg()[0]:.2f}")  # fmt: skip
-    threads = list(range(1, args.max_threads + 1))
+    threads = args.threads or list(range(1, args.max_threads + 1))
     print(f"{'model':38s} {'seeds':>5s} {'step':>8s} {'work (M)':>9s} "
           + " ".join(f"{t:>2d} thr ms" for t in threads))  # fmt: skip
     for name, config, counts, in_dim, own, index in MODELS:

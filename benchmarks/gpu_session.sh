@@ -84,9 +84,9 @@ EOF
 }
 step "a tournament over GPU workers (--gpu-tasks 2 of --workers 4)" sweep
 
-threads() {  # a CPU step's time with 1 to 16 intra-op threads (the threads' rule)
-    "$python" benchmarks/bench_threads.py --max-threads "$(nproc)" --seeds 1 10 30 \
-        --repeats 5 2>&1 | tee "$OUT/threads.log"
+threads() {  # a CPU step's time with 1 to 16 intra-op threads (for the threads' rule)
+    "$python" benchmarks/bench_threads.py --threads 1 2 4 8 16 --seeds 1 30 --repeats 3 \
+        2>&1 | tee "$OUT/threads.log"
 }
 step "a gradient step's time by threads, on the CPU" threads
 
