@@ -73,8 +73,6 @@ def replay_match(
 
     game, env = spec.kernels, spec.new_env()
     side_rngs = rng.spawn(MAX_TEAMS)
-    counts = [len(p.counts) for p in policies]
-    offsets = (0, counts[0])
     legal = np.zeros((spec.n_agents, spec.width), np.bool_)
     joint = np.zeros(spec.n_agents, np.int64)
     x = np.zeros(spec.n_features, np.float32)
@@ -86,11 +84,7 @@ def replay_match(
         game.reset(env, rng)
         turns, total = 0, np.zeros(2)
         while turns < spec.max_steps:
-            for team, policy in enumerate(policies):
-                lo, hi = offsets[team], offsets[team] + counts[team]
-                joint[lo:hi] = team_action(
-                    policy, game, env, team, lo, legal, x, side_rngs[team], spec.action_counts
-                )
+            joint_action(policies, spec, env, legal, x, side_rngs, joint)
             game.step(env, joint, rng, rewards)
             total += rewards
             turns += 1
@@ -98,6 +92,26 @@ def replay_match(
                 break
         returns[e], lengths[e], terminated[e] = total, turns, game.done(env)
     return tally(Outcome(returns, lengths, terminated))
+
+
+def by_team(policy: Any, partner: Any) -> tuple[Any, Any]:
+    """A match's two kept policies in team order (team 0's first), or one clear error."""
+    teams = sorted((policy, partner), key=lambda p: int(p.metadata["team"]))
+    require([int(p.metadata["team"]) for p in teams] == [0, 1], "policy",
+            "a match's two files are its team 0 and team 1")  # fmt: skip
+    return teams[0], teams[1]
+
+
+def joint_action(policies, spec, env, legal, x, rngs, joint) -> None:
+    """``joint`` := both teams' greedy joint actions now (team 0's agents first), each as
+    its side plays at evaluation, drawing from its own stream of ``rngs``."""
+    offset = 0
+    for team, policy in enumerate(policies):
+        n = len(policy.counts)
+        joint[offset : offset + n] = team_action(
+            policy, spec.kernels, env, team, offset, legal, x, rngs[team], spec.action_counts
+        )
+        offset += n
 
 
 def team_action(policy, game, env, team, offset, legal, x, rng, action_counts) -> np.ndarray:
@@ -133,9 +147,7 @@ def evaluate_match(
 
     require(partner is not None, "policy", "a match's policy plays with its partner's file")
     pairing = Pairing.from_config(spec.config)
-    teams = sorted((policy, partner), key=lambda p: int(p.metadata["team"]))
-    require([int(p.metadata["team"]) for p in teams] == [0, 1], "policy",
-            "a match's two files are its team 0 and team 1")  # fmt: skip
+    teams = by_team(policy, partner)
     game = pairing.rules.spec()
     for team, kept in enumerate(teams):
         theirs = [int(c) for c in kept.counts]
@@ -149,7 +161,7 @@ def evaluate_match(
         rng = np.random.default_rng(spec.seed_sequence().spawn(4)[3])
     else:
         rng = np.random.default_rng(0 if seed is None else seed)
-    result = replay_match((teams[0], teams[1]), game, count, rng)
+    result = replay_match(teams, game, count, rng)
     team = int(policy.metadata["team"])
     return {
         "game": "battlefield", "algorithm": spec.algorithm, "episodes": count,

@@ -127,22 +127,22 @@ class _MatchPlayers:
     kind = "match"
 
     def __init__(self, policy: Any, partner: Any, env: Any, seed: int) -> None:
-        self.teams = sorted((policy, partner), key=lambda p: int(p.metadata["team"]))
+        from cmarlcd.experiments.match_policies import by_team
+
+        self.teams = by_team(policy, partner)
         self.metadata = {"inputs": "observations"}
         self.env, self.rngs = env, np.random.default_rng([seed, 1]).spawn(2)
         spec = env.spec
         self.legal = np.zeros((spec.n_agents, spec.width), np.bool_)
         self.x = np.zeros(spec.n_features, np.float32)
+        self.joint = np.zeros(spec.n_agents, np.int64)
 
     def act(self, observations: Any, state: Any = None, masks: Any = None) -> dict[str, int]:
-        from cmarlcd.experiments.match_policies import team_action
+        from cmarlcd.experiments.match_policies import joint_action
 
-        spec, env, joint, offset = self.env.spec, self.env.env, [], 0
-        for team, kept in enumerate(self.teams):
-            joint += list(team_action(kept, spec.kernels, env, team, offset, self.legal,
-                                       self.x, self.rngs[team], spec.action_counts))  # fmt: skip
-            offset += len(kept.counts)
-        return {a: int(x) for a, x in zip(self.env.agents, joint, strict=True)}
+        env = self.env
+        joint_action(self.teams, env.spec, env.env, self.legal, self.x, self.rngs, self.joint)
+        return {a: int(x) for a, x in zip(env.agents, self.joint, strict=True)}
 
 
 def _picture(env: Any) -> str | None:
