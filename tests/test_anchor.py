@@ -200,3 +200,85 @@ def test_the_epymarl_anchor_runs_each_job_once_however_many_at_a_time(monkeypatc
         done.clear()
         module.run_jobs("epymarl", todo, protocol, Path("."), type("A", (), {"parallel": parallel}))
         assert sorted(done) == sorted(todo) and len(done) == 8
+
+
+def launcher_module():
+    path = EPYMARL.with_name("epymarl_agents.py")
+    spec = importlib.util.spec_from_file_location("epymarl_agents", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_one_layer_agent_is_one_hidden_layer_by_hand() -> None:
+    """EPyMARL's agent with cmarl-cd's model class: Q = W2 ReLU(W1 x + b1) + b2, and the
+    hidden state it is handed comes back as it was (it carries none)."""
+    import torch
+
+    module = launcher_module()
+    args = type("Args", (), {"hidden_dim": 2, "n_actions": 2})
+    agent = module.OneHiddenLayerAgent(3, args)
+    assert sorted(name for name, _ in agent.named_parameters()) == [
+        "fc1.bias", "fc1.weight", "fc2.bias", "fc2.weight"
+    ]  # fmt: skip
+    with torch.no_grad():
+        agent.fc1.weight.copy_(torch.tensor([[1.0, 0.0, -1.0], [0.5, 2.0, 0.0]]))
+        agent.fc1.bias.copy_(torch.tensor([0.0, -1.0]))
+        agent.fc2.weight.copy_(torch.tensor([[1.0, -1.0], [2.0, 0.5]]))
+        agent.fc2.bias.copy_(torch.tensor([0.25, 0.0]))
+    x = torch.tensor([[1.0, 1.0, 3.0]])  # hidden: ReLU(-2) = 0, ReLU(0.5 + 2 - 1) = 1.5
+    hidden = torch.full((1, 2), 7.0)
+    q, kept = agent(x, hidden)
+    assert q.tolist() == [[0.25 - 1.5, 0.75]] and torch.equal(kept, hidden)
+    assert agent.init_hidden().shape == (1, 2)
+
+
+def test_the_launcher_registers_the_agent_and_runs_epymarls_main(tmp_path: Path) -> None:
+    """On a stand-in EPyMARL tree: ``src`` on the path, the agent in its registry, and
+    ``src/main.py`` run as ``__main__`` with the command line it was given."""
+    agents = tmp_path / "src" / "modules" / "agents"
+    agents.mkdir(parents=True)
+    (tmp_path / "src" / "modules" / "__init__.py").write_text("")
+    (agents / "__init__.py").write_text("REGISTRY = {'rnn': object}\n")
+    (tmp_path / "src" / "main.py").write_text(
+        "import sys\nfrom modules.agents import REGISTRY\n"
+        "if __name__ == '__main__':\n"
+        "    print(sorted(REGISTRY), REGISTRY['one_layer'].__name__, sys.argv)\n"
+    )
+    launcher = EPYMARL.with_name("epymarl_agents.py")
+    done = subprocess.run(
+        [sys.executable, str(launcher), "src/main.py", "--config=iql", "with", "agent=one_layer"],
+        cwd=tmp_path, capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == (
+        "['one_layer', 'rnn'] OneHiddenLayerAgent ['src/main.py', '--config=iql', 'with', "
+        "'agent=one_layer']"
+    )
+    missing = subprocess.run(
+        [sys.executable, str(launcher), "src/nothing.py"], cwd=tmp_path, capture_output=True,
+        text=True, check=False,
+    )  # fmt: skip
+    assert missing.returncode == 1 and missing.stderr.startswith("usage: ")
+
+
+@pytest.mark.parametrize("agent", ["mlp", "one-layer"])
+def test_the_epymarl_command_of_each_agent(agent: str, monkeypatch, tmp_path: Path) -> None:
+    spec = importlib.util.spec_from_file_location("epymarl_anchor", EPYMARL)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    seen: list[list[str]] = []
+
+    def fake_run(command, **kwargs):
+        seen.append(command)
+        return subprocess.CompletedProcess(command, 1)
+
+    monkeypatch.setattr(module.subprocess, "run", fake_run)
+    protocol = {"steps": 100, "eval_interval": 50, "eval_episodes": 10, "agent": agent}
+    with pytest.raises(SystemExit):
+        module.epymarl("8x8-2p-2f-coop", "iql", 0, protocol, tmp_path, tmp_path / "l.log", True)
+    (command,) = seen
+    launched = command[1] == str(EPYMARL.with_name("epymarl_agents.py").resolve())
+    assert launched == (agent == "one-layer")
+    assert command[1 + launched] == "src/main.py" and "use_rnn=False" in command
+    assert ("agent=one_layer" in command) == (agent == "one-layer")

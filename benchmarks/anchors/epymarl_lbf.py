@@ -59,9 +59,17 @@ STAND_INS = {
 }
 SIDES = ("cmarl-cd", "epymarl")
 #: EPyMARL's agent networks: ``rnn``, its configs as they are (``use_rnn: True``, a GRU
-#: for the second layer), or ``mlp``, the same configs with ``use_rnn=False`` (a ReLU
-#: layer there: a feed-forward network, the model class of cmarl-cd's agents).
-AGENTS = {"rnn": (), "mlp": ("use_rnn=False",)}
+#: for the second layer); ``mlp``, the same configs with ``use_rnn=False`` (a ReLU layer
+#: there: a feed-forward network of two hidden layers); ``one-layer``, the same with one
+#: hidden layer, cmarl-cd's model class (``epymarl_agents.py`` adds it to EPyMARL's
+#: registry and launches EPyMARL's ``src/main.py``).
+AGENTS = {
+    "rnn": (),
+    "mlp": ("use_rnn=False",),
+    "one-layer": ("use_rnn=False", "agent=one_layer"),
+}
+#: The launcher of the agents EPyMARL's tree lacks (``--agent one-layer``).
+LAUNCHER = Path(__file__).with_name("epymarl_agents.py")
 #: cmarl-cd's agent networks: ``shared``, one network for every agent with the agent's
 #: one-hot index in its input (``share=true``, as EPyMARL's configs), or ``per-agent``,
 #: one network an agent (the preset's; the anchor's jobs before ``share`` existed).
@@ -100,7 +108,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--eval-episodes", default="100", help="episodes a greedy test")
     p.add_argument("--sides", default=",".join(SIDES), help="which sides to compute")
     p.add_argument("--agent", default="rnn", help="EPyMARL's agents: rnn (its configs: a "
-                   "GRU) or mlp (use_rnn=False: feed-forward, as cmarl-cd's)")  # fmt: skip
+                   "GRU), mlp (use_rnn=False: feed-forward, two hidden layers) or one-layer "
+                   "(feed-forward, one hidden layer: cmarl-cd's model class)")  # fmt: skip
     p.add_argument("--ours", default="shared", help="cmarl-cd's agents: shared (one "
                    "network, the agent's id in its input) or per-agent")  # fmt: skip
     p.add_argument("--out", default="results/anchor-epymarl", help="where runs are kept")
@@ -305,8 +314,10 @@ def epymarl(
         (stand_ins / module / "__init__.py").write_text(text)
     key = f"lbforaging:Foraging-{task}-v3"
     tag = f"cmarlcd-anchor-{task}-{algorithm}-{seed}-{time.time_ns()}"
+    launcher = (str(LAUNCHER.resolve()),) if protocol["agent"] == "one-layer" else ()
     command = [
-        sys.executable, "src/main.py", f"--config={algorithm}", "--env-config=gymma", "with",
+        sys.executable, *launcher, "src/main.py", f"--config={algorithm}",
+        "--env-config=gymma", "with",
         f"env_args.time_limit={TIME_LIMIT}", f"env_args.key={key}", f"seed={seed}",
         f"t_max={protocol['steps']}", f"test_interval={protocol['eval_interval']}",
         f"log_interval={protocol['eval_interval']}", f"test_nepisode={protocol['eval_episodes']}",
