@@ -57,7 +57,8 @@ DIFFERENCES = (
         "parameter sharing",
         "one agent network shared by the agents, the agent's one-hot id in its input",
         "a network per agent (EPyMARL's non-shared variant, which its paper also reports), "
-        "so no id: an id is a constant input of an agent's own network",
+        "so no id: an id is a constant input of an agent's own network; ``share=true`` "
+        "(``--set LEARNER.share=true``) shares one with the id, as EPyMARL's configs",
     ),
     (
         "agent network",
@@ -68,6 +69,20 @@ DIFFERENCES = (
         "QMIX's hypernetworks",
         "two layers (hypernet_embed 64) for the mixing weights",
         "one layer: the mixer of the paper's QMIX",
+    ),
+    (
+        "batches",
+        "32 whole episodes, every transition of each",
+        "32 · cap transitions drawn one by one from the buffer: as many transitions, from "
+        "more episodes, each drawn on its own (the buffer keeps transitions)",
+    ),
+    (
+        "the step cap",
+        "a termination on LBF: lbforaging 2.0.0 reports its 50th step as done and EPyMARL's "
+        "gym wrapper passes no time-limit flag, so the runner stores it as terminated and "
+        "the TD target does not bootstrap there",
+        "a truncation (the games' [choice]): the target bootstraps at the cap, since the "
+        "step count is in no observation",
     ),
     (
         "ε within an episode",
