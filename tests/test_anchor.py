@@ -133,6 +133,7 @@ def test_the_epymarl_anchor_shows_its_help_without_epymarl() -> None:
         (["--parallel", "0"], "--parallel: must be >= 1"),
         (["--agent", "gru"], "--agent: unknown 'gru'"),
         (["--ours", "twin"], "--ours: unknown 'twin'"),
+        (["--layers", "0"], "--layers: must be >= 1 (got 0)"),
     ],
 )
 def test_the_epymarl_anchor_refuses_bad_input_in_one_line(args, says, tmp_path: Path) -> None:
@@ -282,3 +283,32 @@ def test_the_epymarl_command_of_each_agent(agent: str, monkeypatch, tmp_path: Pa
     assert launched == (agent == "one-layer")
     assert command[1 + launched] == "src/main.py" and "use_rnn=False" in command
     assert ("agent=one_layer" in command) == (agent == "one-layer")
+
+
+@pytest.mark.parametrize(("ours", "layers"), [("shared", 1), ("shared", 2), ("per-agent", 2)])
+def test_cmarl_cds_command_and_job_of_each_form(ours, layers, monkeypatch, tmp_path) -> None:
+    """Our side's settings follow --ours and --layers, and each form is a job of its own
+    (EPyMARL's feed-forward agent has two hidden layers: --agent mlp --layers 2)."""
+    spec = importlib.util.spec_from_file_location("epymarl_anchor", EPYMARL)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    seen: list[list[str]] = []
+
+    def fake_run(command, **kwargs):
+        seen.append(command)
+        return subprocess.CompletedProcess(command, 1)
+
+    monkeypatch.setattr(module.subprocess, "run", fake_run)
+    protocol = {"steps": 100, "eval_interval": 50, "eval_episodes": 10, "seeds": 1,
+                "algorithms": ["iql", "vdn"], "ours": ours, "layers": layers}  # fmt: skip
+    with pytest.raises(SystemExit):
+        module.ours("8x8-2p-2f-coop", protocol, tmp_path, tmp_path / "l.log")
+    (command,) = seen
+    settings = command[command.index("--set") + 1].split(",") if "--set" in command else []
+    expected = [f"{learner}.{s}" for learner in ("deep-iql", "vdn")
+                for s in (["share=true"] if ours == "shared" else [])
+                + ([f"hidden_layers={layers}"] if layers > 1 else [])]  # fmt: skip
+    assert settings == expected
+    job = module.cmarlcd_job("8x8-2p-2f-coop", protocol)
+    assert job == ("8x8-2p-2f-coop", *(("shared",) if ours == "shared" else ()),
+                   *((f"layers{layers}",) if layers > 1 else ()))  # fmt: skip

@@ -89,7 +89,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             run_jobs(side, jobs(side, protocol), protocol, out, args)
     summary = summarise(out, protocol)
     name = "-".join(["anchor", *(() if protocol["agent"] == "rnn" else (protocol["agent"],)),
-                     *(() if protocol["ours"] == "shared" else (protocol["ours"],))])  # fmt: skip
+                     *(() if protocol["ours"] == "shared" else (protocol["ours"],)),
+                     *layers_tag(protocol)])  # fmt: skip
     write(out / f"{name}.json", summary)
     (out / f"{name}.md").write_text(table(summary) + "\n")
     figure(summary, out / f"{name}.png")
@@ -112,6 +113,8 @@ def parser() -> argparse.ArgumentParser:
                    "(feed-forward, one hidden layer: cmarl-cd's model class)")  # fmt: skip
     p.add_argument("--ours", default="shared", help="cmarl-cd's agents: shared (one "
                    "network, the agent's id in its input) or per-agent")  # fmt: skip
+    p.add_argument("--layers", type=int, default=1, help="cmarl-cd's hidden layers an agent "
+                   "network (2: EPyMARL's feed-forward agent, as --agent mlp)")  # fmt: skip
     p.add_argument("--out", default="results/anchor-epymarl", help="where runs are kept")
     p.add_argument("--any-commit", action="store_true", help="allow another EPyMARL commit")
     p.add_argument("--parallel", type=int, default=1, help="EPyMARL runs at a time (one "
@@ -153,6 +156,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
             raise ValueError(f"--sides: unknown {side!r} (one of {', '.join(SIDES)})")
     if args.parallel < 1:
         raise ValueError(f"--parallel: must be >= 1 (got {args.parallel})")
+    if args.layers < 1:
+        raise ValueError(f"--layers: must be >= 1 (got {args.layers})")
     if args.ours not in OURS:
         raise ValueError(f"--ours: unknown {args.ours!r} (one of {', '.join(OURS)})")
     if args.agent not in AGENTS:
@@ -165,7 +170,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     if "epymarl" in sides and not args.report_only:
         checkout_commit(args.epymarl, args.any_commit)
     protocol = {"tasks": tasks, "algorithms": algorithms, "sides": sides, "seeds": args.seeds,
-                "agent": args.agent, "ours": args.ours}  # fmt: skip
+                "agent": args.agent, "ours": args.ours, "layers": args.layers}  # fmt: skip
     episodes = count(args.eval_episodes, "eval-episodes")
     return {**protocol, "steps": steps, "eval_interval": interval, "eval_episodes": episodes}
 
@@ -199,8 +204,15 @@ def jobs(side: str, protocol: dict) -> list[tuple]:
 def cmarlcd_job(task: str, protocol: dict) -> tuple:
     """cmarl-cd's job on a task: ``(task, "shared")`` where its agents share one network
     (as EPyMARL's configs), ``(task,)`` where each has its own (the jobs before ``share``
-    existed)."""
-    return (task, "shared") if protocol["ours"] == "shared" else (task,)
+    existed); ``layersN`` after it where its networks have N > 1 hidden layers."""
+    base = (task, "shared") if protocol["ours"] == "shared" else (task,)
+    return (*base, *layers_tag(protocol))
+
+
+def layers_tag(protocol: dict) -> tuple[str, ...]:
+    """``("layersN",)`` where cmarl-cd's agent networks have N > 1 hidden layers."""
+    layers = protocol.get("layers", 1)
+    return () if layers == 1 else (f"layers{layers}",)
 
 
 def epymarl_job(task: str, algorithm: str, seed: int, protocol: dict) -> tuple:
@@ -275,10 +287,14 @@ def version(package: str) -> str:
 def ours(task: str, protocol: dict, out: Path, log: Path) -> dict[str, Any]:
     """``cmarl-cd field`` on the task: every learner and seed, one worker."""
     learners = ",".join(ALGORITHMS[a] for a in protocol["algorithms"])
+    settings = [
+        *(("share=true",) if protocol["ours"] == "shared" else ()),
+        *((f"hidden_layers={protocol['layers']}",) if layers_tag(protocol) else ()),
+    ]
     command = [
         "field", "--tasks", f"foraging:{task}", "--learners", learners, "--preset", "epymarl",
-        *(("--set", ",".join(f"{ALGORITHMS[a]}.share=true" for a in protocol["algorithms"]))
-          if protocol["ours"] == "shared" else ()),
+        *(("--set", ",".join(f"{ALGORITHMS[a]}.{s}" for a in protocol["algorithms"]
+                              for s in settings)) if settings else ()),
         "--inputs", "own-observations", "--seeds", str(protocol["seeds"]),
         "--steps", str(protocol["steps"]), "--eval-interval", str(protocol["eval_interval"]),
         "--eval-episodes", str(protocol["eval_episodes"]), "--workers", "1", "--no-progress",
@@ -413,7 +429,8 @@ def table(summary: dict) -> str:
 
     p = summary["protocol"]
     lines = [
-        f"EPyMARL {COMMIT} ({p['agent']} agents) and cmarl-cd ({p['ours']} agents) on LBF: "
+        f"EPyMARL {COMMIT} ({p['agent']} agents) and cmarl-cd ({p['ours']} agents, "
+        f"{p.get('layers', 1)} hidden layer{'s' if p.get('layers', 1) > 1 else ''}) on LBF: "
         f"{p['steps']:,} steps, {p['seeds']} seeds, "
         f"{p['eval_episodes']} greedy episodes every {p['eval_interval']:,} steps",
         "",

@@ -17,6 +17,8 @@ def random_weights(rng: np.random.Generator) -> Weights:
     return Weights(
         *(rng.standard_normal(shape).astype(np.float32) for shape in shapes),
         rng.standard_normal((AGENTS, WIDTH)).astype(np.float32),
+        np.zeros((AGENTS, 0, HIDDEN, HIDDEN), np.float32),  # one hidden layer
+        np.zeros((AGENTS, 0, HIDDEN), np.float32),
     )
 
 

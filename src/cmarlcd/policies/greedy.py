@@ -115,7 +115,9 @@ class TablePolicy(_Acting):
 
 class NetworkPolicy(_Acting):
     """A deep learner's agent networks: ``w1`` (n, in, hidden), ``b1`` (n, hidden), ``w2``
-    (n, hidden, width), ``b2`` (n, width), ``counts`` (n,); deep CMARL-CD's clip and, where
+    (n, hidden, width), ``b2`` (n, width), ``counts`` (n,), where they have more than one
+    hidden layer the middle ones' ``wm`` (n, layers - 1, hidden, hidden) and ``bm`` (n,
+    layers - 1, hidden); deep CMARL-CD's clip and, where
     it acts from its memory, the memory's ``memory_keys`` (m,) and ``memory_degrees`` (m,
     n, width). ``metadata``: ``n_states`` (integer states, read one-hot) or None (features),
     ``own_dim`` (each agent reads its own ``own_dim`` features, the last ``n * own_dim`` of
@@ -154,6 +156,9 @@ class NetworkPolicy(_Acting):
                 hidden = np.maximum(np.matmul(x, w1) + b1[:, None, :], 0)
             else:
                 hidden = np.maximum(np.matmul(x[None], w1) + b1[:, None, :], 0)
+        if "wm" in a:  # the hidden layers after the first
+            for m in range(a["wm"].shape[1]):
+                hidden = np.maximum(np.matmul(hidden, a["wm"][:, m]) + a["bm"][:, m, None, :], 0)
         q = (np.matmul(hidden, w2) + b2[:, None, :]).transpose(1, 0, 2)  # (N, n, width)
         clip = meta.get("clip")
         return q if clip is None else np.clip(q, clip[0], clip[1])

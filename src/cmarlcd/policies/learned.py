@@ -67,14 +67,17 @@ def seed_network(
     memory: Any,
     metadata: Mapping[str, Any],
 ) -> NetworkPolicy:
-    """One seed's agent networks from their per-agent ``layers`` (w1, b1, w2, b2,
-    agent-major, as the compiled loop reads them: a shared network's weights with each
-    agent's index folded into its bias), deep CMARL-CD's clip and, where it acts from its
-    keyed ``memory`` (that seed's view), the memory's keys and degrees."""
+    """One seed's agent networks from their per-agent ``layers`` (w1, b1, w2, b2 and the
+    middle layers' wm, bm, agent-major, as the compiled loop reads them: a shared
+    network's weights with each agent's index folded into its bias), deep CMARL-CD's clip
+    and, where it acts from its keyed ``memory`` (that seed's view), the memory's keys and
+    degrees. A network of one hidden layer keeps no ``wm``, ``bm`` (its files as before)."""
     arrays = {
         name: np.asarray(layer, np.float32).copy()
-        for name, layer in zip(("w1", "b1", "w2", "b2"), layers, strict=True)
+        for name, layer in zip(("w1", "b1", "w2", "b2", "wm", "bm"), layers, strict=True)
     }
+    if arrays["wm"].shape[1] == 0:
+        del arrays["wm"], arrays["bm"]
     arrays["counts"] = np.asarray(counts, np.int64)
     meta = {"n_states": None, "own_dim": None, **metadata, "clip": None}
     if hasattr(config, "c_min"):  # deep CMARL-CD: degrees clipped as it acts

@@ -64,6 +64,11 @@ class Weights(NamedTuple):
     """(n_agents, hidden, width)"""
     b2: np.ndarray
     """(n_agents, width)"""
+    wm: np.ndarray
+    """(n_agents, layers - 1, hidden, hidden): the hidden layers after the first
+    (``hidden_layers``; empty along its second axis for one hidden layer)"""
+    bm: np.ndarray
+    """(n_agents, layers - 1, hidden)"""
 
 
 class GreedyCache(NamedTuple):
@@ -177,7 +182,8 @@ def hidden_layer(weights, agent: int, x, hidden) -> None:
 def hidden_layer_at(weights, agent: int, x, lo: int, hidden) -> None:
     """``hidden`` := ReLU(x[lo : lo + d] W1 + b1) of agent ``agent`` (``d``: its
     network's inputs, the whole feature vector or its own observation), in float32 as
-    the networks compute it (``hidden`` is a float32 scratch).
+    the networks compute it (``hidden`` is a float32 scratch), then through its middle
+    layers where it has more than one (:func:`middle_layers`).
 
     Each unit's sum runs over the features in their order, as before, but the units
     are summed side by side, so that the inner loop (over units, along W1's rows)
@@ -185,7 +191,7 @@ def hidden_layer_at(weights, agent: int, x, lo: int, hidden) -> None:
     these are the very sums of the unit-by-unit loop, bit for bit
     (``tests/training/test_deep_kernels.py``)."""
     w1, b1 = weights[0], weights[1]
-    units = hidden.shape[0]
+    units = b1.shape[1]
     for h in range(units):
         hidden[h] = b1[agent, h]
     for f in range(w1.shape[1]):
@@ -197,6 +203,36 @@ def hidden_layer_at(weights, agent: int, x, lo: int, hidden) -> None:
     for h in range(units):
         if not hidden[h] > 0.0:  # ReLU (a NaN, too, becomes 0)
             hidden[h] = 0.0
+    if weights[4].shape[1] > 0:
+        middle_layers(weights[4], weights[5], agent, hidden)
+
+
+@kernel
+def middle_layers(wm, bm, agent: int, hidden) -> None:
+    """``hidden[:H]`` := the agent's hidden layers after the first (each ``ReLU(h Wm +
+    bm)``, ``Weights.wm``) applied to it in turn, summed as :func:`hidden_layer_at` sums
+    (float32, units side by side, zeros skipped); ``hidden[H:2H]`` is its scratch (the
+    kernels allocate nothing: :func:`hidden_scratch` sizes it)."""
+    units = wm.shape[2]
+    for m in range(wm.shape[1]):  # the next layer in hidden[units:], then moved down
+        for h in range(units):
+            hidden[units + h] = bm[agent, m, h]
+        for f in range(units):
+            value = hidden[f]
+            if value == 0.0:
+                continue
+            for h in range(units):
+                hidden[units + h] += value * wm[agent, m, f, h]
+        for h in range(units):
+            inner = hidden[units + h]
+            hidden[h] = inner if inner > 0.0 else 0.0
+
+
+def hidden_scratch(weights: Weights) -> np.ndarray:
+    """The float32 scratch :func:`hidden_layer_at` needs for ``weights``: the hidden
+    layer's units, twice that where the networks have middle layers."""
+    units = weights.b1.shape[1]
+    return np.zeros(units * (2 if weights.wm.shape[1] else 1), np.float32)
 
 
 @kernel
@@ -205,7 +241,7 @@ def output_unit(weights, agent: int, hidden, a: int) -> float:
     :func:`hidden_layer`): b2[a] + sum_h hidden[h] W2[h, a], summed in float64."""
     w2 = weights[2]
     q = np.float64(weights[3][agent, a])
-    for h in range(hidden.shape[0]):
+    for h in range(w2.shape[1]):
         q += np.float64(hidden[h]) * w2[agent, h, a]
     return q
 

@@ -90,7 +90,11 @@ class KeyedKind:
         n, width, steps = counts.shape[0], int(counts.max()), spec.max_steps
         capacity = config.buffer_size if features else min(config.buffer_size, spec.n_states)
         hidden = config.record_hidden
-        shapes = ((features, hidden), (hidden,), (hidden, 1), (1,)) if features else ((0, 0),) * 4
+        shapes = (
+            ((features, hidden), (hidden,), (hidden, 1), (1,), (0, hidden, hidden), (0, hidden))
+            if features
+            else ((0, 0), (0, 0), (0, 0), (0, 0), (0, 0, 0), (0, 0))
+        )  # the record network: one hidden layer (no middle ones)
         return KeyedReplay(
             new_memory(seeds, capacity, n, width, features, config.ways),
             np.zeros((seeds, steps), np.uint64),

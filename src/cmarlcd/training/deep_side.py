@@ -65,6 +65,7 @@ from cmarlcd.training.deep_kernels import (
     IndexData,
     Weights,
     deep_kernels,
+    hidden_scratch,
     inputs_of,
 )
 from cmarlcd.training.deep_replay import KEYED, RING
@@ -186,11 +187,9 @@ class DeepGroup(Group):
         self.ring = self.replay_kind.new(config, seeds, counts, spec, features)
         """Every seed's replay (a ring of transitions, or a learner's own kind)."""
         if inputs == "features":
+            # (seeds * n, own or features, hidden), ... as the networks lay them out
             self.weights = Weights(
-                np.zeros((seeds * n, own or features, config.hidden), np.float32),
-                np.zeros((seeds * n, config.hidden), np.float32),
-                np.zeros((seeds * n, config.hidden, width), np.float32),
-                np.zeros((seeds * n, width), np.float32),
+                *(np.zeros(tuple(w.shape), np.float32) for w in self.model.agents.feature_weights())
             )
         else:
             self.values = np.zeros((seeds, spec.n_states, n, width), np.float32)
@@ -300,7 +299,7 @@ class DeepSide(Side):
             self.data = FeatureData(
                 counts,
                 Weights(*(array[agents] for array in group.weights)),
-                np.zeros(config.hidden, np.float32),
+                hidden_scratch(group.weights),
                 np.zeros((steps + 2, spec.n_features), np.float32),  # + the greedy row
                 np.zeros((steps + 1, n, width), np.bool_),
                 joints,

@@ -79,7 +79,7 @@ def test_the_shared_gradient_is_the_sum_of_the_agents_gradients(mixer: str) -> N
     pairs = ((shared.agents, apart.agents), (shared.target_agents, apart.target_agents))
     for source, copy in pairs:
         with torch.no_grad():
-            w1, b1, w2, b2 = source.feature_weights()
+            w1, b1, w2, b2, _, _ = source.feature_weights()
             copy.first.weight.copy_(w1), copy.first.bias.copy_(b1)
             copy.second.weight.copy_(w2), copy.second.bias.copy_(b2)
     apart.mixer.load_state_dict(shared.mixer.state_dict())

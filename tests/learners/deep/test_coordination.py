@@ -64,7 +64,8 @@ def test_shared_degree_network_gives_the_loop_each_agent_s_layers() -> None:
     """The per-agent weights the compiled loop reads compute what the network computes."""
     net = model(DeepCMARLCDConfig(share=True, hidden=5), counts=(2, 3), in_dim=4)
     x = torch.randn(1, 6, 4)
-    w1, b1, w2, b2 = net.agents.feature_weights()
+    w1, b1, w2, b2, wm, bm = net.agents.feature_weights()
+    assert wm.shape == (2, 0, 5, 5) and bm.shape == (2, 0, 5)  # one hidden layer
     for i in range(2):
         by_hand = torch.relu(x[0] @ w1[i] + b1[i]) @ w2[i] + b2[i]
         assert torch.allclose(net.agents(x)[0, :, i], by_hand, atol=1e-5)

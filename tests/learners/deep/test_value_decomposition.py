@@ -298,7 +298,8 @@ def test_agents_read_their_own_observation_and_the_mixer_the_state(mixer: str) -
     model = ValueDecomposition([2, 2], 10, DeepConfig(mixer=mixer, hidden=5), seeds(1), own_dim=3)
     state = torch.randn(1, 6, 10)
     q = model.agents(state)  # (1, 6, 2, 2)
-    w1, b1, w2, b2 = (t.detach().numpy() for t in model.agents.feature_weights())
+    w1, b1, w2, b2, wm, _ = (t.detach().numpy() for t in model.agents.feature_weights())
+    assert wm.shape[1] == 0  # one hidden layer
     x = state.numpy()[0]
     for i, own in enumerate((x[:, 4:7], x[:, 7:10])):
         expected = np.maximum(own @ w1[i] + b1[i], 0.0) @ w2[i] + b2[i]

@@ -9,7 +9,8 @@ matrix products, and no parameter is shared between seeds.
   state, so a network is evaluated once per distinct state and then looked up.
 * :class:`AgentNetworks` -- one MLP per agent ([choice] ``share=False``, the paper's VDN
   and QMIX): state (or, with ``own_dim``, the agent's own observation) -> hidden (ReLU)
-  -> a value per action.
+  -> a value per action; with ``layers`` > 1 ([choice] ``hidden_layers``, EPyMARL's
+  feed-forward agent has two), more hidden layers of the same width (ReLU) between.
 * :class:`SharedAgentNetwork` -- one MLP per seed for every agent ([choice]
   ``share=True``, EPyMARL's default ``agent: rnn`` with ``obs_agent_id``, here without the
   recurrent layer), the agent's one-hot index appended to its input. The compiled loops
@@ -86,8 +87,34 @@ def identity(x: torch.Tensor) -> torch.Tensor:
     return x
 
 
+def middle_layers(layers: int, hidden: int, generators: Sequence[torch.Generator]) -> nn.ModuleList:
+    """The ``layers - 1`` hidden layers after the first, ``hidden -> hidden`` each (none
+    for one hidden layer, so a network of one draws nothing more from its generators)."""
+    if layers < 1:
+        raise ValueError(f"hidden_layers must be >= 1 (got {layers})")
+    return nn.ModuleList(GroupLinear(hidden, hidden, generators) for _ in range(layers - 1))
+
+
+def through(middle: nn.ModuleList, hidden: torch.Tensor) -> torch.Tensor:
+    """``hidden`` (groups, N, H), a first hidden layer's ReLU, through the middle layers
+    (each a linear layer and a ReLU)."""
+    for layer in middle:
+        hidden = torch.relu(layer(hidden))
+    return hidden
+
+
+def stacked_middle(middle: nn.ModuleList, groups: int, hidden: int, like: torch.Tensor):
+    """The middle layers as the compiled loop reads them: weights (groups, L - 1, H, H)
+    and biases (groups, L - 1, H), empty along L - 1 for one hidden layer."""
+    if not middle:
+        return like.new_zeros((groups, 0, hidden, hidden)), like.new_zeros((groups, 0, hidden))
+    weights = torch.stack([layer.weight for layer in middle], dim=1)
+    return weights, torch.stack([layer.bias for layer in middle], dim=1)
+
+
 class AgentNetworks(nn.Module):
-    """Per-agent MLPs for B seeds: state -> Linear -> ReLU -> Linear -> Q over actions.
+    """Per-agent MLPs for B seeds: state -> Linear -> ReLU -> (``layers - 1`` times
+    Linear -> ReLU) -> Linear -> Q over actions.
 
     With ``own_dim``, agent ``i`` reads only its own observation, the ``i``-th of the
     last ``n_agents * own_dim`` features of the input (the layout ``[s, o_1, ..., o_n]``
@@ -104,11 +131,13 @@ class AgentNetworks(nn.Module):
         n_actions: int,
         generators: Sequence[Sequence[torch.Generator]],
         own_dim: int | None = None,
+        layers: int = 1,
     ) -> None:
         super().__init__()
         self.seeds, self.n_agents, self.own_dim = seeds, n_agents, own_dim
         flat = [gens[i] for gens in generators for i in range(n_agents)]
         self.first = GroupLinear(in_dim if own_dim is None else own_dim, hidden, flat)
+        self.middle = middle_layers(layers, hidden, flat)
         self.second = GroupLinear(hidden, n_actions, flat)
         self._scratch: tuple[torch.Tensor, torch.Tensor] | None = None
         """:meth:`copy_tables`' hidden layer and outputs, made at its first call."""
@@ -117,7 +146,8 @@ class AgentNetworks(nn.Module):
         """``state``: (B, N) int64 or (B, N, in_dim) -> Q (B, N, n_agents, n_actions)."""
         if state.dtype == torch.int64:
             return rows(self.tables(), state)
-        return self._by_seed(self.second(torch.relu(self.first(self._inputs(state)))))
+        hidden = through(self.middle, torch.relu(self.first(self._inputs(state))))
+        return self._by_seed(self.second(hidden))
 
     def _inputs(self, state: torch.Tensor) -> torch.Tensor:
         """(B, N, in_dim) -> each agent's input, (B*n, N, in) grouped seed-major."""
@@ -129,12 +159,16 @@ class AgentNetworks(nn.Module):
 
     def tables(self) -> torch.Tensor:
         """Q of every integer (one-hot) state: (B, in_dim, n_agents, n_actions)."""
-        return self._by_seed(self.second(torch.relu(self.first.table())))
+        return self._by_seed(self.second(through(self.middle, torch.relu(self.first.table()))))
 
     def copy_tables(self, out: np.ndarray) -> None:
         """``out`` (B, in_dim, n_agents, n_actions) := :meth:`tables`, bit for bit (the
         same operations), computed in scratch kept between calls: the loop's copy after
         every gradient step spent most of its time getting fresh memory for them."""
+        if self.middle:  # more hidden layers: no scratch of their own
+            with torch.no_grad():
+                np.copyto(out, self.tables().cpu().numpy())
+            return
         weight = self.first.weight
         if self._scratch is None or self._scratch[0].device != weight.device:
             groups, states = weight.shape[:2]
@@ -150,8 +184,13 @@ class AgentNetworks(nn.Module):
         np.copyto(out, self._by_seed(q).cpu().numpy())
 
     def feature_weights(self) -> tuple[torch.Tensor, ...]:
-        """The per-agent layers the compiled loop reads (w1, b1, w2, b2), agent-major."""
-        return self.first.weight, self.first.bias, self.second.weight, self.second.bias
+        """The per-agent layers the compiled loop reads (w1, b1, w2, b2, then the middle
+        layers' weights and biases, :func:`stacked_middle`), agent-major."""
+        first, second = self.first, self.second
+        middle = stacked_middle(
+            self.middle, first.weight.shape[0], first.weight.shape[2], first.weight
+        )
+        return first.weight, first.bias, second.weight, second.bias, *middle
 
     def _by_seed(self, q: torch.Tensor) -> torch.Tensor:
         """(B*n, N, A), grouped seed-major -> (B, N, n, A)."""
@@ -174,18 +213,28 @@ class SharedAgentNetwork(nn.Module):
         n_actions: int,
         generators: Sequence[torch.Generator],
         own_dim: int | None = None,
+        layers: int = 1,
     ) -> None:
         super().__init__()
         self.seeds, self.n_agents, self.own_dim = seeds, n_agents, own_dim
         self.in_dim = in_dim if own_dim is None else own_dim
         """The features each agent reads before its index: the state's or its own."""
         self.first = GroupLinear(self.in_dim + n_agents, hidden, generators)
+        self.middle = middle_layers(layers, hidden, generators)
         self.second = GroupLinear(hidden, n_actions, generators)
 
     def _hidden(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, N, H) -> ReLU of every agent's hidden layer, (B, N, n, H)."""
+        """(B, N, H) -> ReLU of every agent's first hidden layer, (B, N, n, H)."""
         agent = self.first.weight[:, self.in_dim :]  # (B, n, H): each agent's index row
         return torch.relu(x[:, :, None, :] + agent[:, None])
+
+    def _values(self, hidden: torch.Tensor) -> torch.Tensor:
+        """Every agent's first hidden layer (B, N, n, H) -> values (B, N, n, n_actions),
+        through the middle layers."""
+        b, n = hidden.shape[:2]
+        flat = through(self.middle, hidden.reshape(b, -1, hidden.shape[-1]))
+        out = torch.baddbmm(self.second.bias[:, None], flat, self.second.weight)
+        return out.view(b, n, self.n_agents, -1)
 
     def forward(self, state: torch.Tensor) -> torch.Tensor:
         """``state``: (B, N) int64 or (B, N, in_dim) -> values (B, N, n_agents, n_actions)."""
@@ -200,22 +249,14 @@ class SharedAgentNetwork(nn.Module):
             tail = state[..., state.shape[2] - agents * own :].reshape(b, n * agents, own)
             x = torch.baddbmm(bias, tail, weight).view(b, n, agents, -1)
             hidden = torch.relu(x + self.first.weight[:, None, self.in_dim :])
-        out = torch.baddbmm(
-            self.second.bias[:, None], hidden.reshape(b, -1, hidden.shape[-1]), self.second.weight
-        )
-        return out.view(b, n, self.n_agents, -1)
+        return self._values(hidden)
 
     def tables(self) -> torch.Tensor:
         """Values of every integer (one-hot) state: (B, in_dim, n_agents, n_actions)."""
         if self.own_dim is not None:
             raise ValueError("integer states have no own observations (own_dim)")
         x = self.first.weight[:, : self.in_dim] + self.first.bias[:, None]  # (B, S, H)
-        hidden = self._hidden(x)
-        b, s = x.shape[:2]
-        out = torch.baddbmm(
-            self.second.bias[:, None], hidden.reshape(b, -1, hidden.shape[-1]), self.second.weight
-        )
-        return out.view(b, s, self.n_agents, -1)
+        return self._values(self._hidden(x))
 
     def copy_tables(self, out: np.ndarray) -> None:
         """``out`` (B, in_dim, n_agents, n_actions) := :meth:`tables`."""
@@ -230,4 +271,6 @@ class SharedAgentNetwork(nn.Module):
         b1 = (self.first.bias[:, None] + self.first.weight[:, f:]).reshape(-1, w1.shape[-1])
         w2 = self.second.weight.repeat_interleave(n, dim=0)
         b2 = self.second.bias.repeat_interleave(n, dim=0)
-        return w1, b1, w2, b2
+        groups, hidden = self.first.weight.shape[0], self.first.weight.shape[2]
+        middle = stacked_middle(self.middle, groups, hidden, w1)
+        return w1, b1, w2, b2, *(m.repeat_interleave(n, dim=0) for m in middle)

@@ -189,6 +189,11 @@ class DeepConfig(DeepLearnerConfig):
     than one network per agent (the paper's VDN and QMIX). ``step=auto`` takes autograd's
     step with it (the fused step covers it, ``step=fused``, equal per step to float32
     rounding, but no study has compared their runs yet)."""
+    hidden_layers: int = added_setting(1, "0.7.0")
+    """[choice] Hidden layers of each agent network, ``hidden`` units each (ReLU): 1, the
+    paper's; 2 is EPyMARL's feed-forward agent (``use_rnn=False``: ``fc1``, a ReLU
+    ``Linear`` of ``hidden_dim``, ``fc2``). The fused step covers one (``step=auto``
+    takes autograd's with more; ``step=fused`` refuses them)."""
     negative_rate: float | None = added_setting(None, "0.7.0")
     """Hysteretic DQN's β/α ([choice]): each squared TD error whose TD error
     ``r + γ max Q' − Q`` is negative is weighed by it, so with plain gradient descent
@@ -233,7 +238,7 @@ class DeepConfig(DeepLearnerConfig):
     def auto_fuses(self) -> bool:
         """Whether ``step=auto`` takes the fused step on a CPU (:data:`AUTO_FUSED_MIXERS`,
         per-agent networks)."""
-        return self.mixer in AUTO_FUSED_MIXERS and not self.share
+        return self.mixer in AUTO_FUSED_MIXERS and not self.share and self.hidden_layers == 1
 
     def schedule(self, learn_episodes: int) -> list[float]:
         """ε schedule (start, end, anneal fraction, after), the length it anneals over (L,
@@ -247,6 +252,14 @@ class DeepConfig(DeepLearnerConfig):
         require(self.step in STEPS, "step", f"must be one of {steps} (got {self.step!r})")
         if self.grad_clip is not None:
             require(self.grad_clip > 0, "grad_clip", f"must be > 0 (got {self.grad_clip})")
+        layers = self.hidden_layers
+        require(layers >= 1, "hidden_layers", f"must be >= 1 (got {layers})")
+        require(
+            layers == 1 or self.step != "fused",
+            "hidden_layers",
+            f"the fused step covers one hidden layer (got {layers} with step=fused; "
+            "step=auto or autograd)",
+        )
         if self.anneal_steps is not None:
             count = self.anneal_steps
             require(count >= 1, "anneal_steps", f"must be >= 1 (got {count})")

@@ -22,6 +22,7 @@ from cmarlcd.learners.deep.agent_networks import (
     GroupLinear,
     SharedAgentNetwork,
     per_state,
+    stacked_middle,
 )
 from cmarlcd.learners.deep.config import takes_fused_step
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
@@ -159,9 +160,12 @@ class DegreeModel(StackedModel):
 
     def record_weights(self) -> tuple[torch.Tensor, ...]:
         """The record network's layers as the compiled loop reads them (one "agent" per
-        seed): (B, in, H), (B, H), (B, H, 1), (B, 1)."""
+        seed): (B, in, H), (B, H), (B, H, 1), (B, 1), and no middle layers (one hidden
+        layer: empty (B, 0, H, H), (B, 0, H))."""
         first, second = self.record.first, self.record.second
-        return first.weight, first.bias, second.weight, second.bias
+        groups, hidden = first.weight.shape[0], first.weight.shape[2]
+        none = stacked_middle(nn.ModuleList(), groups, hidden, first.weight)
+        return first.weight, first.bias, second.weight, second.bias, *none
 
     def sync_target(self) -> None:
         """Clone the record network into its target copy."""

@@ -63,7 +63,8 @@ DIFFERENCES = (
     (
         "agent network",
         "two hidden layers of hidden_dim (IQL: a GRU for the second)",
-        "one hidden layer of hidden_dim: the compiled loop's acting networks have one",
+        "one hidden layer of hidden_dim, the paper's; ``hidden_layers=2`` gives EPyMARL's "
+        "feed-forward agent (``use_rnn=False``), stepped by autograd; no recurrent layer",
     ),
     (
         "QMIX's hypernetworks",

@@ -216,12 +216,14 @@ class ValueDecomposition(StackedModel):
         if config.share:
             shared = [g[0] for g in gens]  # each seed's first generator, as deep CMARL-CD's
             self.agents = SharedAgentNetwork(
-                self.n_seeds, self.n_agents, in_dim, config.hidden, width, shared, own_dim
-            )
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, shared, own_dim,
+                config.hidden_layers,
+            )  # fmt: skip
         else:
             self.agents = AgentNetworks(
-                self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens, own_dim
-            )
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens, own_dim,
+                config.hidden_layers,
+            )  # fmt: skip
         self.mixer_dim = in_dim - (0 if own_dim is None else self.n_agents * own_dim)
         self.mixer: nn.Module = (
             QMixer(self.n_seeds, self.n_agents, self.mixer_dim, config.mixer_hidden, gens)
