@@ -185,6 +185,14 @@ def test_the_epymarl_anchor_reads_sacreds_numbers_and_compares_the_kth_tests(tmp
     # and cmarl-cd's per-agent networks are other jobs than its shared one's
     per_agent = module.summarise(tmp_path, {**protocol, "ours": "per-agent"})["pairs"][0]
     assert per_agent["curves"]["cmarl-cd"] == [] and len(per_agent["curves"]["epymarl"]) == 2
+    # with a seed of EPyMARL's still to come, its interval judges nothing yet
+    three = {**protocol, "seeds": 3}
+    module.write(module.job_path(tmp_path, "cmarl-cd", ours), {
+        "protocol": module.protocol_of(three, "cmarl-cd"), "seconds": 1.0,
+        "curves": {"vdn": [[0.0, 0.1, 0.3]] * 3},
+    })  # fmt: skip
+    three = module.summarise(tmp_path, three)["pairs"][0]
+    assert three["verdict"] == "not yet (2 of 3 EPyMARL seeds)"
 
 
 def test_the_epymarl_anchor_runs_each_job_once_however_many_at_a_time(monkeypatch) -> None:

@@ -400,9 +400,11 @@ def summarise(out: Path, protocol: dict) -> dict[str, Any]:
                 curves = [[p[1] for p in r["curve"][:shortest]] for r in theirs]
                 row["epymarl"] = field_metrics(nominal[:shortest], curves).as_dict()
                 row["epymarl_curve_steps"] = theirs[0]["curve"][:shortest]
-            if mine and theirs:
+            if mine and len(theirs) == protocol["seeds"]:
                 ours_max, low = row["cmarl-cd"]["max_return"], row["epymarl"]["max_return_low"]
                 row["verdict"] = "within or above" if ours_max >= low else "below"
+            elif mine and theirs:  # an interval over fewer seeds judges nothing yet
+                row["verdict"] = f"not yet ({len(theirs)} of {protocol['seeds']} EPyMARL seeds)"
             row["curves"] = {"cmarl-cd": mine["curves"][algorithm] if mine else [],
                              "epymarl": [[p[1] for p in r["curve"]] for r in theirs]}  # fmt: skip
             pairs.append(row)
