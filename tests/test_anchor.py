@@ -134,6 +134,7 @@ def test_the_epymarl_anchor_shows_its_help_without_epymarl() -> None:
         (["--agent", "gru"], "--agent: unknown 'gru'"),
         (["--ours", "twin"], "--ours: unknown 'twin'"),
         (["--layers", "0"], "--layers: must be >= 1 (got 0)"),
+        (["--hypernet-layers", "3"], "--hypernet-layers: must be 1 or 2 (got 3)"),
     ],
 )
 def test_the_epymarl_anchor_refuses_bad_input_in_one_line(args, says, tmp_path: Path) -> None:
@@ -293,10 +294,14 @@ def test_the_epymarl_command_of_each_agent(agent: str, monkeypatch, tmp_path: Pa
     assert ("agent=one_layer" in command) == (agent == "one-layer")
 
 
-@pytest.mark.parametrize(("ours", "layers"), [("shared", 1), ("shared", 2), ("per-agent", 2)])
-def test_cmarl_cds_command_and_job_of_each_form(ours, layers, monkeypatch, tmp_path) -> None:
-    """Our side's settings follow --ours and --layers, and each form is a job of its own
-    (EPyMARL's feed-forward agent has two hidden layers: --agent mlp --layers 2)."""
+@pytest.mark.parametrize(
+    ("ours", "layers", "hyper"),
+    [("shared", 1, 1), ("shared", 2, 1), ("per-agent", 2, 1), ("shared", 2, 2)],
+)
+def test_cmarl_cds_command_and_job_of_each_form(ours, layers, hyper, monkeypatch, tmp_path):
+    """Our side's settings follow --ours, --layers and --hypernet-layers, and each form is
+    a job of its own (EPyMARL's feed-forward agent has two hidden layers, its QMIX
+    two-layer hypernetworks: --agent mlp --layers 2 --hypernet-layers 2)."""
     spec = importlib.util.spec_from_file_location("epymarl_anchor", EPYMARL)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -308,15 +313,18 @@ def test_cmarl_cds_command_and_job_of_each_form(ours, layers, monkeypatch, tmp_p
 
     monkeypatch.setattr(module.subprocess, "run", fake_run)
     protocol = {"steps": 100, "eval_interval": 50, "eval_episodes": 10, "seeds": 1,
-                "algorithms": ["iql", "vdn"], "ours": ours, "layers": layers}  # fmt: skip
+                "algorithms": ["iql", "qmix"], "ours": ours, "layers": layers,
+                "hypernet_layers": hyper}  # fmt: skip
     with pytest.raises(SystemExit):
         module.ours("8x8-2p-2f-coop", protocol, tmp_path, tmp_path / "l.log")
     (command,) = seen
     settings = command[command.index("--set") + 1].split(",") if "--set" in command else []
-    expected = [f"{learner}.{s}" for learner in ("deep-iql", "vdn")
+    expected = [f"{learner}.{s}" for learner in ("deep-iql", "qmix")
                 for s in (["share=true"] if ours == "shared" else [])
-                + ([f"hidden_layers={layers}"] if layers > 1 else [])]  # fmt: skip
+                + ([f"hidden_layers={layers}"] if layers > 1 else [])
+                + (["hypernet_layers=2"] if hyper == 2 and learner == "qmix" else [])]  # fmt: skip
     assert settings == expected
     job = module.cmarlcd_job("8x8-2p-2f-coop", protocol)
     assert job == ("8x8-2p-2f-coop", *(("shared",) if ours == "shared" else ()),
-                   *((f"layers{layers}",) if layers > 1 else ()))  # fmt: skip
+                   *((f"layers{layers}",) if layers > 1 else ()),
+                   *(("hyper2",) if hyper == 2 else ()))  # fmt: skip

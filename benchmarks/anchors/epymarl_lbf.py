@@ -115,6 +115,8 @@ def parser() -> argparse.ArgumentParser:
                    "network, the agent's id in its input) or per-agent")  # fmt: skip
     p.add_argument("--layers", type=int, default=1, help="cmarl-cd's hidden layers an agent "
                    "network (2: EPyMARL's feed-forward agent, as --agent mlp)")  # fmt: skip
+    p.add_argument("--hypernet-layers", type=int, default=1, help="cmarl-cd QMIX's "
+                   "hypernetwork layers (2: EPyMARL's hypernet_layers)")  # fmt: skip
     p.add_argument("--out", default="results/anchor-epymarl", help="where runs are kept")
     p.add_argument("--any-commit", action="store_true", help="allow another EPyMARL commit")
     p.add_argument("--parallel", type=int, default=1, help="EPyMARL runs at a time (one "
@@ -158,6 +160,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
         raise ValueError(f"--parallel: must be >= 1 (got {args.parallel})")
     if args.layers < 1:
         raise ValueError(f"--layers: must be >= 1 (got {args.layers})")
+    if args.hypernet_layers not in (1, 2):
+        raise ValueError(f"--hypernet-layers: must be 1 or 2 (got {args.hypernet_layers})")
     if args.ours not in OURS:
         raise ValueError(f"--ours: unknown {args.ours!r} (one of {', '.join(OURS)})")
     if args.agent not in AGENTS:
@@ -170,7 +174,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     if "epymarl" in sides and not args.report_only:
         checkout_commit(args.epymarl, args.any_commit)
     protocol = {"tasks": tasks, "algorithms": algorithms, "sides": sides, "seeds": args.seeds,
-                "agent": args.agent, "ours": args.ours, "layers": args.layers}  # fmt: skip
+                "agent": args.agent, "ours": args.ours, "layers": args.layers,
+                "hypernet_layers": args.hypernet_layers}  # fmt: skip
     episodes = count(args.eval_episodes, "eval-episodes")
     return {**protocol, "steps": steps, "eval_interval": interval, "eval_episodes": episodes}
 
@@ -210,9 +215,11 @@ def cmarlcd_job(task: str, protocol: dict) -> tuple:
 
 
 def layers_tag(protocol: dict) -> tuple[str, ...]:
-    """``("layersN",)`` where cmarl-cd's agent networks have N > 1 hidden layers."""
+    """``"layersN"`` where cmarl-cd's agent networks have N > 1 hidden layers, and
+    ``"hyper2"`` where its QMIX's hypernetworks have two."""
     layers = protocol.get("layers", 1)
-    return () if layers == 1 else (f"layers{layers}",)
+    return (*(() if layers == 1 else (f"layers{layers}",)),
+            *(("hyper2",) if protocol.get("hypernet_layers", 1) == 2 else ()))  # fmt: skip
 
 
 def epymarl_job(task: str, algorithm: str, seed: int, protocol: dict) -> tuple:
@@ -288,13 +295,18 @@ def ours(task: str, protocol: dict, out: Path, log: Path) -> dict[str, Any]:
     """``cmarl-cd field`` on the task: every learner and seed, one worker."""
     learners = ",".join(ALGORITHMS[a] for a in protocol["algorithms"])
     settings = [
-        *(("share=true",) if protocol["ours"] == "shared" else ()),
-        *((f"hidden_layers={protocol['layers']}",) if layers_tag(protocol) else ()),
-    ]
+        f"{ALGORITHMS[a]}.{s}"
+        for a in protocol["algorithms"]
+        for s in [
+            *(("share=true",) if protocol["ours"] == "shared" else ()),
+            *((f"hidden_layers={protocol['layers']}",) if protocol.get("layers", 1) > 1 else ()),
+            *(("hypernet_layers=2",) if a == "qmix" and protocol.get("hypernet_layers", 1) == 2
+              else ()),
+        ]
+    ]  # fmt: skip
     command = [
         "field", "--tasks", f"foraging:{task}", "--learners", learners, "--preset", "epymarl",
-        *(("--set", ",".join(f"{ALGORITHMS[a]}.{s}" for a in protocol["algorithms"]
-                              for s in settings)) if settings else ()),
+        *(("--set", ",".join(settings)) if settings else ()),
         "--inputs", "own-observations", "--seeds", str(protocol["seeds"]),
         "--steps", str(protocol["steps"]), "--eval-interval", str(protocol["eval_interval"]),
         "--eval-episodes", str(protocol["eval_episodes"]), "--workers", "1", "--no-progress",

@@ -140,23 +140,25 @@ def test_the_setting_is_checked_and_keeps_autograds_step() -> None:
 
 
 def test_a_two_layer_run_keeps_policies_that_replay_its_store(tmp_path) -> None:
-    """End to end: LBF's deep IQL with two hidden layers, shared, on its own
-    observations; each seed's kept networks (with their middle layer) replay the
-    stored return of its last evaluation."""
+    """End to end: LBF's deep IQL with two hidden layers, shared, and QMIX with two
+    hidden layers per agent and two-layer hypernetworks, on their own observations;
+    each seed's kept networks (with their middle layer) replay the stored return of its
+    last evaluation."""
     store, kept = tmp_path / "s.sqlite", tmp_path / "policies"
 
     def cli(*args: str) -> subprocess.CompletedProcess:
         return subprocess.run([sys.executable, "-m", "cmarlcd", *args], capture_output=True,
                               text=True, check=False)  # fmt: skip
 
-    done = cli("train", "--game", "foraging:5x5-2p-1f", "--algorithms", "deep-iql",
+    done = cli("train", "--game", "foraging:5x5-2p-1f", "--algorithms", "deep-iql,qmix",
                "--steps", "1500", "--runs", "2", "--inputs", "own-observations", "--set",
-               "deep-iql.hidden_layers=2,deep-iql.share=true", "--workers", "1",
+               "deep-iql.hidden_layers=2,deep-iql.share=true,qmix.hidden_layers=2,"
+               "qmix.hypernet_layers=2", "--workers", "1",
                "--no-progress", "--store", str(store), "--figures", str(tmp_path / "f"),
                "--save-policies", str(kept))  # fmt: skip
     assert done.returncode == 0, done.stderr[-3000:]
     files = sorted(kept.glob("*.safetensors"))
-    assert len(files) == 2
+    assert len(files) == 4
     for path in files:
         doc = json.loads(cli("evaluate", "--policy", str(path), "--store", str(store),
                              "--json").stdout)  # fmt: skip
@@ -167,3 +169,51 @@ def test_a_two_layer_run_keeps_policies_that_replay_its_store(tmp_path) -> None:
     units = arrays["w1"].shape[2]
     assert arrays["wm"].shape == (AGENTS, 1, units, units)
     assert arrays["bm"].shape == (AGENTS, 1, units)
+
+
+def test_qmix_with_two_layer_hypernetworks_by_hand_and_monotonic() -> None:
+    """QMIX's mixing weights from hypernetworks of two layers (EPyMARL's
+    ``hypernet_layers: 2``): Q_tot = Σ_k ELU(Σ_i q_i |W1(s)|_ik + b1(s)_k) |w2(s)|_k + V(s),
+    W1(s) = L2(ReLU(L1(s))), computed here from the mixer's layers; one-hot states give
+    what their feature vectors give; Q_tot never falls as an agent's value rises."""
+    config = DeepConfig(mixer="qmix", hidden=HIDDEN, mixer_hidden=3, hypernet_layers=2,
+                        hypernet_hidden=4, step="autograd")  # fmt: skip
+    vd = ValueDecomposition([3, 3], 6, config, [np.random.SeedSequence(2)])
+    mixer = vd.mixer
+    assert mixer.hyper_w1.first.weight.shape == (1, 6, 4)
+    assert mixer.hyper_w1.second.weight.shape == (1, 4, AGENTS * 3)
+    state = torch.randn(1, 5, 6)
+    q = torch.randn(1, 5, AGENTS)
+
+    def layer(module, x):
+        return x @ module.weight.detach().numpy()[0] + module.bias.detach().numpy()[0]
+
+    s = state.numpy()[0]
+    w1 = np.abs(layer(mixer.hyper_w1.second, relu(layer(mixer.hyper_w1.first, s))))
+    w2 = np.abs(layer(mixer.hyper_w2.second, relu(layer(mixer.hyper_w2.first, s))))
+    b1, value = layer(mixer.hyper_b1, s), layer(mixer.value_2, relu(layer(mixer.value_1, s)))
+    pre = np.einsum("ni,nik->nk", q.numpy()[0], w1.reshape(5, AGENTS, 3)) + b1
+    elu = np.where(pre > 0, pre, np.expm1(pre))
+    expected = (elu * w2).sum(axis=1) + value[:, 0]
+    np.testing.assert_allclose(mixer(q, state).detach().numpy()[0], expected, rtol=1e-5)
+    one_hot = torch.eye(6)[None, [0, 3, 5]]
+    np.testing.assert_allclose(
+        mixer(q[:, :3], torch.tensor([[0, 3, 5]])).detach().numpy(),
+        mixer(q[:, :3], one_hot).detach().numpy(), rtol=1e-5, atol=1e-6,
+    )  # fmt: skip
+    q.requires_grad_(True)
+    mixer(q, state).sum().backward()
+    assert (q.grad >= 0).all()
+
+
+def test_the_hypernetwork_setting_is_checked() -> None:
+    for settings, says in (
+        ({"mixer": "qmix", "hypernet_layers": 3}, "must be 1 or 2"),
+        ({"mixer": "vdn", "hypernet_layers": 2}, "applies to qmix only"),
+        ({"mixer": "qmix", "hypernet_layers": 2, "step": "fused"}, "fused step covers"),
+        ({"mixer": "qmix", "hypernet_hidden": 0}, "hypernet_hidden"),
+    ):
+        with pytest.raises(ConfigError, match=says):
+            DeepConfig(**settings)
+    assert not DeepConfig(mixer="qmix", hypernet_layers=2).auto_fuses
+    assert DeepConfig(mixer="qmix", hypernet_hidden=8).auto_fuses  # read only with 2

@@ -194,6 +194,14 @@ class DeepConfig(DeepLearnerConfig):
     paper's; 2 is EPyMARL's feed-forward agent (``use_rnn=False``: ``fc1``, a ReLU
     ``Linear`` of ``hidden_dim``, ``fc2``). The fused step covers one (``step=auto``
     takes autograd's with more; ``step=fused`` refuses them)."""
+    hypernet_layers: int = added_setting(1, "0.7.0")
+    """[choice] QMIX's hypernetworks of the mixing weights: 1, a linear layer of the state
+    each (the paper's QMIX), or 2, ``Linear -> ReLU -> Linear`` with ``hypernet_hidden``
+    units (EPyMARL's ``hypernet_layers: 2``). The fused step covers 1 (``step=auto`` takes
+    autograd's with 2; ``step=fused`` refuses them)."""
+    hypernet_hidden: int = added_setting(64, "0.7.0")
+    """Hidden units of QMIX's two-layer hypernetworks (EPyMARL's ``hypernet_embed``: 64);
+    read only with ``hypernet_layers=2``."""
     negative_rate: float | None = added_setting(None, "0.7.0")
     """Hysteretic DQN's β/α ([choice]): each squared TD error whose TD error
     ``r + γ max Q' − Q`` is negative is weighed by it, so with plain gradient descent
@@ -237,8 +245,13 @@ class DeepConfig(DeepLearnerConfig):
     @property
     def auto_fuses(self) -> bool:
         """Whether ``step=auto`` takes the fused step on a CPU (:data:`AUTO_FUSED_MIXERS`,
-        per-agent networks)."""
-        return self.mixer in AUTO_FUSED_MIXERS and not self.share and self.hidden_layers == 1
+        per-agent networks of one hidden layer, QMIX's one-layer hypernetworks)."""
+        return (
+            self.mixer in AUTO_FUSED_MIXERS
+            and not self.share
+            and self.hidden_layers == 1
+            and self.hypernet_layers == 1
+        )
 
     def schedule(self, learn_episodes: int) -> list[float]:
         """ε schedule (start, end, anneal fraction, after), the length it anneals over (L,
@@ -260,6 +273,19 @@ class DeepConfig(DeepLearnerConfig):
             f"the fused step covers one hidden layer (got {layers} with step=fused; "
             "step=auto or autograd)",
         )
+        hyper = self.hypernet_layers
+        require(hyper in (1, 2), "hypernet_layers", f"must be 1 or 2 (got {hyper})")
+        require(
+            hyper == 1 or self.mixer == "qmix",
+            "hypernet_layers",
+            f"applies to qmix only, not {self.name}",
+        )
+        require(
+            hyper == 1 or self.step != "fused",
+            "hypernet_layers",
+            "the fused step covers one-layer hypernetworks (got 2 with step=fused; "
+            "step=auto or autograd)",
+        )
         if self.anneal_steps is not None:
             count = self.anneal_steps
             require(count >= 1, "anneal_steps", f"must be >= 1 (got {count})")
@@ -278,6 +304,7 @@ class DeepConfig(DeepLearnerConfig):
             "batch_size",
             "train_every",
             "target_every",
+            "hypernet_hidden",
         ):
             value = getattr(self, name)
             require(value >= 1, name, f"must be >= 1 (got {value})")

@@ -69,7 +69,8 @@ DIFFERENCES = (
     (
         "QMIX's hypernetworks",
         "two layers (hypernet_embed 64) for the mixing weights",
-        "one layer: the mixer of the paper's QMIX",
+        "one layer, the mixer of the paper's QMIX; ``hypernet_layers=2`` gives EPyMARL's "
+        "(``hypernet_hidden`` 64), stepped by autograd",
     ),
     (
         "batches",

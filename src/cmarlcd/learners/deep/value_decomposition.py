@@ -68,10 +68,33 @@ class NoMixer(nn.Module):
         return q
 
 
+class TwoLayerHypernetwork(nn.Module):
+    """A hypernetwork of two layers for B seeds, ``Linear -> ReLU -> Linear`` of the
+    state (EPyMARL's QMIX with ``hypernet_layers: 2``, ``hypernet_embed`` hidden units),
+    with :class:`GroupLinear`'s interface: called on states, or :meth:`table` for every
+    one-hot state."""
+
+    def __init__(
+        self, in_dim: int, embed: int, out_dim: int, generators: Sequence[torch.Generator]
+    ) -> None:
+        super().__init__()
+        self.first = GroupLinear(in_dim, embed, generators)
+        self.second = GroupLinear(embed, out_dim, generators)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.second(torch.relu(self.first(x)))
+
+    def table(self) -> torch.Tensor:
+        """The output for every one-hot input: (groups, in_dim, out_dim)."""
+        return self.second(torch.relu(self.first.table()))
+
+
 class QMixer(nn.Module):
     """QMIX's monotonic mixer for B seeds: hypernetworks on the state give non-negative
     (``abs``) weights, an ELU hidden layer of ``hidden`` units and a state-dependent bias
-    ``V(s)`` (a ReLU MLP), so ``∂Q_tot/∂Q_i >= 0``."""
+    ``V(s)`` (a ReLU MLP), so ``∂Q_tot/∂Q_i >= 0``. The weights' hypernetworks are one
+    linear layer each (the paper's), or with ``hypernet_hidden`` two
+    (:class:`TwoLayerHypernetwork`, EPyMARL's)."""
 
     def __init__(
         self,
@@ -80,13 +103,21 @@ class QMixer(nn.Module):
         in_dim: int,
         hidden: int,
         generators: Sequence[Sequence[torch.Generator]],
+        hypernet_hidden: int | None = None,
     ) -> None:
         super().__init__()
         gens = [g[-1] for g in generators]  # each seed's mixer generator
         self.hidden = hidden
-        self.hyper_w1 = GroupLinear(in_dim, n_agents * hidden, gens)
+        embed = hypernet_hidden
+
+        def hyper(out_dim: int) -> nn.Module:
+            if embed is None:
+                return GroupLinear(in_dim, out_dim, gens)
+            return TwoLayerHypernetwork(in_dim, embed, out_dim, gens)
+
+        self.hyper_w1 = hyper(n_agents * hidden)
         self.hyper_b1 = GroupLinear(in_dim, hidden, gens)
-        self.hyper_w2 = GroupLinear(in_dim, hidden, gens)
+        self.hyper_w2 = hyper(hidden)
         self.value_1 = GroupLinear(in_dim, hidden, gens)
         self.value_2 = GroupLinear(hidden, 1, gens)
 
@@ -225,8 +256,9 @@ class ValueDecomposition(StackedModel):
                 config.hidden_layers,
             )  # fmt: skip
         self.mixer_dim = in_dim - (0 if own_dim is None else self.n_agents * own_dim)
+        embed = config.hypernet_hidden if config.hypernet_layers == 2 else None
         self.mixer: nn.Module = (
-            QMixer(self.n_seeds, self.n_agents, self.mixer_dim, config.mixer_hidden, gens)
+            QMixer(self.n_seeds, self.n_agents, self.mixer_dim, config.mixer_hidden, gens, embed)
             if config.mixer == "qmix"
             else NoMixer()
             if config.independent
