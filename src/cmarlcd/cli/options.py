@@ -241,17 +241,22 @@ def _setting_item(item: str, by_name: dict[str, Any], parameter: str) -> tuple[s
         if text.strip().lower() == "none":
             return name, field, None
         default = 0.0 if "float" in str(declared) else 0 if "int" in str(declared) else None
-    return name, field, _typed(default, text.strip(), parameter)
+    return name, field, _typed(default, text.strip(), parameter, f"{name}.{field}")
 
 
-def _typed(default: Any, text: str, parameter: str) -> Any:
-    """``text`` as a value of ``default``'s type (bool: true/false/1/0)."""
-    kind = type(default).__name__
+#: How a setting's type is named where a value does not parse as one.
+KIND_NAMES = {"int": "an integer", "float": "a number"}
+
+
+def _typed(default: Any, text: str, parameter: str, label: str = "the value") -> Any:
+    """``text`` as a value of ``default``'s type (bool: true/false/1/0); ``label`` names
+    the setting where it does not parse."""
+    kind = KIND_NAMES.get(type(default).__name__, type(default).__name__)
     if isinstance(default, bool):
         require(
             text.lower() in ("true", "false", "1", "0"),
             parameter,
-            f"expected a bool (got {text!r})",
+            f"{label}: expected true or false (got {text!r})",
         )
         return text.lower() in ("true", "1")
     try:
@@ -260,7 +265,7 @@ def _typed(default: Any, text: str, parameter: str) -> Any:
         if isinstance(default, float):
             return float(text)
     except ValueError:
-        raise ConfigError(parameter, f"expected a {kind} (got {text!r})") from None
+        raise ConfigError(parameter, f"{label}: expected {kind} (got {text!r})") from None
     return text
 
 
