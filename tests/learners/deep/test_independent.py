@@ -181,11 +181,11 @@ def test_the_command_lines_set_reads_an_optional_rate_as_a_number() -> None:
     assert iql == registry.LEARNERS["deep-iql"]
     (back,) = apply_settings("hysteretic-dqn.negative_rate=none", configs[:1])
     assert back.negative_rate is None
-    with pytest.raises(ConfigError, match="hysteretic-dqn.negative_rate: expected a number"):
+    with pytest.raises(ConfigError, match=r"hysteretic-dqn\.negative_rate: expected a number"):
         apply_settings("hysteretic-dqn.negative_rate=abc", configs)
-    with pytest.raises(ConfigError, match="deep-iql.share: expected true or false"):
+    with pytest.raises(ConfigError, match=r"deep-iql\.share: expected true or false"):
         apply_settings("deep-iql.share=yes", configs)
-    with pytest.raises(ConfigError, match="deep-iql.hidden_layers: expected an integer"):
+    with pytest.raises(ConfigError, match=r"deep-iql\.hidden_layers: expected an integer"):
         apply_settings("deep-iql.hidden_layers=two", configs)
     with pytest.raises(ConfigError, match="hysteretic-dqn only"):
         apply_settings("deep-iql.negative_rate=0.5", configs)
