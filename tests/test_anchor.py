@@ -114,6 +114,27 @@ def test_the_compiled_command_makes_the_runs_of_the_compiled_side() -> None:
 EPYMARL = Path(__file__).parents[1] / "benchmarks/anchors/epymarl_lbf.py"
 
 
+def epymarl_anchor():
+    """The EPyMARL anchor's script as a module."""
+    spec = importlib.util.spec_from_file_location("epymarl_anchor", EPYMARL)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def failing_runs(module, monkeypatch) -> list[list[str]]:
+    """Every command the anchor hands to ``subprocess.run`` (answered as failed, so the
+    anchor stops there), in order."""
+    seen: list[list[str]] = []
+
+    def fake_run(command, **kwargs):
+        seen.append(command)
+        return subprocess.CompletedProcess(command, 1)
+
+    monkeypatch.setattr(module.subprocess, "run", fake_run)
+    return seen
+
+
 def test_the_epymarl_anchor_shows_its_help_without_epymarl() -> None:
     done = subprocess.run(
         [sys.executable, str(EPYMARL), "--help"], capture_output=True, text=True, check=False
@@ -274,16 +295,8 @@ def test_the_launcher_registers_the_agent_and_runs_epymarls_main(tmp_path: Path)
 
 @pytest.mark.parametrize("agent", ["mlp", "one-layer"])
 def test_the_epymarl_command_of_each_agent(agent: str, monkeypatch, tmp_path: Path) -> None:
-    spec = importlib.util.spec_from_file_location("epymarl_anchor", EPYMARL)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    seen: list[list[str]] = []
-
-    def fake_run(command, **kwargs):
-        seen.append(command)
-        return subprocess.CompletedProcess(command, 1)
-
-    monkeypatch.setattr(module.subprocess, "run", fake_run)
+    module = epymarl_anchor()
+    seen = failing_runs(module, monkeypatch)
     protocol = {"steps": 100, "eval_interval": 50, "eval_episodes": 10, "agent": agent}
     with pytest.raises(SystemExit):
         module.epymarl("8x8-2p-2f-coop", "iql", 0, protocol, tmp_path, tmp_path / "l.log", True)
@@ -302,16 +315,8 @@ def test_cmarl_cds_command_and_job_of_each_form(ours, layers, hyper, monkeypatch
     """Our side's settings follow --ours, --layers and --hypernet-layers, and each form is
     a job of its own (EPyMARL's feed-forward agent has two hidden layers, its QMIX
     two-layer hypernetworks: --agent mlp --layers 2 --hypernet-layers 2)."""
-    spec = importlib.util.spec_from_file_location("epymarl_anchor", EPYMARL)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    seen: list[list[str]] = []
-
-    def fake_run(command, **kwargs):
-        seen.append(command)
-        return subprocess.CompletedProcess(command, 1)
-
-    monkeypatch.setattr(module.subprocess, "run", fake_run)
+    module = epymarl_anchor()
+    seen = failing_runs(module, monkeypatch)
     protocol = {"steps": 100, "eval_interval": 50, "eval_episodes": 10, "seeds": 1,
                 "algorithms": ["iql", "qmix"], "ours": ours, "layers": layers,
                 "hypernet_layers": hyper}  # fmt: skip
