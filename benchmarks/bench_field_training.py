@@ -18,7 +18,10 @@ itself:
 Usage: python benchmarks/bench_field_training.py [--learner vdn] [--step auto]
            [--task foraging:8x8-2p-2f-coop]
            [--steps 2.05M] [--seeds 5] [--presets paper,epymarl] [--eval-interval 50k]
-           [--eval-episodes 100] [--json]
+           [--eval-episodes 100] [--share] [--inputs observations] [--layers 1]
+           [--hypernet-layers 1] [--json]
+
+``--layers`` and ``--hypernet-layers`` (QMIX) give EPyMARL's model class (2 and 2).
 (torch: pip install -e ".[deep]")
 """
 
@@ -81,13 +84,16 @@ def timed(seconds: dict[str, float]):
 
 def one_run(
     name: str, step: str, task: str, preset: str, steps: int, seeds: int, interval: int,
-    episodes: int, share: bool = False, inputs: str = "observations",
+    episodes: int, share: bool = False, inputs: str = "observations", layers: int = 1,
+    hypernet_layers: int = 1,
 ):  # fmt: skip
     """(wall seconds, seconds per part, the learner's settings, the runs' metrics)."""
     family, rules = games.parse_game(task)
     base = registry.require_learner(name)
     (learner,) = with_preset((base,), preset, rules.spec().max_steps)
-    learner = replace(learner, step=step, share=share)
+    learner = replace(learner, step=step, share=share, hidden_layers=layers)
+    if hypernet_layers != 1:
+        learner = replace(learner, hypernet_layers=hypernet_layers)
     settings = EpisodicRun(
         learner, (steps,), episodes, evaluation_points(steps, interval), episodes,
         family.options(rules, inputs), unit="steps",
@@ -113,6 +119,8 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=100)
     parser.add_argument("--share", action="store_true", help="one network for the agents")
     parser.add_argument("--inputs", default="observations", help="or own-observations")
+    parser.add_argument("--layers", type=int, default=1, help="hidden layers of each network")
+    parser.add_argument("--hypernet-layers", type=int, default=1, help="QMIX's: 1 or 2")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     import torch
@@ -123,7 +131,7 @@ def main() -> None:
     rows = []
     for preset in args.presets.split(","):
         what = (args.learner, args.step, args.task, preset)
-        form = (args.share, args.inputs)
+        form = (args.share, args.inputs, args.layers, args.hypernet_layers)
         one_run(*what, 2_000, 1, 1_000, 2, *form)  # compiled outside the clock
         wall, seconds, learner, metrics = one_run(
             *what, steps, args.seeds, interval, args.eval_episodes, *form
@@ -155,13 +163,17 @@ def main() -> None:
         "seeds": args.seeds,
         "eval_interval": interval,
         "eval_episodes": args.eval_episodes,
+        "share": args.share,
+        "layers": args.layers,
+        "hypernet_layers": args.hypernet_layers,
     }
     if args.json:
         print(json.dumps({**head, "runs": rows}, indent=2))
         return
     print(f"{machine}, Python {platform.python_version()}, {date.today()}, one thread")
     name = registry.display_name(args.learner)
-    print(f"{name} on {args.task}: {steps:,} steps x {args.seeds} seeds stacked, "
+    model = f", {args.layers} hidden layers" + (", shared" if args.share else "")
+    print(f"{name}{model} on {args.task}: {steps:,} steps x {args.seeds} seeds stacked, "
           f"an evaluation of {args.eval_episodes} episodes every {interval:,} steps")  # fmt: skip
     for row in rows:
         parts = ", ".join(f"{k} {v:.1f} s" for k, v in row["seconds"].items())

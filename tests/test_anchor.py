@@ -156,6 +156,7 @@ def test_the_epymarl_anchor_shows_its_help_without_epymarl() -> None:
         (["--ours", "twin"], "--ours: unknown 'twin'"),
         (["--layers", "0"], "--layers: must be >= 1 (got 0)"),
         (["--hypernet-layers", "3"], "--hypernet-layers: must be 1 or 2 (got 3)"),
+        (["--step", "fast"], "--step: unknown 'fast'"),
     ],
 )
 def test_the_epymarl_anchor_refuses_bad_input_in_one_line(args, says, tmp_path: Path) -> None:
@@ -308,18 +309,19 @@ def test_the_epymarl_command_of_each_agent(agent: str, monkeypatch, tmp_path: Pa
 
 
 @pytest.mark.parametrize(
-    ("ours", "layers", "hyper"),
-    [("shared", 1, 1), ("shared", 2, 1), ("per-agent", 2, 1), ("shared", 2, 2)],
-)
-def test_cmarl_cds_command_and_job_of_each_form(ours, layers, hyper, monkeypatch, tmp_path):
-    """Our side's settings follow --ours, --layers and --hypernet-layers, and each form is
-    a job of its own (EPyMARL's feed-forward agent has two hidden layers, its QMIX
+    ("ours", "layers", "hyper", "step"),
+    [("shared", 1, 1, "auto"), ("shared", 2, 1, "auto"), ("per-agent", 2, 1, "auto"),
+     ("shared", 2, 2, "auto"), ("shared", 2, 2, "fused")],
+)  # fmt: skip
+def test_cmarl_cds_command_and_job_of_each_form(ours, layers, hyper, step, monkeypatch, tmp_path):
+    """Our side's settings follow --ours, --layers, --hypernet-layers and --step, and each
+    form is a job of its own (EPyMARL's feed-forward agent has two hidden layers, its QMIX
     two-layer hypernetworks: --agent mlp --layers 2 --hypernet-layers 2)."""
     module = epymarl_anchor()
     seen = failing_runs(module, monkeypatch)
     protocol = {"steps": 100, "eval_interval": 50, "eval_episodes": 10, "seeds": 1,
                 "algorithms": ["iql", "qmix"], "ours": ours, "layers": layers,
-                "hypernet_layers": hyper}  # fmt: skip
+                "hypernet_layers": hyper, "step": step}  # fmt: skip
     with pytest.raises(SystemExit):
         module.ours("8x8-2p-2f-coop", protocol, tmp_path, tmp_path / "l.log")
     (command,) = seen
@@ -327,9 +329,11 @@ def test_cmarl_cds_command_and_job_of_each_form(ours, layers, hyper, monkeypatch
     expected = [f"{learner}.{s}" for learner in ("deep-iql", "qmix")
                 for s in (["share=true"] if ours == "shared" else [])
                 + ([f"hidden_layers={layers}"] if layers > 1 else [])
-                + (["hypernet_layers=2"] if hyper == 2 and learner == "qmix" else [])]  # fmt: skip
+                + (["hypernet_layers=2"] if hyper == 2 and learner == "qmix" else [])
+                + ([f"step={step}"] if step != "auto" else [])]  # fmt: skip
     assert settings == expected
     job = module.cmarlcd_job("8x8-2p-2f-coop", protocol)
     assert job == ("8x8-2p-2f-coop", *(("shared",) if ours == "shared" else ()),
                    *((f"layers{layers}",) if layers > 1 else ()),
-                   *(("hyper2",) if hyper == 2 else ()))  # fmt: skip
+                   *(("hyper2",) if hyper == 2 else ()),
+                   *((step,) if step != "auto" else ()))  # fmt: skip

@@ -74,6 +74,10 @@ LAUNCHER = Path(__file__).with_name("epymarl_agents.py")
 #: one-hot index in its input (``share=true``, as EPyMARL's configs), or ``per-agent``,
 #: one network an agent (the preset's; the anchor's jobs before ``share`` existed).
 OURS = ("shared", "per-agent")
+#: cmarl-cd's gradient steps (``DeepConfig.step``): ``auto`` leaves the learners' default
+#: (autograd's for shared or deeper networks), ``fused`` the compiled step, equal to
+#: autograd's per step to float32 rounding (its tests), several times faster.
+STEPS = ("auto", "fused", "autograd")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -117,6 +121,8 @@ def parser() -> argparse.ArgumentParser:
                    "network (2: EPyMARL's feed-forward agent, as --agent mlp)")  # fmt: skip
     p.add_argument("--hypernet-layers", type=int, default=1, help="cmarl-cd QMIX's "
                    "hypernetwork layers (2: EPyMARL's hypernet_layers)")  # fmt: skip
+    p.add_argument("--step", default="auto", help="cmarl-cd's gradient step: auto (the "
+                   "learner's default), fused or autograd")  # fmt: skip
     p.add_argument("--out", default="results/anchor-epymarl", help="where runs are kept")
     p.add_argument("--any-commit", action="store_true", help="allow another EPyMARL commit")
     p.add_argument("--parallel", type=int, default=1, help="EPyMARL runs at a time (one "
@@ -162,6 +168,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
         raise ValueError(f"--layers: must be >= 1 (got {args.layers})")
     if args.hypernet_layers not in (1, 2):
         raise ValueError(f"--hypernet-layers: must be 1 or 2 (got {args.hypernet_layers})")
+    if args.step not in STEPS:
+        raise ValueError(f"--step: unknown {args.step!r} (one of {', '.join(STEPS)})")
     if args.ours not in OURS:
         raise ValueError(f"--ours: unknown {args.ours!r} (one of {', '.join(OURS)})")
     if args.agent not in AGENTS:
@@ -175,7 +183,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
         checkout_commit(args.epymarl, args.any_commit)
     protocol = {"tasks": tasks, "algorithms": algorithms, "sides": sides, "seeds": args.seeds,
                 "agent": args.agent, "ours": args.ours, "layers": args.layers,
-                "hypernet_layers": args.hypernet_layers}  # fmt: skip
+                "hypernet_layers": args.hypernet_layers, "step": args.step}  # fmt: skip
     episodes = count(args.eval_episodes, "eval-episodes")
     return {**protocol, "steps": steps, "eval_interval": interval, "eval_episodes": episodes}
 
@@ -215,11 +223,13 @@ def cmarlcd_job(task: str, protocol: dict) -> tuple:
 
 
 def layers_tag(protocol: dict) -> tuple[str, ...]:
-    """``"layersN"`` where cmarl-cd's agent networks have N > 1 hidden layers, and
-    ``"hyper2"`` where its QMIX's hypernetworks have two."""
-    layers = protocol.get("layers", 1)
+    """``"layersN"`` where cmarl-cd's agent networks have N > 1 hidden layers,
+    ``"hyper2"`` where its QMIX's hypernetworks have two, and the step where it is named
+    (``fused``, ``autograd``; none for the learners' default)."""
+    layers, step = protocol.get("layers", 1), protocol.get("step", "auto")
     return (*(() if layers == 1 else (f"layers{layers}",)),
-            *(("hyper2",) if protocol.get("hypernet_layers", 1) == 2 else ()))  # fmt: skip
+            *(("hyper2",) if protocol.get("hypernet_layers", 1) == 2 else ()),
+            *(() if step == "auto" else (step,)))  # fmt: skip
 
 
 def epymarl_job(task: str, algorithm: str, seed: int, protocol: dict) -> tuple:
@@ -302,6 +312,7 @@ def ours(task: str, protocol: dict, out: Path, log: Path) -> dict[str, Any]:
             *((f"hidden_layers={protocol['layers']}",) if protocol.get("layers", 1) > 1 else ()),
             *(("hypernet_layers=2",) if a == "qmix" and protocol.get("hypernet_layers", 1) == 2
               else ()),
+            *((f"step={protocol['step']}",) if protocol.get("step", "auto") != "auto" else ()),
         ]
     ]  # fmt: skip
     command = [
@@ -444,7 +455,8 @@ def table(summary: dict) -> str:
     p = summary["protocol"]
     lines = [
         f"EPyMARL {COMMIT} ({p['agent']} agents) and cmarl-cd ({p['ours']} agents, "
-        f"{p.get('layers', 1)} hidden layer{'s' if p.get('layers', 1) > 1 else ''}) on LBF: "
+        f"{p.get('layers', 1)} hidden layer{'s' if p.get('layers', 1) > 1 else ''}"
+        f"{'' if p.get('step', 'auto') == 'auto' else ', the ' + p['step'] + ' step'}) on LBF: "
         f"{p['steps']:,} steps, {p['seeds']} seeds, "
         f"{p['eval_episodes']} greedy episodes every {p['eval_interval']:,} steps",
         "",

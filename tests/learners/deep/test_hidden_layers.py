@@ -127,8 +127,7 @@ def test_the_compiled_forward_pass_sums_each_layer_in_float32_and_acts_greedily(
 def test_the_setting_is_checked_and_keeps_autograds_step() -> None:
     with pytest.raises(ConfigError, match="hidden_layers"):
         DeepConfig(hidden_layers=0)
-    with pytest.raises(ConfigError, match="fused step covers one hidden layer"):
-        DeepConfig(hidden_layers=2, step="fused")
+    assert DeepConfig(hidden_layers=2, step="fused").hidden_layers == 2  # on features
     assert DeepConfig(mixer="qmix").auto_fuses
     assert not DeepConfig(mixer="qmix", hidden_layers=2).auto_fuses
     vd = model(share=False, mixer="qmix")
@@ -210,10 +209,10 @@ def test_the_hypernetwork_setting_is_checked() -> None:
     for settings, says in (
         ({"mixer": "qmix", "hypernet_layers": 3}, "must be 1 or 2"),
         ({"mixer": "vdn", "hypernet_layers": 2}, "applies to qmix only"),
-        ({"mixer": "qmix", "hypernet_layers": 2, "step": "fused"}, "fused step covers"),
         ({"mixer": "qmix", "hypernet_hidden": 0}, "hypernet_hidden"),
     ):
         with pytest.raises(ConfigError, match=says):
             DeepConfig(**settings)
     assert not DeepConfig(mixer="qmix", hypernet_layers=2).auto_fuses
+    assert DeepConfig(mixer="qmix", hypernet_layers=2, step="fused").step == "fused"
     assert DeepConfig(mixer="qmix", hypernet_hidden=8).auto_fuses  # read only with 2

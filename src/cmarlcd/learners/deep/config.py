@@ -192,13 +192,16 @@ class DeepConfig(DeepLearnerConfig):
     hidden_layers: int = added_setting(1, "0.7.0")
     """[choice] Hidden layers of each agent network, ``hidden`` units each (ReLU): 1, the
     paper's; 2 is EPyMARL's feed-forward agent (``use_rnn=False``: ``fc1``, a ReLU
-    ``Linear`` of ``hidden_dim``, ``fc2``). The fused step covers one (``step=auto``
-    takes autograd's with more; ``step=fused`` refuses them)."""
+    ``Linear`` of ``hidden_dim``, ``fc2``). ``step=fused`` takes any depth on feature
+    states (equal per step to autograd's to float32 rounding) and one hidden layer on
+    integer states; ``step=auto`` takes autograd's with more than one, as no study has
+    compared their runs yet."""
     hypernet_layers: int = added_setting(1, "0.7.0")
     """[choice] QMIX's hypernetworks of the mixing weights: 1, a linear layer of the state
     each (the paper's QMIX), or 2, ``Linear -> ReLU -> Linear`` with ``hypernet_hidden``
-    units (EPyMARL's ``hypernet_layers: 2``). The fused step covers 1 (``step=auto`` takes
-    autograd's with 2; ``step=fused`` refuses them)."""
+    units (EPyMARL's ``hypernet_layers: 2``). ``step=fused`` takes 2 on feature states
+    (equal per step to autograd's to float32 rounding); ``step=auto`` takes autograd's with
+    2, as no study has compared their runs yet."""
     hypernet_hidden: int = added_setting(64, "0.7.0")
     """Hidden units of QMIX's two-layer hypernetworks (EPyMARL's ``hypernet_embed``: 64);
     read only with ``hypernet_layers=2``."""
@@ -267,24 +270,12 @@ class DeepConfig(DeepLearnerConfig):
             require(self.grad_clip > 0, "grad_clip", f"must be > 0 (got {self.grad_clip})")
         layers = self.hidden_layers
         require(layers >= 1, "hidden_layers", f"must be >= 1 (got {layers})")
-        require(
-            layers == 1 or self.step != "fused",
-            "hidden_layers",
-            f"the fused step covers one hidden layer (got {layers} with step=fused; "
-            "step=auto or autograd)",
-        )
         hyper = self.hypernet_layers
         require(hyper in (1, 2), "hypernet_layers", f"must be 1 or 2 (got {hyper})")
         require(
             hyper == 1 or self.mixer == "qmix",
             "hypernet_layers",
             f"applies to qmix only, not {self.name}",
-        )
-        require(
-            hyper == 1 or self.step != "fused",
-            "hypernet_layers",
-            "the fused step covers one-layer hypernetworks (got 2 with step=fused; "
-            "step=auto or autograd)",
         )
         if self.anneal_steps is not None:
             count = self.anneal_steps

@@ -101,18 +101,71 @@ def test_fused_gradients_equal_autograd(mixer: str, inputs: str, double_q: bool)
     with double Q too (the online networks choose the next actions, the targets value
     them)."""
     auto, fused, batch = pair(mixer, inputs, double_q=double_q)
-    sample = batch()
+    assert len(parameters(auto)) == (14 if mixer == "qmix" else 4)
+    assert_one_step_equal(auto, fused, batch())
+
+
+def assert_one_step_equal(auto: ValueDecomposition, fused: ValueDecomposition, sample) -> None:
+    """One step of each from the same weights on ``sample``: the same loss and, parameter
+    by parameter (the fused step's gradients in the module's order), the same gradient to
+    float32 rounding (relative to its largest entry)."""
     assert sample["terminal"].any()
     auto.optimizer.zero_grad()
     loss = auto.td_loss(sample)
     loss.backward()
     assert fused.td_step(sample) == pytest.approx(float(loss.detach()) / SEEDS, rel=1e-5)
-    grads = [*fused.fused.agent_grads, *(fused.fused.mixer_grads if mixer == "qmix" else ())]
-    assert len(grads) == len(parameters(auto)) == (14 if mixer == "qmix" else 4)
+    grads = fused.fused.flat[1]
+    assert len(grads) == len(parameters(auto))
     for p, grad in zip(parameters(auto), grads, strict=True):
         scale = float(p.grad.abs().max())
         assert scale > 0
-        np.testing.assert_allclose(grad, p.grad.numpy(), rtol=0, atol=1e-5 * scale)
+        np.testing.assert_allclose(grad.reshape(p.shape), p.grad.numpy(), rtol=0, atol=1e-5 * scale)
+
+
+#: Agent networks of more than one hidden layer, per agent and shared (the fused step takes
+#: them on feature states).
+DEEPER = {
+    "2 layers": {"hidden_layers": 2},
+    "3 layers, shared": {"hidden_layers": 3, "share": True},
+    "shared": {"share": True},
+    "2 layers, shared, two-layer hypernetworks": {
+        "hidden_layers": 2,
+        "share": True,
+        "hypernet_layers": 2,
+        "hypernet_hidden": 6,
+    },
+}
+FEATURES = ["features, masks in the batch", "features, every action legal", "own observations"]
+
+
+@pytest.mark.parametrize("networks", list(DEEPER))
+@pytest.mark.parametrize("inputs", FEATURES)
+@pytest.mark.parametrize("mixer", MIXERS)
+def test_fused_gradients_equal_autograd_through_middle_layers(
+    mixer: str, inputs: str, networks: str
+) -> None:
+    """As above, for deeper and shared agent networks, with double Q: every middle
+    layer's weights and biases get autograd's gradient (a shared network's summed over
+    its agents)."""
+    settings = dict(DEEPER[networks])
+    if mixer != "qmix":  # hypernetworks are QMIX's
+        settings.pop("hypernet_layers", None), settings.pop("hypernet_hidden", None)
+    auto, fused, batch = pair(mixer, inputs, double_q=True, **settings)
+    layers = settings.get("hidden_layers", 1)
+    assert len([*auto.agents.parameters()]) == 2 * layers + 2
+    assert_one_step_equal(auto, fused, batch())
+
+
+def test_the_fused_step_takes_one_hidden_layer_on_integer_states() -> None:
+    """Integer states read the first layers as tables; the fused step has no middle layer
+    nor two-layer hypernetwork there, and says so in one line (autograd's step takes
+    them)."""
+    _, fused, batch = pair("vdn", "integer states", hidden_layers=2)
+    with pytest.raises(ConfigError, match="hidden_layers: the fused step takes 2 hidden"):
+        fused.td_step(batch())
+    _, fused, batch = pair("qmix", "integer states", hypernet_layers=2)
+    with pytest.raises(ConfigError, match="hypernet_layers: the fused step takes two-layer"):
+        fused.td_step(batch())
 
 
 #: EPyMARL's additions (double Q, each seed's gradient norm clipped; a clip this small
@@ -122,7 +175,13 @@ EXTRAS = {"paper": {}, "double Q, clipped": {"double_q": True, "grad_clip": 0.05
 
 @pytest.mark.parametrize("extras", list(EXTRAS))
 @pytest.mark.parametrize(
-    "inputs", ["features, masks in the batch", "integer states", "integer states, per-state masks"]
+    "inputs",
+    [
+        "features, masks in the batch",
+        "integer states",
+        "integer states, per-state masks",
+        "features, 2 layers, shared",
+    ],
 )
 @pytest.mark.parametrize("mixer", MIXERS)
 def test_fused_adam_and_weights_follow_autograd_over_steps(
@@ -133,7 +192,12 @@ def test_fused_adam_and_weights_follow_autograd_over_steps(
     check the update's scale, which Adam's first step alone, ±lr, does not); the target
     values both keep between steps are renewed when the targets or the masks change (or,
     with double Q, at every step, as the online networks move)."""
-    auto, fused, batch = pair(mixer, inputs, **EXTRAS[extras])
+    networks = {}
+    if inputs == "features, 2 layers, shared":  # the middle layers' Adam, from spread copies
+        inputs, networks = "features, masks in the batch", {"hidden_layers": 2, "share": True}
+        if mixer == "qmix":
+            networks |= {"hypernet_layers": 2, "hypernet_hidden": 6}
+    auto, fused, batch = pair(mixer, inputs, **EXTRAS[extras], **networks)
     for step in range(5):
         sample = batch()
         assert auto.td_step(sample) == pytest.approx(fused.td_step(sample), rel=1e-4)

@@ -45,6 +45,12 @@ from cmarlcd.learners.deep.fused.layers import (
     zero_seed,
 )
 from cmarlcd.learners.deep.fused.mixers import mix, mix_backward, state_scratch
+from cmarlcd.learners.deep.fused.networks import (
+    gather_shared,
+    network_backward,
+    network_forward,
+    through_relu,
+)
 
 # ------------------------------------------------------------------ agent networks
 
@@ -176,39 +182,26 @@ def independent_errors(c, best, reward, terminal, next_states, per_state, gamma,
 
 
 @fused
-def hidden_gradient(w2, hidden, grad_q, grad_hidden) -> None:
-    """``grad_hidden`` (H, M) := ``W2 grad_q`` through the ReLU of ``hidden`` (H, M)."""
-    for h in range(hidden.shape[0]):
-        row, out = hidden[h], grad_hidden[h]
-        out[:] = 0.0
-        for a in range(grad_q.shape[0]):
-            w, d = w2[h, a], grad_q[a]
-            for m in range(row.shape[0]):
-                out[m] += w * d[m]
-        for m in range(row.shape[0]):
-            if not row[m] > 0.0:
-                out[m] = 0.0
-
-
-@fused
 def network_backward_features(w2, x, hidden, grad_q, grad_hidden, grads) -> None:
     """Gradients of one network on feature inputs ``x`` (F, N) from ``grad_q`` (A, N),
     the loss's gradient with respect to every output."""
     gw1, gb1, gw2, gb2 = grads
     dense_backward(hidden, grad_q, gw2, gb2)
-    hidden_gradient(w2, hidden, grad_q, grad_hidden)
+    through_relu(w2, hidden, grad_q, grad_hidden)
     dense_backward(x, grad_hidden, gw1, gb1)
 
 
 @fused
-def agent_backward_features(w2, x, hidden, act, grad_c, grad_q, grad_hidden, grads) -> None:
-    """Gradients of one agent network on feature inputs, from ``grad_c`` (N,), the loss's
-    gradient with respect to the Q-value of each transition's action ``act`` (N,)."""
+def agent_backward_features(net, grads, g, x, hidden, act, grad_c, grad_q, grad_hidden) -> None:
+    """Gradients of group ``g``'s agent network on feature inputs
+    (:func:`~cmarlcd.learners.deep.fused.networks.network_backward`), from ``grad_c``
+    (N,), the loss's gradient with respect to the Q-value of each transition's action
+    ``act`` (N,)."""
     for a in range(grad_q.shape[0]):
         row = grad_q[a]
         for t in range(act.shape[0]):
             row[t] = grad_c[t] if act[t] == a else np.float32(0.0)
-    network_backward_features(w2, x, hidden, grad_q, grad_hidden, grads)
+    network_backward(net, grads, g, x, hidden, grad_q, grad_hidden)
 
 
 @fused
@@ -234,8 +227,8 @@ def agents_forward(
     target networks' best legal Q (with ``double_q``, their Q at the online networks'
     best legal action): (n, N) at each transition's next state, or, for integer states
     whose masks are per state, (n, S) at every state. ``inputs``: see :func:`td_step`."""
-    w1, b1, w2, b2 = agents
-    tw1, tb1, tw2, tb2 = target_agents
+    w1, b1, w2, b2 = agents[:4]
+    tw1, tb1, tw2, tb2 = target_agents[:4]
     index, x, nx, states, next_states, actions, legal_of, own_dim = inputs
     n, count = c.shape
     units, width = w2.shape[1], w2.shape[2]
@@ -251,15 +244,15 @@ def agents_forward(
     for i in range(n):
         g = b * n + i
         act[:] = actions[:, i]
-        if index:
-            net_tables(w1[g], b1[g], transposed(w2[g], w2t), b2[g], hidden[i], table)
+        if index:  # one hidden layer: state-major (S, H)
+            net_tables(w1[g], b1[g], transposed(w2[g], w2t), b2[g], hidden[i, 0], table)
             for t in range(count):
                 c[i, t] = table[states[t], act[t]]
             if not targets:
                 continue
             if double_q:
                 online_table[:] = table
-            net_tables(tw1[g], tb1[g], transposed(tw2[g], w2t), tb2[g], target_hidden, table)
+            net_tables(tw1[g], tb1[g], transposed(tw2[g], w2t), tb2[g], target_hidden[0], table)
             if legal_of[0]:  # the batch's own masks: every transition's next Q-values
                 for a in range(width):
                     for t in range(count):
@@ -278,11 +271,11 @@ def agents_forward(
         else:
             lo = 0 if own_dim == 0 else x.shape[0] - (n - i) * own_dim
             hi = x.shape[0] if own_dim == 0 else lo + own_dim
-            agent_features(w1[g], b1[g], w2[g], b2[g], x[lo:hi], hidden[i], q)
+            network_forward(agents, g, x[lo:hi], hidden[i], q)
             chosen(q, act, c[i])
             if double_q:  # the online networks at the next states (hidden units unkept)
-                agent_features(w1[g], b1[g], w2[g], b2[g], nx[lo:hi], target_hidden, online)
-            agent_features(tw1[g], tb1[g], tw2[g], tb2[g], nx[lo:hi], target_hidden, q)
+                network_forward(agents, g, nx[lo:hi], target_hidden, online)
+            network_forward(target_agents, g, nx[lo:hi], target_hidden, q)
             legal_of_agent(legal_of, b, i, next_states, legal)
             if double_q:
                 online_choice_value(online, q, legal, kept[i], best[i])
@@ -328,64 +321,31 @@ def legal_of_agent(legal_of, b, i, next_states, out) -> None:
 def agents_backward(agents, grads, b, inputs, grad_c, hidden) -> None:
     """Every agent of seed ``b``: gradients from ``grad_c`` (n, N), ∂L/∂c."""
     w1, w2 = agents[0], agents[2]
-    gw1, gb1, gw2, gb2 = grads
+    gw1, gb1, gw2, gb2 = grads[:4]
     index, x, states, actions, own_dim = inputs[0], inputs[1], inputs[3], inputs[5], inputs[7]
     n, count = grad_c.shape
     units, width = w2.shape[1], w2.shape[2]
     act = np.empty(count, np.int64)
-    grad_hidden = np.empty_like(hidden[0])
+    # two buffers (a layer's gradient is made from the next one's): (2, H, N), or (2, S, H)
+    grad_hidden = np.empty((2, hidden.shape[2], hidden.shape[3]), np.float32)
     rows = w1.shape[1] if index else 0
     w2t = np.empty((width, units), np.float32)
     grad_w2t = np.empty((width, units), np.float32)
-    tables = (np.empty((rows, width), np.float32), grad_hidden, grad_w2t)
+    tables = (np.empty((rows, width), np.float32), grad_hidden[0], grad_w2t)
     grad_q = np.empty((width, 0 if index else count), np.float32)
     for i in range(n):
         g = b * n + i
         act[:] = actions[:, i]
-        parts = (gw1[g], gb1[g], gw2[g], gb2[g])
         if index:
             w2t = transposed(w2[g], w2t)
-            agent_backward_tables(w2t, hidden[i], states, act, grad_c[i], tables, parts)
+            parts = (gw1[g], gb1[g], gw2[g], gb2[g])
+            agent_backward_tables(w2t, hidden[i, 0], states, act, grad_c[i], tables, parts)
         else:
             lo = 0 if own_dim == 0 else x.shape[0] - (n - i) * own_dim
             hi = x.shape[0] if own_dim == 0 else lo + own_dim
             agent_backward_features(
-                w2[g], x[lo:hi], hidden[i], act, grad_c[i], grad_q, grad_hidden, parts
+                agents, grads, g, x[lo:hi], hidden[i], act, grad_c[i], grad_q, grad_hidden
             )
-
-
-@fused
-def spread_shared(shared, agents, n: int) -> None:
-    """Each agent's layers (``agents``: B*n groups, seed-major) from one network shared by
-    the agents (``shared``: B groups, the agent's one-hot index the first layer's last
-    ``n`` inputs): agent ``i``'s index row folded into its first bias."""
-    w1, b1, w2, b2 = shared
-    aw1, ab1, aw2, ab2 = agents
-    inputs = aw1.shape[1]
-    for b in range(w1.shape[0]):
-        for i in range(n):
-            g = b * n + i
-            aw1[g] = w1[b, :inputs]
-            ab1[g] = b1[b] + w1[b, inputs + i]
-            aw2[g] = w2[b]
-            ab2[g] = b2[b]
-
-
-@fused
-def gather_shared(agent_grads, shared_grads, b: int, n: int) -> None:
-    """Seed ``b``'s shared gradients += its agents' (the chain rule through
-    :func:`spread_shared`), the agents' then zeroed for the next step."""
-    gw1, gb1, gw2, gb2 = shared_grads
-    aw1, ab1, aw2, ab2 = agent_grads
-    inputs = aw1.shape[1]
-    for i in range(n):
-        g = b * n + i
-        gw1[b, :inputs] += aw1[g]
-        gw1[b, inputs + i] += ab1[g]
-        gb1[b] += ab1[g]
-        gw2[b] += aw2[g]
-        gb2[b] += ab2[g]
-        aw1[g], ab1[g], aw2[g], ab2[g] = 0.0, 0.0, 0.0, 0.0
 
 
 @fused
@@ -394,7 +354,9 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache, shared
     gradients left in ``grads``, and Adam's update of every parameter, seed by seed.
 
     ``nets``: (agents, target agents, mixer, target mixer), each a tuple of B-stacked
-    arrays as the PyTorch modules hold them (agents seed-major, B*n groups); ``grads``:
+    arrays as the PyTorch modules hold them (agents seed-major, B*n groups; their layers
+    as :mod:`~cmarlcd.learners.deep.fused.networks` lays them out, the middle layers
+    stacked: integer states take one hidden layer only); ``grads``:
     (agents', mixer's). ``batch``: (state features (B, N, D) or integer states (B, N),
     their next states likewise, actions (B, N, n), reward, terminal (B, N)); ``legal_of``:
     (whether the batch has its own masks, them (B, N, n, A), per-state masks (B, S, n, A)
@@ -420,13 +382,13 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache, shared
     features, next_features, states, next_states, actions, reward, terminal = batch
     qmix, index, gamma, own_dim, mixer_dim, units, double_q, clip, independent, weight = shape
     seeds, count, n = actions.shape
-    hidden_units = agents[0].shape[2]
-    if index:  # state-major tables (S, H)
-        hidden = np.empty((n, agents[0].shape[1], hidden_units), np.float32)
+    hidden_units, layers = agents[0].shape[2], agents[4].shape[0] + 1
+    if index:  # state-major tables (S, H) of the one hidden layer
+        hidden = np.empty((n, 1, agents[0].shape[1], hidden_units), np.float32)
         x = np.empty((0, count), np.float32)
         nx = np.empty((0, count), np.float32)
     else:
-        hidden = np.empty((n, hidden_units, count), np.float32)
+        hidden = np.empty((n, layers, hidden_units, count), np.float32)
         x = np.empty((features.shape[2], count), np.float32)
         nx = np.empty((features.shape[2], count), np.float32)
     # integer states with masks per state: the target's Q_tot is a function of the next
@@ -441,12 +403,16 @@ def td_step(nets, grads, batch, legal_of, valid, shape, optimiser, cache, shared
     next_tot = np.empty(count, np.float32)
     grad = np.empty(count, np.float32)
     columns = count if qmix and not index else 0  # the feature mixer's, (units, N)
+    embed = mixer[10].shape[2]  # two-layer hypernetworks' hidden units (0: one layer)
     scratch = (
         np.empty((n * units, columns), np.float32),
         np.empty((units, columns), np.float32),
         np.empty((units, columns), np.float32),
         np.empty((units, columns), np.float32),
         np.empty((units, columns), np.float32),
+        np.empty((embed, columns), np.float32),
+        np.empty((embed, columns), np.float32),
+        np.empty((embed, columns), np.float32),
     )
     tables = mixer[0].shape[1] if qmix and index else 0  # the integer-state mixer's
     work = state_scratch(tables, n, units, max(count, n_states) if tables else 0)

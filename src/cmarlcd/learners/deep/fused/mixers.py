@@ -3,7 +3,8 @@ monotonic mixing network, forward and hand-derived backward, and VDN's sum.
 
 QMIX (paper Section V-B) for seed ``b``, agents' values ``c_i`` at state ``s``:
 ``Q_tot = Σ_k ELU(Σ_i c_i |W1(s)|_ik + B1(s)_k) |W2(s)|_k + V(s)``, with hypernetworks
-``W1, B1, W2`` (one linear layer each) and ``V(s) = v2ᵀ ReLU(V1(s)) + v2_b``. Through
+``W1, B1, W2`` (one linear layer each; or, for ``W1`` and ``W2``, two: ``Linear → ReLU →
+Linear``, EPyMARL's ``hypernet_layers: 2``) and ``V(s) = v2ᵀ ReLU(V1(s)) + v2_b``. Through
 ``|·|`` the gradient is multiplied by ``sign`` (0 at 0), through ReLU by ``[out > 0]``,
 through ELU by ``exp(p) = ELU(p) + 1`` for ``p <= 0``, as PyTorch's backward functions do.
 
@@ -14,7 +15,13 @@ Two layouts, one per kind of state:
 * **integer states** (one-hot inputs): a hypernetwork's output at state ``s`` is its
   weights' row ``s`` plus its bias, so the mixer's weights are tables over the S states,
   made once per seed; each transition reads its state's rows and every inner loop runs
-  over the K mixing units; the gradients gather per state and go through ``|·|`` once.
+  over the K mixing units; the gradients gather per state and go through ``|·|`` once
+  (one-layer hypernetworks only).
+
+The mixer's parameters, as the kernels take them: ``(hw1, hw1_b, hb1, hb1_b, hw2, hw2_b,
+v1, v1_b, v2, v2_b, e1, e1_b, e2, e2_b)``, each B-stacked: the weights' hypernetworks'
+(last) layers, B1's, V's two layers, then the first layers of two-layer ``W1`` and ``W2``
+hypernetworks (``e1`` (B, F, E)), empty (F = E = 0) for one-layer ones.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ from cmarlcd.learners.deep.fused.layers import (
     inlined,
     relu_inplace,
 )
+from cmarlcd.learners.deep.fused.networks import through_relu
 
 
 @inlined
@@ -88,14 +96,15 @@ def expm1_negative(p) -> float:
 def qmix_forward(mixer, b: int, c, x, scratch, q_tot) -> None:
     """QMIX's ``Q_tot`` (N,) of seed ``b`` for the agents' values ``c`` (n, N) at state
     features ``x`` (F, N). ``scratch`` keeps, for the backward pass: W1(s) (n*K, N),
-    B1(s)+Σ (pre-activation) and ELU (K, N) each, W2(s), ReLU(V1(s)) (K, N)."""
-    hw1, hw1_b, hb1, hb1_b, hw2, hw2_b, v1, v1_b, v2, v2_b = mixer
-    w1s, pre, hid, w2s, val = scratch
+    B1(s)+Σ (pre-activation) and ELU (K, N) each, W2(s), ReLU(V1(s)) (K, N), and the
+    two-layer hypernetworks' hidden layers (E, N) (then a scratch of their gradient)."""
+    hw1, hw1_b, hb1, hb1_b, hw2, hw2_b, v1, v1_b, v2, v2_b, e1, e1_b, e2, e2_b = mixer
+    w1s, pre, hid, w2s, val, embed1, embed2 = scratch[:7]
     n, count = c.shape
     k_units = pre.shape[0]
-    dense_forward(hw1[b], hw1_b[b], x, w1s)
+    hyper_forward(e1, e1_b, hw1, hw1_b, b, x, embed1, w1s)
     dense_forward(hb1[b], hb1_b[b], x, pre)
-    dense_forward(hw2[b], hw2_b[b], x, w2s)
+    hyper_forward(e2, e2_b, hw2, hw2_b, b, x, embed2, w2s)
     dense_forward(v1[b], v1_b[b], x, val)
     relu_inplace(val)
     for t in range(count):
@@ -117,8 +126,8 @@ def qmix_backward(mixer, grads, b: int, c, x, scratch, grad, grad_c) -> None:
     """Gradients of :func:`qmix_forward` for ``grad`` = ∂L/∂Q_tot (N,): into the mixer's
     ``grads`` (seed ``b``'s rows) and ``grad_c`` (n, N), ∂L/∂c. Overwrites ``scratch``."""
     v2 = mixer[8]
-    g_hw1, g_hw1_b, g_hb1, g_hb1_b, g_hw2, g_hw2_b, g_v1, g_v1_b, g_v2, g_v2_b = grads
-    w1s, pre, hid, w2s, val = scratch
+    g_hw1, g_hw1_b, g_hb1, g_hb1_b, g_hw2, g_hw2_b, g_v1, g_v1_b, g_v2, g_v2_b = grads[:10]
+    w1s, pre, hid, w2s, val, embed1, embed2, grad_embed = scratch
     n, count = c.shape
     k_units = pre.shape[0]
     grad_c[:] = 0.0
@@ -143,10 +152,38 @@ def qmix_backward(mixer, grads, b: int, c, x, scratch, grad, grad_c) -> None:
             for t in range(count):
                 gi[t] += p[t] * abs(wi[t])
                 wi[t] = p[t] * ci[t] * sign(wi[t])
-    dense_backward(x, w1s, g_hw1[b], g_hw1_b[b])
+    hyper_backward(mixer[10], mixer[0], grads[10:12], (g_hw1, g_hw1_b), b, x, embed1, w1s,
+                   grad_embed)  # fmt: skip
     dense_backward(x, pre, g_hb1[b], g_hb1_b[b])
-    dense_backward(x, w2s, g_hw2[b], g_hw2_b[b])
+    hyper_backward(mixer[12], mixer[4], grads[12:14], (g_hw2, g_hw2_b), b, x, embed2, w2s,
+                   grad_embed)  # fmt: skip
     dense_backward(x, val, g_v1[b], g_v1_b[b])
+
+
+@fused
+def hyper_forward(first, first_b, last, last_b, b: int, x, embed, out) -> None:
+    """A mixing weights' hypernetwork of seed ``b`` on ``x`` (F, N) into ``out``: its one
+    layer (``last``), or, where ``first`` has inputs, ``embed`` (E, N) := ReLU of its
+    first layer, then its last layer on that."""
+    if first.shape[1] == 0:
+        dense_forward(last[b], last_b[b], x, out)
+    else:
+        dense_forward(first[b], first_b[b], x, embed)
+        relu_inplace(embed)
+        dense_forward(last[b], last_b[b], embed, out)
+
+
+@fused
+def hyper_backward(first, last, first_grads, last_grads, b: int, x, embed, grad_out, grad_embed):
+    """Seed ``b``'s gradients of :func:`hyper_forward` from ``grad_out``, ∂L/∂out:
+    ``last_grads``, and through the ReLU of ``embed`` (``grad_embed`` (E, N) scratch)
+    ``first_grads``, where it has two layers."""
+    if first.shape[1] == 0:
+        dense_backward(x, grad_out, last_grads[0][b], last_grads[1][b])
+    else:
+        dense_backward(embed, grad_out, last_grads[0][b], last_grads[1][b])
+        through_relu(last[b], embed, grad_out, grad_embed)
+        dense_backward(x, grad_embed, first_grads[0][b], first_grads[1][b])
 
 
 # ------------------------------------------------------------------ integer states
@@ -177,7 +214,7 @@ def state_scratch(states: int, agents: int, units: int, count: int) -> tuple:
 def state_tables(mixer, b: int, work) -> None:
     """The mixer's weights of seed ``b`` at every state: each hypernetwork's row plus its
     bias (|W1(s)|, B1(s), |W2(s)|), ReLU(V1(s)) and V(s)."""
-    hw1, hw1_b, hb1, hb1_b, hw2, hw2_b, v1, v1_b, v2, v2_b = mixer
+    hw1, hw1_b, hb1, hb1_b, hw2, hw2_b, v1, v1_b, v2, v2_b = mixer[:10]
     w1s, b1s, w2s, v1s, value = work[0], work[1], work[2], work[3], work[4]
     units = b1s.shape[1]
     for s in range(w1s.shape[0]):
@@ -282,7 +319,7 @@ def state_gradients(mixer, grads, b: int, work) -> None:
     of each hypernetwork's output, recomputed) and ReLU into the hypernetworks' rows and
     biases of seed ``b``."""
     hw1, hw1_b, hw2, hw2_b, v2 = mixer[0], mixer[1], mixer[4], mixer[5], mixer[8]
-    g_hw1, g_hw1_b, g_hb1, g_hb1_b, g_hw2, g_hw2_b, g_v1, g_v1_b, g_v2, g_v2_b = grads
+    g_hw1, g_hw1_b, g_hb1, g_hb1_b, g_hw2, g_hw2_b, g_v1, g_v1_b, g_v2, g_v2_b = grads[:10]
     v1s, g1, gb1, g2, gv = work[3], work[7], work[8], work[9], work[10]
     for s in range(g1.shape[0]):
         total = gv[s, 0]

@@ -23,6 +23,7 @@ import torch
 from cmarlcd.errors import require
 from cmarlcd.learners.deep.fused import degree_kernels as fused_degree_kernels
 from cmarlcd.learners.deep.fused import kernels as fused_kernels
+from cmarlcd.learners.deep.fused.networks import spread_shared, stacked
 
 
 def _arrays(module: torch.nn.Module) -> tuple[np.ndarray, ...]:
@@ -38,14 +39,16 @@ class FusedStep:
         _on_the_cpu(model)
         self.model = model
         self.qmix = model.config.mixer == "qmix"
-        self.agents, self.target_agents = _arrays(model.agents), _arrays(model.target_agents)
+        self.agents, self.middle = _layers(model.agents)
+        self.target_agents, self.target_middle = _layers(model.target_agents)
+        self.layers = self.agents[4].shape[0] + 1
         self.share = bool(model.config.share)
         self.shared, self.target_shared = self.agents, self.target_agents
         if self.share:  # the kernels step per-agent layers spread from the shared network
             n = model.n_agents
             self.agents, self.target_agents = _per_agent(self.shared, n), _per_agent(self.shared, n)
         if self.qmix:
-            self.mixer, self.target_mixer = _arrays(model.mixer), _arrays(model.target_mixer)
+            self.mixer, self.target_mixer = _mixer(model.mixer), _mixer(model.target_mixer)
         else:  # VDN has no parameters: empty arrays of the kernels' types
             self.mixer = self.target_mixer = _no_mixer(model.n_seeds)
         self.agent_grads = tuple(np.zeros_like(p) for p in self.agents)
@@ -53,10 +56,12 @@ class FusedStep:
             tuple(np.zeros_like(p) for p in self.shared) if self.share else _no_shared()
         )
         self.mixer_grads = tuple(np.zeros_like(p) for p in self.mixer)
-        own = self.shared if self.share else self.agents
-        params = [*own, *(self.mixer if self.qmix else ())]
-        grads = [*(self.shared_grads if self.share else self.agent_grads),
-                 *(self.mixer_grads if self.qmix else ())]  # fmt: skip
+        # Adam steps the model's own parameters, in their order (the middle layers' too,
+        # which the kernels read from stacked copies), from the gradients laid out alike
+        own_grads = self.shared_grads if self.share else self.agent_grads
+        mixed = self.qmix  # VDN's stand-ins are not stepped
+        params = [*_arrays(model.agents), *(_mixer_in_order(self.mixer) if mixed else ())]
+        grads = [*_in_order(own_grads), *(_mixer_in_order(self.mixer_grads) if mixed else ())]
         self.flat = _flat(params, grads)
         self.rates = np.full(len(params), model.optimizer.param_groups[0]["lr"], np.float64)
         self.adam = adam_settings(model.optimizer)
@@ -74,12 +79,30 @@ class FusedStep:
     def __call__(self, batch: dict[str, torch.Tensor]) -> float:
         """One step on a replay batch (the keys of :meth:`ValueDecomposition.td_loss`);
         the mean loss per seed."""
+        index = batch["state"].dtype == torch.int64
+        require(
+            self.layers == 1 or not index,
+            "hidden_layers",
+            f"the fused step takes {self.layers} hidden layers on feature states only, "
+            "not integer states; step=autograd there",
+        )
+        require(
+            self.mixer[10].shape[1] == 0 or not index,
+            "hypernet_layers",
+            "the fused step takes two-layer hypernetworks on feature states only, not "
+            "integer states; step=autograd there",
+        )
         self.steps += 1
-        per_state = batch["state"].dtype == torch.int64 and "next_legal" not in batch
+        per_state = index and "next_legal" not in batch
         n = self.model.n_agents
+        own, target = (
+            (self.shared, self.target_shared) if self.share else (self.agents, self.target_agents)
+        )
+        for net, (weights, biases) in ((own, self.middle), (target, self.target_middle)):
+            stacked(weights, net[4]), stacked(biases, net[5])  # the middle layers as they are now
         if self.share:  # the shared networks as they are now, per agent
-            fused_kernels.spread_shared(self.shared, self.agents, n)
-            fused_kernels.spread_shared(self.target_shared, self.target_agents, n)
+            spread_shared(self.shared, self.agents, n)
+            spread_shared(self.target_shared, self.target_agents, n)
         arguments = (
             (self.agents, self.target_agents, self.mixer, self.target_mixer),
             (self.agent_grads, self.mixer_grads),
@@ -229,23 +252,47 @@ def split_states(state: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(array, np.float32), np.zeros((seeds, count), np.int64)
 
 
+def _layers(module: torch.nn.Module) -> tuple[tuple[np.ndarray, ...], tuple[list, list]]:
+    """An agent network's layers as the kernels read them, ``(w1, b1, w2, b2, wm, bm)``
+    (:mod:`~cmarlcd.learners.deep.fused.networks`; ``wm``, ``bm`` stacked copies of the
+    middle layers, empty for one hidden layer), and the middle layers' own parameters
+    (weights, biases), which the copies are refreshed from."""
+    w1, b1, *middle, w2, b2 = _arrays(module)
+    weights, biases = middle[0::2], middle[1::2]
+    groups, units = w1.shape[0], w1.shape[2]
+    wm = stacked(weights, np.zeros((len(weights), groups, units, units), np.float32))
+    bm = stacked(biases, np.zeros((len(biases), groups, units), np.float32))
+    return (w1, b1, w2, b2, wm, bm), (weights, biases)
+
+
+def _in_order(net: tuple[np.ndarray, ...]) -> list[np.ndarray]:
+    """The arrays of ``net`` (laid out as :func:`_layers`'s) in the module's parameter
+    order: the first layer, each middle layer (weight, bias), the output layer."""
+    w1, b1, w2, b2, wm, bm = net
+    middle = [array for layer in range(wm.shape[0]) for array in (wm[layer], bm[layer])]
+    return [w1, b1, *middle, w2, b2]
+
+
 def _per_agent(shared: tuple[np.ndarray, ...], n: int) -> tuple[np.ndarray, ...]:
     """Per-agent layers (B*n groups) for a network shared by ``n`` agents: its first
     layer without the agents' index rows, the others as they are."""
-    w1, b1, w2, b2 = shared
+    w1, b1, w2, b2, wm, bm = shared
     seeds, inputs = w1.shape[0], w1.shape[1] - n
     return (
         np.zeros((seeds * n, inputs, w1.shape[2]), np.float32),
         np.zeros((seeds * n, b1.shape[1]), np.float32),
         np.zeros((seeds * n, *w2.shape[1:]), np.float32),
         np.zeros((seeds * n, b2.shape[1]), np.float32),
+        np.zeros((wm.shape[0], seeds * n, *wm.shape[2:]), np.float32),
+        np.zeros((bm.shape[0], seeds * n, bm.shape[2]), np.float32),
     )
 
 
 def _no_shared() -> tuple[np.ndarray, ...]:
     """Empty stand-ins of a shared network's gradients, of the kernels' types."""
     return (np.zeros((0, 0, 0), np.float32), np.zeros((0, 0), np.float32),
-            np.zeros((0, 0, 0), np.float32), np.zeros((0, 0), np.float32))  # fmt: skip
+            np.zeros((0, 0, 0), np.float32), np.zeros((0, 0), np.float32),
+            np.zeros((0, 0, 0, 0), np.float32), np.zeros((0, 0, 0), np.float32))  # fmt: skip
 
 
 def _on_the_cpu(model) -> None:
@@ -273,8 +320,28 @@ def adam_settings(optimizer: torch.optim.Optimizer) -> tuple[float, float, float
     return float(beta1), float(beta2), float(group["eps"])
 
 
-def _no_mixer(seeds: int) -> tuple[np.ndarray, ...]:
-    """Ten empty arrays shaped as QMIX's parameters (3-d weights, 2-d biases)."""
+def _no_mixer(seeds: int, count: int = 14) -> tuple[np.ndarray, ...]:
+    """``count`` empty arrays shaped as QMIX's parameters (3-d weights, 2-d biases)."""
     return tuple(
-        np.zeros((seeds, 0, 0) if k % 2 == 0 else (seeds, 0), np.float32) for k in range(10)
+        np.zeros((seeds, 0, 0) if k % 2 == 0 else (seeds, 0), np.float32) for k in range(count)
     )
+
+
+def _mixer(module: torch.nn.Module) -> tuple[np.ndarray, ...]:
+    """QMIX's parameters as the kernels take them (:mod:`~cmarlcd.learners.deep.fused.mixers`:
+    the weights' hypernetworks' last layers first, their first layers at the end, empty
+    for one-layer hypernetworks)."""
+    arrays = _arrays(module)
+    if len(arrays) == 10:  # one-layer hypernetworks
+        return (*arrays, *_no_mixer(arrays[0].shape[0], 4))
+    e1, e1_b, hw1, hw1_b, hb1, hb1_b, e2, e2_b, hw2, hw2_b, v1, v1_b, v2, v2_b = arrays
+    return hw1, hw1_b, hb1, hb1_b, hw2, hw2_b, v1, v1_b, v2, v2_b, e1, e1_b, e2, e2_b
+
+
+def _mixer_in_order(mixer: tuple[np.ndarray, ...]) -> list[np.ndarray]:
+    """The arrays of ``mixer`` (laid out as :func:`_mixer`'s) in the module's parameter
+    order."""
+    hw1, hw1_b, hb1, hb1_b, hw2, hw2_b, v1, v1_b, v2, v2_b, e1, e1_b, e2, e2_b = mixer
+    if e1.shape[1] == 0:
+        return list(mixer[:10])
+    return [e1, e1_b, hw1, hw1_b, hb1, hb1_b, e2, e2_b, hw2, hw2_b, v1, v1_b, v2, v2_b]
