@@ -3,7 +3,11 @@
 The equivalence study (``fused_equivalence.py``) compares the two steps' *results*; this
 script looks for a systematic difference in the steps themselves, on the batches real
 training feeds them: ``battlefield``, one VDN-vs-QMIX match; ``dsn``, one seed of deep
-CMARL-CD on the DSN (its keyed update). It trains with autograd, records every batch and
+CMARL-CD on the DSN (its keyed update); ``lbf``, one seed each of VDN and QMIX at
+EPyMARL's settings and model class (``cmarl-cd field --preset epymarl``, shared networks of
+two hidden layers on their own observations, QMIX's two-layer hypernetworks) on
+Level-Based Foraging's 8x8-2p-2f-coop, ``--episodes`` counting environment steps there.
+It trains with autograd, records every batch and
 target copy of each model, then replays that sequence into three copies of each model
 as it started:
 
@@ -27,6 +31,7 @@ rounding only, and a difference between their runs is the chaos of learning.
 Usage:
     python benchmarks/fused_lockstep.py battlefield --episodes 20000
     python benchmarks/fused_lockstep.py dsn --episodes 20000
+    python benchmarks/fused_lockstep.py lbf --episodes 100000
 """
 
 from __future__ import annotations
@@ -40,7 +45,10 @@ import numpy as np
 import torch
 
 from cmarlcd import registry
+from cmarlcd.cli.field import evaluation_points, with_preset
+from cmarlcd.experiments import games
 from cmarlcd.experiments import tournament as tour
+from cmarlcd.experiments.episodic import EpisodicRun, run_batch
 from cmarlcd.games import battlefield, sensor_network
 from cmarlcd.learners.deep.degree_model import DegreeModel
 from cmarlcd.learners.deep.fused.step import FusedDegreeStep, FusedStep
@@ -55,7 +63,7 @@ def record(game: str, episodes: int, seed: int) -> dict[int, dict]:
     """Train with autograd; per model: its starting copy and its events
     (``("learn", batch)`` or ``("sync", None)``) in order."""
     log: dict[int, dict] = {}
-    kind = ValueDecomposition if game == "battlefield" else DegreeModel
+    kind = DegreeModel if game == "dsn" else ValueDecomposition
     learn, sync = kind.learn, kind.sync_target
 
     def entry(model) -> dict:
@@ -79,8 +87,26 @@ def record(game: str, episodes: int, seed: int) -> dict[int, dict]:
     return log
 
 
+#: The LBF part's task and model class (EPyMARL's: shared, two hidden layers, QMIX's
+#: hypernetworks of two layers).
+LBF_TASK = "foraging:8x8-2p-2f-coop"
+EPYMARL_MODEL = {"share": True, "hidden_layers": 2}
+
+
 def _train(game: str, episodes: int, seed: int) -> None:
-    """One autograd VDN-vs-QMIX match, or one seed of deep CMARL-CD on the DSN."""
+    """One autograd VDN-vs-QMIX match, one seed of deep CMARL-CD on the DSN, or one seed
+    each of VDN and QMIX on LBF (``episodes`` counting steps)."""
+    if game == "lbf":
+        family, rules = games.parse_game(LBF_TASK)
+        for name in ("vdn", "qmix"):
+            (learner,) = with_preset((registry.LEARNERS[name],), "epymarl", rules.spec().max_steps)
+            hypernets = {"hypernet_layers": 2} if name == "qmix" else {}
+            learner = dataclasses.replace(learner, step="autograd", **EPYMARL_MODEL, **hypernets)
+            options = family.options(rules, "own-observations")
+            points = evaluation_points(episodes, episodes)
+            run = EpisodicRun(learner, (episodes,), 1, points, 1, options, unit="steps")
+            run_batch(family.game, run, [np.random.SeedSequence(seed)])
+        return
     if game == "battlefield":
         learners = tour.battlefield_learners()
         env, a, b = np.random.default_rng(seed).spawn(3)
@@ -209,8 +235,9 @@ def replay(name: str, side: dict, points: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("game", choices=("battlefield", "dsn"))
-    parser.add_argument("--episodes", type=int, default=20000, help="learning episodes played")
+    parser.add_argument("game", choices=("battlefield", "dsn", "lbf"))
+    parser.add_argument("--episodes", type=int, default=20000, help="learning episodes played "
+                        "(lbf: environment steps)")  # fmt: skip
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--points", type=int, default=10, help="rows printed per side")
     args = parser.parse_args(argv)
