@@ -26,6 +26,14 @@ is the ``update`` [choice]:
   fitted by an expectile regression at ``expectile`` τ: a new record when ``G > R(s) +
   margin``, a tie when ``|G - R(s)| <= tolerance``. A tie then moves its state once per
   replay, by Adam's step size rather than ``delta``.
+* ``imitation`` (beyond the table's rule, for states that do not recur): the same ring of
+  visits and expectile record network, and the degrees learn by *self-imitation gated by
+  the record* (after Oh et al., 2018, "Self-Imitation Learning", ICML): each replayed
+  visit whose return reaches its state's estimated record (within ``tolerance`` spreads
+  of the batch's returns) pulls the strategy ``softmax(c/T)`` of every agent towards its
+  action, weighted by how far it passes the record; a lower return moves no degree.
+  What the network learns in one state carries to its neighbours through the network,
+  where a tie and a record of the table need the same state twice.
 """
 
 from __future__ import annotations
@@ -41,7 +49,12 @@ from cmarlcd.learners.degree_rules import check_degree_settings
 from cmarlcd.runs import added_setting
 
 #: The ways Algorithm 2's updates reach the degree network (``DeepCMARLCDConfig.update``).
-UPDATES = ("keyed", "replayed")
+UPDATES = ("keyed", "replayed", "imitation")
+#: [choice] (``update="imitation"``) Weight of the penalty that keeps each raw degree
+#: within ``[c_min, c_max]``: the strategy reads the clipped degrees, whose gradient is
+#: zero outside the range, so a degree pushed past a bound would stay there when a better
+#: action is found; the squared distance to the range brings it back.
+RANGE_WEIGHT = 1.0
 #: What a state not in the keyed memory is compared with (``unseen_record``).
 UNSEEN_RECORDS = ("first-visit", "estimate", "estimate-kept", "estimate-once-kept")
 #: Where the degrees it acts with come from (``act_from``).
@@ -63,7 +76,10 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     episode once into a keyed memory of the table's records and degrees and fits the
     network to it (:mod:`cmarlcd.learners.deep.degree_memory`); ``"replayed"`` turns every
     replayed visit into a regression target from the network's present degrees and an
-    expectile record (the first design; a tie then moves its state once per replay)."""
+    expectile record (the first design; a tie then moves its state once per replay);
+    ``"imitation"``, the same ring and record network, the degrees fitted by
+    self-imitation of the visits whose return reaches the record (for states that do not
+    recur; :meth:`~cmarlcd.learners.deep.degree_model.DegreeModel.imitation_loss`)."""
     unseen_record: str = "estimate"
     """[choice] (``keyed``) What a state not in the memory is compared with:
     ``"estimate"``, the record network's estimate (fitted to the memory's records): a
@@ -181,7 +197,10 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     (The keyed memory's maximum counts any return above it by more than ``tolerance``.)"""
     tolerance: float = 1e-9
     """[choice] Within how much of the record a return counts as reaching it (eq. 16's
-    equality). The keyed memory's maximum is the table's record, so the table's 1e-9;
+    equality). With ``update="imitation"`` it is in units of the spread (standard
+    deviation) of the batch's returns, so that one setting serves returns of any scale
+    (:data:`IMITATION_DEEP_CMARLCD`: 0.1). The keyed memory's maximum is the table's
+    record, so the table's 1e-9;
     the ``replayed`` update's record and the keyed ``expectile`` are estimates that
     waver, and were measured at 1.0 (:data:`REPLAYED_DEEP_CMARLCD`,
     :data:`REPEATED_DEEP_CMARLCD`)."""
@@ -212,7 +231,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.keyed or self.record == "maximum",
             "record",
             "'expectile' is a record kept in the keyed memory (update='keyed'); "
-            "with update='replayed' the record network's expectile is the setting",
+            "with a ring of visits the record network's expectile is the setting",
         )
         steps = ", ".join(STEPS)
         require(self.step in STEPS, "step", f"must be one of {steps} (got {self.step!r})")
@@ -229,7 +248,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.keyed or self.act_from == "network",
             "act_from",
             "'memory' needs the keyed memory (update='keyed'); "
-            "with update='replayed' set act_from=network",
+            f"with update='{self.update}' set act_from=network",
         )
         for name in ("hidden", "record_hidden", "buffer_size", "batch_size", "train_every", "ways"):
             value = getattr(self, name)
@@ -296,6 +315,14 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
 #: environment steps) it was measured at (the deep CMARL-CD page of the documentation).
 REPLAYED_DEEP_CMARLCD = DeepCMARLCDConfig(
     update="replayed", tolerance=1.0, train_every=50, target_every=500
+)
+#: Self-imitation gated by the record (``update="imitation"``), a design for states that
+#: do not recur: the record a high expectile (τ 0.9) of a state's returns rather than the
+#: DSN's near-maximum, a visit imitated from 0.1 spreads below it, the first design's
+#: schedule (a gradient step per 50 environment steps, the record's target copied every
+#: 500). Declared before its selection run (the deep CMARL-CD page of the documentation).
+IMITATION_DEEP_CMARLCD = DeepCMARLCDConfig(
+    update="imitation", expectile=0.9, tolerance=0.1, train_every=50, target_every=500
 )
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one

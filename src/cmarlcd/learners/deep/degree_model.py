@@ -25,7 +25,7 @@ from cmarlcd.learners.deep.agent_networks import (
     stacked_middle,
 )
 from cmarlcd.learners.deep.config import takes_fused_step
-from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.coordination import RANGE_WEIGHT, DeepCMARLCDConfig
 from cmarlcd.learners.deep.fused.step import FusedDegreeStep
 from cmarlcd.learners.deep.value_decomposition import StackedModel
 
@@ -112,10 +112,12 @@ class DegreeModel(StackedModel):
         return self.optimise(self.loss(batch))
 
     def loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
-        """The seeds' summed losses on a batch (:meth:`keyed_loss` or
-        :meth:`replayed_loss`, as the config's ``update``)."""
+        """The seeds' summed losses on a batch (:meth:`keyed_loss`, :meth:`replayed_loss`
+        or :meth:`imitation_loss`, as the config's ``update``)."""
         if self.config.keyed:
             return self.keyed_loss(batch)
+        if self.config.update == "imitation":
+            return self.imitation_loss(batch)
         return self.replayed_loss(batch)
 
     def keyed_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -146,11 +148,42 @@ class DegreeModel(StackedModel):
         per_visit = (((degrees - target) ** 2) * weight).sum(dim=(2, 3))  # (B, N)
         visits = updated.sum(dim=1).clamp(min=1).to(degrees.dtype)
         degree_loss = (per_visit.sum(dim=1) / visits).sum()  # mean over the updated visits
+        return degree_loss + self.record_loss(state, returns)
+
+    def record_loss(self, state: torch.Tensor, returns: torch.Tensor) -> torch.Tensor:
+        """The record network's expectile loss at τ = ``expectile`` on visits' returns
+        (B, N): ``|τ - [G < R(s)]| (G - R(s))²``, averaged over the visits, summed over
+        the seeds (its minimiser is the τ-expectile of the returns from ``s``)."""
         estimate = self.record(state)
         tau = self.config.expectile
         below = (returns < estimate).to(estimate.dtype).detach()
         expectile = (tau + (1 - 2 * tau) * below) * (returns - estimate) ** 2
-        return degree_loss + expectile.mean(dim=1).sum()
+        return expectile.mean(dim=1).sum()
+
+    def imitation_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """Self-imitation gated by the record (``update="imitation"``), the seeds' summed
+        losses on a batch of visits (:meth:`replayed_loss`'s keys). Each visit ``t`` of
+        seed ``b`` weighs ``w = max(0, (G - R'(s)) / σ_b + tolerance)``, ``R'`` the record
+        network's target copy and ``σ_b`` the spread of the batch's returns (their
+        standard deviation): the margin by which it passes the record, in spreads. The
+        loss: ``Σ_i -w log π_i(a_i | s)`` with ``π_i = softmax(clip(c_i)/T)`` over the
+        agent's real actions (eq. 17), averaged over the visits; plus
+        :data:`~cmarlcd.learners.deep.coordination.RANGE_WEIGHT` times each degree's
+        squared distance to ``[c_min, c_max]``; plus :meth:`record_loss`. A visit below
+        the record by more than ``tolerance`` spreads moves no degree."""
+        c = self.config
+        state, actions, returns = batch["state"], batch["actions"], batch["reward"]
+        degrees = self.agents(state)  # (B, N, n, A)
+        with torch.no_grad():
+            spread = returns.std(dim=1, correction=0, keepdim=True).clamp(min=1e-6)
+            weight = ((returns - self.target_record(state)) / spread + c.tolerance).clamp(min=0)
+        clipped = degrees.clamp(c.c_min, c.c_max)
+        logits = (clipped / c.temperature).masked_fill(~self.valid, float("-inf"))
+        taken = logits.log_softmax(dim=-1).gather(-1, actions[..., None])[..., 0]  # (B, N, n)
+        imitation = -(weight[..., None] * taken).sum(dim=2).mean(dim=1).sum()
+        valid = self.valid.to(degrees.dtype)
+        outside = (((degrees - clipped) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
+        return imitation + RANGE_WEIGHT * outside + self.record_loss(state, returns)
 
     @torch.no_grad()
     def record_table(self) -> torch.Tensor:

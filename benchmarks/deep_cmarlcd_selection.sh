@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# The declared selection run of deep CMARL-CD's designs for states that do not recur:
+# each design at its declared settings, `cmarl-cd field` on 8x8-2p-2f-coop,
+# 2s-8x8-2p-2f-coop, 10x10-3p-3f and simple_spread, 500k steps, 3 seeds, 100 greedy
+# episodes every 50k steps, the field's discount (0.99) for every design. One store, so an
+# interrupted run resumes where it stopped; read it with
+#
+#   cmarl-cd report --store results/deep-cmarlcd-selection/store.sqlite --format json
+#
+# Designs (the deep CMARL-CD page of the documentation says what each is):
+#   keyed      the default: the keyed memory of the table's records and degrees
+#   replayed   the first design (REPLAYED_DEEP_CMARLCD)
+#   imitation  self-imitation gated by the record (IMITATION_DEEP_CMARLCD)
+#
+# Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
+#   (about 20 minutes a design on one quiet core; needs the [deep] extra)
+set -euo pipefail
+out="${1:-results/deep-cmarlcd-selection}"
+shift || true
+designs=("$@")
+[ ${#designs[@]} -eq 0 ] && designs=(keyed replayed imitation)
+for design in "${designs[@]}"; do
+  case "$design" in
+    keyed | replayed | imitation) ;;
+    *) echo "error: unknown design '$design' (keyed, replayed, imitation)" >&2; exit 2 ;;
+  esac
+done
+mkdir -p "$out"
+tasks="foraging:8x8-2p-2f-coop,foraging:2s-8x8-2p-2f-coop,foraging:10x10-3p-3f,simple_spread"
+d=deep-cmarl-cd
+for design in "${designs[@]}"; do
+  case "$design" in
+    keyed) settings="$d.gamma=0.99" ;;
+    replayed) settings="$d.update=replayed,$d.tolerance=1.0,$d.train_every=50,$d.target_every=500,$d.gamma=0.99" ;;
+    imitation) settings="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500,$d.gamma=0.99" ;;
+  esac
+  echo "$(date +%T) $design" >&2
+  python -m cmarlcd field --tasks "$tasks" --learners "$d" --set "$settings" \
+    --steps 500k --seeds 3 --eval-interval 50k --eval-episodes 100 --workers 1 \
+    --no-progress --json --store "$out/store.sqlite" --figures "$out/figures" \
+    >"$out/$design.json"
+done
