@@ -11,6 +11,8 @@
 #   keyed      the default: the keyed memory of the table's records and degrees
 #   replayed   the first design (REPLAYED_DEEP_CMARLCD)
 #   imitation  self-imitation gated by the record (IMITATION_DEEP_CMARLCD)
+#   imitation-lambda  the same on λ-returns bootstrapped from the record
+#              (IMITATION_LAMBDA_DEEP_CMARLCD, λ 0.9)
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -18,11 +20,12 @@ set -euo pipefail
 out="${1:-results/deep-cmarlcd-selection}"
 shift || true
 designs=("$@")
-[ ${#designs[@]} -eq 0 ] && designs=(keyed replayed imitation)
+[ ${#designs[@]} -eq 0 ] && designs=(keyed replayed imitation imitation-lambda)
 for design in "${designs[@]}"; do
   case "$design" in
-    keyed | replayed | imitation) ;;
-    *) echo "error: unknown design '$design' (keyed, replayed, imitation)" >&2; exit 2 ;;
+    keyed | replayed | imitation | imitation-lambda) ;;
+    *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda)" >&2
+       exit 2 ;;
   esac
 done
 mkdir -p "$out"
@@ -33,6 +36,7 @@ for design in "${designs[@]}"; do
     keyed) settings="$d.gamma=0.99" ;;
     replayed) settings="$d.update=replayed,$d.tolerance=1.0,$d.train_every=50,$d.target_every=500,$d.gamma=0.99" ;;
     imitation) settings="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500,$d.gamma=0.99" ;;
+    imitation-lambda) settings="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500,$d.return_lambda=0.9,$d.gamma=0.99" ;;
   esac
   echo "$(date +%T) $design" >&2
   python -m cmarlcd field --tasks "$tasks" --learners "$d" --set "$settings" \

@@ -3,6 +3,9 @@ the part of :class:`cmarlcd.training.deep_side.DeepGroup` that differs with it.
 
 * :data:`RING`: a ring of transitions (VDN and QMIX; deep CMARL-CD's ``replayed``
   update, a ring of visits), :mod:`cmarlcd.learners.deep.replay`;
+* :data:`BOOTSTRAPPED`: deep CMARL-CD's ring of visits with λ-returns
+  (``return_lambda`` below 1): the ring and a copy of the record network they are
+  bootstrapped from (:class:`BootstrappedRing`);
 * :data:`KEYED`: deep CMARL-CD's keyed memory (:mod:`cmarlcd.learners.deep.degree_memory`)
   with what its compiled side needs to fold an episode in (:class:`KeyedReplay`): each
   visit's key, the network's degrees and record estimate at it, and a copy of the record
@@ -56,6 +59,51 @@ class KeyedReplay(NamedTuple):
     params: KeyedParams
 
 
+class BootstrappedRing(NamedTuple):
+    """A ring of visits whose returns are bootstrapped from the record network: the ring,
+    and the record network's copy as the keyed memory holds it (B seeds, or one seed's
+    view)."""
+
+    ring: Any
+    record_table: np.ndarray
+    """(B, n_states) float32: the record network's estimate of every integer state, or
+    (B, 0) for feature inputs ..."""
+    record_weights: Weights
+    """... its layers for feature inputs (one "agent" per seed), or empty."""
+    record_hidden: np.ndarray
+    """(B, record_hidden) float32 scratch for its hidden layer."""
+    lam: float
+    """λ of the returns (``DeepCMARLCDConfig.return_lambda``)."""
+
+
+def record_copies(config, seeds: int, spec: GameSpec, features: int) -> tuple:
+    """Zeros for a copy of the record network: every integer state's estimate (B, S) or
+    (B, 0), its layers for feature inputs (one hidden layer, no middle ones) or empty, and
+    the scratch of its hidden layer."""
+    hidden = config.record_hidden
+    shapes = (
+        ((features, hidden), (hidden,), (hidden, 1), (1,), (0, hidden, hidden), (0, hidden))
+        if features
+        else ((0, 0), (0, 0), (0, 0), (0, 0), (0, 0, 0), (0, 0))
+    )
+    return (
+        np.zeros((seeds, 0 if features else spec.n_states), np.float32),
+        Weights(*(np.zeros((seeds, *shape), np.float32) for shape in shapes)),
+        np.zeros((seeds, hidden), np.float32),
+    )
+
+
+def copy_record(model: Any, inputs: str, table: np.ndarray, weights: Weights) -> None:
+    """Copy the record network into ``table`` (integer states: every state's estimate) or
+    ``weights`` (features: its layers)."""
+    with torch.no_grad():
+        if inputs == "index":
+            np.copyto(table, model.record_table().cpu().numpy())
+            return
+        for copy, weight in zip(weights, model.record_weights(), strict=True):
+            np.copyto(copy, weight.cpu().numpy())
+
+
 class RingKind:
     """A ring of transitions or visits (:mod:`cmarlcd.learners.deep.replay`)."""
 
@@ -89,20 +137,12 @@ class KeyedKind:
     def new(self, config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int):
         n, width, steps = counts.shape[0], int(counts.max()), spec.max_steps
         capacity = config.buffer_size if features else min(config.buffer_size, spec.n_states)
-        hidden = config.record_hidden
-        shapes = (
-            ((features, hidden), (hidden,), (hidden, 1), (1,), (0, hidden, hidden), (0, hidden))
-            if features
-            else ((0, 0), (0, 0), (0, 0), (0, 0), (0, 0, 0), (0, 0))
-        )  # the record network: one hidden layer (no middle ones)
         return KeyedReplay(
             new_memory(seeds, capacity, n, width, features, config.ways),
             np.zeros((seeds, steps), np.uint64),
             np.zeros((seeds, steps, n, width), np.float32),
             np.zeros((seeds, steps)),
-            np.zeros((seeds, 0 if features else spec.n_states), np.float32),
-            Weights(*(np.zeros((seeds, *shape), np.float32) for shape in shapes)),
-            np.zeros((seeds, hidden), np.float32),
+            *record_copies(config, seeds, spec, features),
             keyed_params(config),
         )
 
@@ -127,14 +167,8 @@ class KeyedKind:
     def refresh(self, replay: KeyedReplay, model: Any, inputs: str) -> None:
         """Copy the record network's estimates (integer states: every state's; features:
         its layers) for the fold, where unseen states are compared with them."""
-        if not replay.params.estimate_unseen:
-            return
-        with torch.no_grad():
-            if inputs == "index":
-                np.copyto(replay.record_table, model.record_table().cpu().numpy())
-                return
-            for copy, weight in zip(replay.record_weights, model.record_weights(), strict=True):
-                np.copyto(copy, weight.cpu().numpy())
+        if replay.params.estimate_unseen:
+            copy_record(model, inputs, replay.record_table, replay.record_weights)
 
     def greedy_table(
         self, replay: KeyedReplay, table: np.ndarray, legal: np.ndarray, config
@@ -158,4 +192,39 @@ class KeyedKind:
         return sum(array.nbytes for array in arrays)
 
 
-RING, KEYED = RingKind(), KeyedKind()
+class BootstrappedKind:
+    """A ring of visits with λ-returns bootstrapped from the record network
+    (:class:`BootstrappedRing`)."""
+
+    def new(self, config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int):
+        ring = RING.new(config, seeds, counts, spec, features)
+        copies = record_copies(config, seeds, spec, features)
+        return BootstrappedRing(ring, *copies, float(config.return_lambda))
+
+    def view(self, replay: BootstrappedRing, b: int) -> BootstrappedRing:
+        return BootstrappedRing(
+            seed_view(replay.ring, b),
+            replay.record_table[b],
+            Weights(*(array[b : b + 1] for array in replay.record_weights)),
+            replay.record_hidden[b],
+            replay.lam,
+        )
+
+    def stored(self, replay: BootstrappedRing, b: int) -> int:
+        return int(replay.ring.size[b])
+
+    def draw(self, replay: BootstrappedRing, rngs: Sequence[np.random.Generator], size: int):
+        return sample(replay.ring, rngs, size)
+
+    def refresh(self, replay: BootstrappedRing, model: Any, inputs: str) -> None:
+        """Copy the record network, which the next episodes' returns bootstrap from."""
+        copy_record(model, inputs, replay.record_table, replay.record_weights)
+
+    def greedy_table(self, replay, table: np.ndarray, legal: np.ndarray, config) -> np.ndarray:
+        return table
+
+    def nbytes(self, view: BootstrappedRing) -> int:
+        return RING.nbytes(view.ring) + view.record_table.nbytes
+
+
+RING, KEYED, BOOTSTRAPPED = RingKind(), KeyedKind(), BootstrappedKind()

@@ -68,7 +68,7 @@ from cmarlcd.training.deep_kernels import (
     hidden_scratch,
     inputs_of,
 )
-from cmarlcd.training.deep_replay import KEYED, RING
+from cmarlcd.training.deep_replay import BOOTSTRAPPED, KEYED, RING
 from cmarlcd.training.degree_kernels import degree_kernels
 from cmarlcd.training.loop import BUDGET_UNITS, Group
 from cmarlcd.training.protocol import Side, SideKernels
@@ -111,8 +111,11 @@ def parts_of(config: DeepLearnerConfig) -> tuple[Callable, Callable, Any]:
 
 
 def degree_replay(config: DeepCMARLCDConfig) -> Any:
-    """Deep CMARL-CD's keyed memory, or a ring of visits for its ``replayed`` update."""
-    return KEYED if config.keyed else RING
+    """Deep CMARL-CD's keyed memory, or a ring of visits for its ``replayed`` and
+    ``imitation`` updates (with the record network to bootstrap from, for λ-returns)."""
+    if config.keyed:
+        return KEYED
+    return BOOTSTRAPPED if config.bootstraps else RING
 
 
 register_deep_learner(DeepConfig, deep_kernels, ValueDecomposition)

@@ -136,6 +136,38 @@ def index_store(side, length: int) -> None:
     side.counters[EPISODES] += 1
 
 
+@kernel
+def index_lambda_store(side, length: int) -> None:
+    """``end_episode``: every visit with its λ-return bootstrapped from the record
+    network's estimate of the next visit's state (``return_lambda``), backwards."""
+    replay, gamma = side.replay, side.schedule[GAMMA]
+    g = 0.0
+    for t in range(length - 1, -1, -1):
+        after = 0.0
+        if t + 1 < length:
+            estimate = replay.record_table[side.obs[t + 1]]
+            after = (1.0 - replay.lam) * estimate + replay.lam * g
+        g = side.rewards[t] + gamma * after
+        push_visit(replay.ring, side.obs[t], side.joints[t], g)
+    side.counters[EPISODES] += 1
+
+
+@kernel
+def features_lambda_store(side, length: int) -> None:
+    """:func:`index_lambda_store` for feature inputs: the record network at the next
+    visit's features."""
+    replay, gamma = side.replay, side.schedule[GAMMA]
+    g = 0.0
+    for t in range(length - 1, -1, -1):
+        after = 0.0
+        if t + 1 < length:
+            estimate = record_estimate(replay, side.obs[t + 1])
+            after = (1.0 - replay.lam) * estimate + replay.lam * g
+        g = side.rewards[t] + gamma * after
+        push_visit_row(replay.ring, side.obs[t], side.joints[t], g)
+    side.counters[EPISODES] += 1
+
+
 def index_greedy(side, env, team, offset, legal, rng, joint) -> None:
     """Template: every agent's greedy legal action in the state's degree table."""
     s = game.state(env, team)
@@ -280,12 +312,14 @@ def degree_kernels(spec: GameSpec, inputs: str, config: DeepCMARLCDConfig) -> Si
             else (features_act, features_greedy)
         )
         store = keyed_features_store if keyed else features_store
+        store = features_lambda_store if config.bootstraps else store
     else:
         enter = index_enter
         act, greedy = (
             (memory_index_act, memory_index_greedy) if memory else (index_act, index_greedy)
         )
         store = keyed_index_store if keyed else index_store
+        store = index_lambda_store if config.bootstraps else store
     return SideKernels(
         deep_fits,
         specialise_kernel(enter, **bound),

@@ -38,7 +38,7 @@ is the ``update`` [choice]:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
@@ -119,6 +119,15 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     (a reset), one within ``tolerance`` of it a tie. On the stochastic climbing games
     the maximum is set by a lucky draw and never falls (the deep CMARL-CD page of the
     documentation measures both)."""
+    return_lambda: float = added_setting(1.0, "0.7.0")
+    """[choice] (``replayed``, ``imitation``) λ of the returns the ring stores: 1, each
+    visit's discounted return (eq. 1, Monte Carlo, as the table); below 1, the λ-return
+    bootstrapped from the record network, ``G_t = r_{t+1} + γ ((1 - λ) R(s_{t+1}) + λ
+    G_{t+1})`` (0 after an episode's last visit), computed when the episode ends with
+    the record network of that moment. A reward then reaches the visits before it
+    through the record of the states between, not only within its own episode: for
+    sparse rewards, where few episodes earn one. (The keyed memory folds the table's
+    Monte-Carlo returns: 1 there.)"""
     record_step: float = added_setting(0.02, "0.6.0")
     """(``record="expectile"``) How far a visit moves its state's record towards its
     return, in (0, 1]."""
@@ -241,6 +250,14 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             "'fused' is the keyed update with one network per agent (update='keyed', "
             "share=false); the others take step=autograd (or auto, which falls back to it)",
         )
+        lam = self.return_lambda
+        require(0 <= lam <= 1, "return_lambda", f"must be in [0, 1] (got {lam})")
+        require(
+            lam == 1 or not self.keyed,
+            "return_lambda",
+            "the keyed memory folds the table's Monte-Carlo returns (1); λ-returns are for "
+            "a ring of visits (update='replayed' or 'imitation')",
+        )
         step = self.record_step
         in_range = bool(np.isfinite(step)) and 0 < step <= 1
         require(in_range, "record_step", f"must be in (0, 1] (got {step})")
@@ -271,6 +288,11 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     def keyed(self) -> bool:
         """Whether the updates go through the keyed memory."""
         return self.update == "keyed"
+
+    @property
+    def bootstraps(self) -> bool:
+        """Whether the ring stores λ-returns bootstrapped from the record network."""
+        return not self.keyed and self.return_lambda < 1
 
     @property
     def fused_covered(self) -> bool:
@@ -324,6 +346,10 @@ REPLAYED_DEEP_CMARLCD = DeepCMARLCDConfig(
 IMITATION_DEEP_CMARLCD = DeepCMARLCDConfig(
     update="imitation", expectile=0.9, tolerance=0.1, train_every=50, target_every=500
 )
+#: Self-imitation on λ-returns bootstrapped from the record network (λ 0.9, declared
+#: before its selection run): a reward reaches the visits before it through the record
+#: of the states between, where on sparse tasks few episodes earn one.
+IMITATION_LAMBDA_DEEP_CMARLCD = replace(IMITATION_DEEP_CMARLCD, return_lambda=0.9)
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
