@@ -14,26 +14,14 @@ from cmarlcd.learners.deep.coordination import IMITATION_DEEP_CMARLCD, DeepCMARL
 pytest.importorskip("torch")
 
 from types import SimpleNamespace
-from typing import NamedTuple
 
-from cmarlcd.training.deep_kernels import EPISODES, IndexData
+from cmarlcd.training.deep_kernels import EPISODES, FeatureData, IndexData, Weights
 from cmarlcd.training.deep_replay import BOOTSTRAPPED, BootstrappedRing
+from cmarlcd.training.deep_side import new_greedy_cache
 from cmarlcd.training.degree_kernels import (
     features_lambda_store,
     index_lambda_store,
 )
-
-
-class FeatureSide(NamedTuple):
-    """What the features' store reads of a side (the kernels take any such tuple)."""
-
-    obs: np.ndarray
-    joints: np.ndarray
-    rewards: np.ndarray
-    replay: BootstrappedRing
-    counters: np.ndarray
-    schedule: np.ndarray
-
 
 #: Rewards 1, 2, 4 at states 7, 8, 9; γ 0.5, λ 0.5; the record network's estimates 10 at
 #: state 8 and 20 at state 9. Backwards: G_2 = 4; G_1 = 2 + 0.5 (0.5 · 20 + 0.5 · 4) = 8;
@@ -85,9 +73,18 @@ def test_lambda_returns_of_features_by_hand() -> None:
     w1[0, 0, 0], b1[0, 0], w2[0, 0, 0], b2[0, 0] = 1.0, 0.0, 10.0, 0.0
     replay = BOOTSTRAPPED.view(ring, 0)
     schedule = np.array(DeepCMARLCDConfig(gamma=0.5).schedule(100), np.float64)
-    obs = np.array([[0.0], [1.0], [2.0]], np.float32)
+    obs = np.array([[0.0], [1.0], [2.0], [0.0], [0.0]], np.float32)
     joints, rewards = np.array([[0], [2], [1]]), np.array([1.0, 2.0, 4.0])
-    side = FeatureSide(obs, joints, rewards, replay, np.zeros(8, np.int64), schedule)
+    # the loop's own side type (a type of the tests' own would enter numba's on-disk
+    # cache index, which a process without the tests could not read back)
+    degrees = Weights(*(np.zeros((1, *shape), np.float32)
+                        for shape in ((1, 4), (4,), (4, 3), (3,), (0, 4, 4), (0, 4))))  # fmt: skip
+    side = FeatureData(
+        np.array([3]), degrees, np.zeros(8, np.float32), obs, np.ones((4, 1, 3), np.bool_),
+        joints, rewards, replay, np.zeros(8, np.int64), schedule, np.zeros((2, 3)),
+        new_greedy_cache(SimpleNamespace(state_determines_features=False, max_steps=3), 1),
+        np.zeros(1, np.int64),
+    )  # fmt: skip
     features_lambda_store(side, 3)
     assert replay.ring.reward[:3].tolist() == BY_HAND
     assert replay.ring.state[:3, 0].tolist() == [2.0, 1.0, 0.0]
