@@ -156,3 +156,26 @@ def test_the_design_passes_every_learner_check() -> None:
     from cmarlcd.testing import check_learner
 
     check_learner(IMITATION_DEEP_CMARLCD)
+
+
+def test_the_command_line_runs_the_designs_and_refuses_a_bad_lambda(tmp_path) -> None:
+    """``train`` on LBF with self-imitation on λ-returns, end to end on a tiny budget; a
+    λ out of range is one line and status 2."""
+    import subprocess
+    import sys
+
+    base = [sys.executable, "-m", "cmarlcd", "train", "--game", "foraging:5x5-2p-1f",
+            "--algorithms", "deep-cmarl-cd", "--steps", "2k", "--runs", "1", "--curve-points",
+            "2", "--eval-episodes", "2", "--workers", "1", "--no-progress",
+            "--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "f")]  # fmt: skip
+    good = (
+        "deep-cmarl-cd.update=imitation,deep-cmarl-cd.return_lambda=0.9,deep-cmarl-cd.batch_size=32"
+    )
+    done = subprocess.run([*base, "--set", good], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    assert "1 runs computed" in done.stdout or "1 run computed" in done.stdout, done.stdout
+    bad = "deep-cmarl-cd.update=imitation,deep-cmarl-cd.return_lambda=2"
+    done = subprocess.run([*base, "--set", bad], capture_output=True, text=True, check=False)
+    assert done.returncode == 2
+    assert "deep-cmarl-cd.return_lambda must be in [0, 1] (got 2.0)" in done.stderr
+    assert done.stderr.strip().count("\n") == 0, done.stderr
