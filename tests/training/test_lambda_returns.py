@@ -120,3 +120,25 @@ def test_a_run_on_lambda_returns_is_the_same_by_seed() -> None:
 
     first, second = weights(), weights()
     assert all((a == b).all() for a, b in zip(first, second, strict=True))
+
+
+def test_the_object_api_stores_the_same_lambda_returns() -> None:
+    """``DegreeAgent`` (any PettingZoo environment): the same episode and estimates as
+    :data:`BY_HAND` (the record network set to 10 at state 8 and 20 at state 9)."""
+    import torch
+
+    from cmarlcd.learners.deep.degree_agent import DegreeAgent
+
+    config = DeepCMARLCDConfig(update="imitation", return_lambda=0.5, gamma=0.5, batch_size=8)
+    agent = DegreeAgent([3, 3], config, 10, n_states=10, seed=0)
+    with torch.no_grad():
+        record = agent.model.record
+        record.first.weight.zero_(), record.second.weight.zero_()
+        record.first.bias.fill_(1.0)  # a hidden unit of 1 reads the second layer's row
+        record.first.weight[0, 8, 0], record.first.weight[0, 9, 0] = 9.0, 19.0
+        record.second.bias.zero_()
+        record.second.weight[0, 0, 0] = 1.0  # R(s) = hidden unit 0: 10 at 8, 20 at 9
+    for state, joint, reward in ((7, (0, 1), 1.0), (8, (2, 2), 2.0), (9, (1, 0), 4.0)):
+        agent.observe(state, joint, reward)
+    agent.end_episode()
+    assert agent.ring.reward[0, :3].tolist() == BY_HAND

@@ -142,9 +142,10 @@ class DegreeAgent(StepAgent):
 
     def end_episode(self, final_state=None, terminated: bool = True, copy: int = 0) -> None:
         """Fold ``copy``'s episode into the keyed memory (``keyed``), or store every
-        visit with its discounted return (``replayed``). Returns are the episode's rewards
-        from each visit on: nothing is bootstrapped, a cut episode's return is what it
-        collected."""
+        visit with its discounted return (``replayed``, ``imitation``). Returns are the
+        episode's rewards from each visit on, a cut episode's return what it collected;
+        with ``return_lambda`` below 1, λ-returns bootstrapped from the record network at
+        the visits after each (:meth:`_store`)."""
         visits = self._visits.pop(copy, [])
         if self.config.keyed:
             self._fold(visits)
@@ -179,10 +180,22 @@ class DegreeAgent(StepAgent):
         )  # fmt: skip
 
     def _store(self, visits: list) -> None:
-        """Every visit of an episode with its discounted return, into the ring."""
+        """Every visit of an episode with its discounted return, into the ring; with
+        ``return_lambda`` λ below 1, ``G_t = r + γ((1 - λ) R(s_{t+1}) + λ G_{t+1})`` from
+        the record network ``R`` as it is now (0 after the last visit), as the compiled
+        loop stores them."""
+        lam, gamma = self.config.return_lambda, self.config.gamma
+        estimates = None
+        if lam < 1 and visits:
+            x = self._encode_many([state for state, _, _ in visits])
+            with torch.no_grad():
+                estimates = self.model.record(x)[0].double().cpu().numpy()
         value = 0.0
-        for state, joint, reward in reversed(visits):
-            value = reward + self.config.gamma * value
+        for t in range(len(visits) - 1, -1, -1):
+            state, joint, reward = visits[t]
+            if estimates is not None:
+                value = 0.0 if t + 1 == len(visits) else (1 - lam) * estimates[t + 1] + lam * value
+            value = reward + gamma * value
             actions = np.array(joint, dtype=np.int64)
             if self.integer_states:
                 push_visit(self._view, int(state), actions, value)
