@@ -294,9 +294,11 @@ def test_fused_qmix_mixes_a_hand_chosen_input() -> None:
     for rows in tables.values():
         mixer += [np.array([rows], f32), np.zeros((1, len(rows[0])), f32)]
     mixer += [np.array([[[2.0], [5.0]]], f32), np.array([[0.25]], f32)]
+    mixer += [np.zeros((1, 0, 0), f32), np.zeros((1, 0), f32)] * 2  # one-layer hypernetworks
     c = np.array([[1.0, 1.0], [-2.0, -2.0]], f32)  # (agent, transition)
     mixed = 1.5 + 2 * (math.exp(-1) - 1)
-    scratch = tuple(np.zeros(shape, f32) for shape in [(4, 2), (2, 2), (2, 2), (2, 2), (2, 2)])
+    shapes = [(4, 2), (2, 2), (2, 2), (2, 2), (2, 2), (0, 2), (0, 2), (0, 2)]
+    scratch = tuple(np.zeros(shape, f32) for shape in shapes)
     work = fused_mixers.state_scratch(2, 2, 2, 2)
     for index in (True, False):
         q_tot = np.zeros(2, f32)
