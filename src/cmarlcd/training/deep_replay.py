@@ -93,6 +93,12 @@ def record_copies(config, seeds: int, spec: GameSpec, features: int) -> tuple:
     )
 
 
+def record_view(replay: Any, b: int) -> tuple:
+    """Seed ``b``'s part of a replay's record copy (:func:`record_copies`' three)."""
+    weights = Weights(*(array[b : b + 1] for array in replay.record_weights))
+    return replay.record_table[b], weights, replay.record_hidden[b]
+
+
 def copy_record(model: Any, inputs: str, table: np.ndarray, weights: Weights) -> None:
     """Copy the record network into ``table`` (integer states: every state's estimate) or
     ``weights`` (features: its layers)."""
@@ -152,9 +158,7 @@ class KeyedKind:
             replay.keys[b],
             replay.bases[b],
             replay.estimates[b],
-            replay.record_table[b],
-            Weights(*(array[b : b + 1] for array in replay.record_weights)),
-            replay.record_hidden[b],
+            *record_view(replay, b),
             replay.params,
         )
 
@@ -202,13 +206,7 @@ class BootstrappedKind:
         return BootstrappedRing(ring, *copies, float(config.return_lambda))
 
     def view(self, replay: BootstrappedRing, b: int) -> BootstrappedRing:
-        return BootstrappedRing(
-            seed_view(replay.ring, b),
-            replay.record_table[b],
-            Weights(*(array[b : b + 1] for array in replay.record_weights)),
-            replay.record_hidden[b],
-            replay.lam,
-        )
+        return BootstrappedRing(seed_view(replay.ring, b), *record_view(replay, b), replay.lam)
 
     def stored(self, replay: BootstrappedRing, b: int) -> int:
         return int(replay.ring.size[b])

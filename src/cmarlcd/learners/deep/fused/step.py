@@ -59,9 +59,9 @@ class FusedStep:
         # Adam steps the model's own parameters, in their order (the middle layers' too,
         # which the kernels read from stacked copies), from the gradients laid out alike
         own_grads = self.shared_grads if self.share else self.agent_grads
-        mixed = self.qmix  # VDN's stand-ins are not stepped
-        params = [*_arrays(model.agents), *(_mixer_in_order(self.mixer) if mixed else ())]
-        grads = [*_in_order(own_grads), *(_mixer_in_order(self.mixer_grads) if mixed else ())]
+        mixer, mixer_grads = (self.mixer, self.mixer_grads) if self.qmix else (None, None)
+        params = [*_arrays(model.agents), *_mixer_in_order(mixer)]  # VDN's: none stepped
+        grads = [*_in_order(own_grads), *_mixer_in_order(mixer_grads)]
         self.flat = _flat(params, grads)
         self.rates = np.full(len(params), model.optimizer.param_groups[0]["lr"], np.float64)
         self.adam = adam_settings(model.optimizer)
@@ -338,9 +338,11 @@ def _mixer(module: torch.nn.Module) -> tuple[np.ndarray, ...]:
     return hw1, hw1_b, hb1, hb1_b, hw2, hw2_b, v1, v1_b, v2, v2_b, e1, e1_b, e2, e2_b
 
 
-def _mixer_in_order(mixer: tuple[np.ndarray, ...]) -> list[np.ndarray]:
+def _mixer_in_order(mixer: tuple[np.ndarray, ...] | None) -> list[np.ndarray]:
     """The arrays of ``mixer`` (laid out as :func:`_mixer`'s) in the module's parameter
-    order."""
+    order; none for no mixer."""
+    if mixer is None:
+        return []
     hw1, hw1_b, hb1, hb1_b, hw2, hw2_b, v1, v1_b, v2, v2_b, e1, e1_b, e2, e2_b = mixer
     if e1.shape[1] == 0:
         return list(mixer[:10])
