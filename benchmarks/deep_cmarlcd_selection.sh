@@ -13,6 +13,12 @@
 #   imitation  self-imitation gated by the record (IMITATION_DEEP_CMARLCD)
 #   imitation-lambda  the same on λ-returns bootstrapped from the record
 #              (IMITATION_LAMBDA_DEEP_CMARLCD, λ 0.9)
+#   anneal     the default with its behaviour's T annealed from 1 to 0.1 over 50k steps
+#              (VDN's ε anneals over 50k at the field's protocol)
+#   spread     the default with the record network's tolerance: a state not kept ties
+#              the estimate within 0.25 standard deviations of the returns folded
+#   spread-anneal  both
+#   imitation-anneal  imitation-lambda with the anneal
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -23,20 +29,27 @@ designs=("$@")
 [ ${#designs[@]} -eq 0 ] && designs=(keyed replayed imitation imitation-lambda)
 for design in "${designs[@]}"; do
   case "$design" in
-    keyed | replayed | imitation | imitation-lambda) ;;
-    *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda)" >&2
+    keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | imitation-anneal) ;;
+    *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
+         "anneal, spread, spread-anneal, imitation-anneal)" >&2
        exit 2 ;;
   esac
 done
 mkdir -p "$out"
 tasks="foraging:8x8-2p-2f-coop,foraging:2s-8x8-2p-2f-coop,foraging:10x10-3p-3f,simple_spread"
 d=deep-cmarl-cd
+anneal="$d.temperature_end=0.1,$d.temperature_steps=50000"
+imitation="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500"
 for design in "${designs[@]}"; do
   case "$design" in
     keyed) settings="$d.gamma=0.99" ;;
     replayed) settings="$d.update=replayed,$d.tolerance=1.0,$d.train_every=50,$d.target_every=500,$d.gamma=0.99" ;;
-    imitation) settings="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500,$d.gamma=0.99" ;;
-    imitation-lambda) settings="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500,$d.return_lambda=0.9,$d.gamma=0.99" ;;
+    imitation) settings="$imitation,$d.gamma=0.99" ;;
+    imitation-lambda) settings="$imitation,$d.return_lambda=0.9,$d.gamma=0.99" ;;
+    anneal) settings="$anneal,$d.gamma=0.99" ;;
+    spread) settings="$d.unseen_tolerance=0.25,$d.gamma=0.99" ;;
+    spread-anneal) settings="$d.unseen_tolerance=0.25,$anneal,$d.gamma=0.99" ;;
+    imitation-anneal) settings="$imitation,$d.return_lambda=0.9,$anneal,$d.gamma=0.99" ;;
   esac
   echo "$(date +%T) $design" >&2
   python -m cmarlcd field --tasks "$tasks" --learners "$d" --set "$settings" \

@@ -67,6 +67,15 @@ def softmax_strategy(
 
 
 @njit(cache=True)
+def annealed(start: float, end: float, steps: float, done: float) -> float:
+    """A setting annealed linearly from ``start`` to ``end`` over ``steps`` (``done`` of
+    them taken), ``end`` after them; ``start`` itself, unchanged, where ``steps`` is 0."""
+    if steps <= 0:
+        return start
+    return start + (end - start) * min(1.0, done / steps)
+
+
+@njit(cache=True)
 def greedy_action(values_row: np.ndarray, legal_row: np.ndarray, count: int) -> int:
     """``argmax`` of ``values_row`` over the legal actions, lowest index on ties."""
     best = -1

@@ -28,7 +28,7 @@ from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.learners.deep.degree_memory import features_key, find, fold_episode, may_be_missing
 from cmarlcd.learners.deep.replay import push_visit, push_visit_row
-from cmarlcd.learners.policy import greedy_action, sample_action, softmax_strategy
+from cmarlcd.learners.policy import annealed, greedy_action, sample_action, softmax_strategy
 from cmarlcd.training.deep_kernels import (
     EPISODES,
     TURNS,
@@ -44,6 +44,7 @@ from cmarlcd.training.protocol import SideKernels
 
 #: Entries of deep CMARL-CD's ``schedule`` (``DeepCMARLCDConfig.schedule``).
 TEMPERATURE, C_MIN, C_MAX, GAMMA = range(4)
+TEMPERATURE_END, TEMPERATURE_STEPS = 6, 7
 
 
 @kernel
@@ -63,10 +64,12 @@ def agent_degrees(weights, agent: int, x, count: int, hidden, out) -> None:
 
 @kernel
 def sample_degrees(side, raw, legal_row, count: int, rng) -> int:
-    """An action from ``softmax(clip(raw) / T)`` over the legal actions (eq. 17)."""
+    """An action from ``softmax(clip(raw) / T)`` over the legal actions (eq. 17), T
+    annealed over the side's steps where the schedule anneals it."""
     s, row, probs = side.schedule, side.scratch[0], side.scratch[1]
     clip_row(raw, count, s[C_MIN], s[C_MAX], row)
-    softmax_strategy(row, legal_row, count, s[TEMPERATURE], probs)
+    t = annealed(s[TEMPERATURE], s[TEMPERATURE_END], s[TEMPERATURE_STEPS], side.counters[TURNS])
+    softmax_strategy(row, legal_row, count, t, probs)
     return sample_action(probs, count, rng.random())
 
 

@@ -151,6 +151,40 @@ def test_a_state_not_kept_is_compared_with_the_estimate_and_starts_from_the_netw
     assert record == 9.0 and target[0].tolist() == [2.0, 1.0, 1.0]
 
 
+def test_a_state_not_kept_ties_its_estimate_within_the_spread_of_the_returns() -> None:
+    """``unseen_tolerance`` 1 (tolerance 1e-9): rewards 0, 4 with γ 0.5 fold returns 2
+    and 4, both below an estimate of 100 (not kept): count 2, mean 3, spread 1. A return of
+    3.6 against an estimate of 4 is then a tie (0.4 <= 1): state 5 enters from the
+    network's degrees, moved by δ (at 0 it is below, not kept). With 3.6 folded the spread
+    is sqrt(2.24 / 3) = 0.864, and 5.0 against 4 is a new record (1.0 > 0.864). A kept
+    state is compared with its exact record by ``tolerance``: 3.6 against 4 is below."""
+    params = PARAMS._replace(tolerance=1e-9, estimate_unseen=True, unseen_tolerance=1.0)
+    bases = np.array([[[2.0, 1.0, 1.0], [1.0, 1.2, 0.0]]], np.float32)
+
+    def spread_of_two(params):
+        memory = memory_view(new_memory(1, 10, 2, 3), 0)
+        fold(memory, [1, 2], [[0, 0], [0, 0]], [0.0, 4.0], estimates=[100.0] * 2, params=params)
+        assert memory.size[0] == 0
+        return memory
+
+    memory = spread_of_two(params)
+    assert memory.returns[0].tolist() == pytest.approx([2.0, 3.0, 2.0])
+    fold(memory, [5], [[1, 0]], [3.6], bases=bases, estimates=[4.0], params=params)
+    record, target = entry(memory, 5)
+    assert record == 4.0
+    assert target[0].tolist() == pytest.approx([1.95, 1.05, 0.95])
+    assert target[1, :2].tolist() == pytest.approx([1.05, 1.15])
+    fold(memory, [6], [[0, 0]], [5.0], bases=bases, estimates=[4.0], params=params)
+    record, target = entry(memory, 6)
+    assert record == 5.0 and target[0].tolist() == [2.0, 1.0, 1.0]
+    fold(memory, [5], [[0, 1]], [3.6], bases=bases, estimates=[4.0], params=params)
+    assert entry(memory, 5)[1] == pytest.approx(np.stack([[1.95, 1.05, 0.95], [1.05, 1.15, 0]]))
+    exact = params._replace(unseen_tolerance=0.0)
+    memory = spread_of_two(exact)
+    fold(memory, [5], [[1, 0]], [3.6], bases=bases, estimates=[4.0], params=exact)
+    assert find(memory, np.uint64(5)) < 0
+
+
 def test_into_an_empty_memory_every_state_is_a_first_visit_once_kept_asked() -> None:
     """``estimate_once_kept``: returns of -3 and -4 (γ 0.5: -3 + 0.5 (-2) = -4 at state 5,
     -2 at state 6) all fall below an estimate of 0, yet folded into an empty memory both

@@ -46,6 +46,7 @@ import numpy as np
 from cmarlcd.errors import check_discount, require
 from cmarlcd.learners.deep.config import DEFAULT_STEP, STEP_BEFORE, STEPS, DeepLearnerConfig
 from cmarlcd.learners.degree_rules import check_degree_settings
+from cmarlcd.learners.policy import annealed
 from cmarlcd.runs import added_setting
 
 #: The ways Algorithm 2's updates reach the degree network (``DeepCMARLCDConfig.update``).
@@ -100,6 +101,14 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     ``estimate`` are level on the DSN's one-hot states; where states rarely recur (the
     DSN at scale) ``first-visit`` fits the network to its own exploration (the deep
     CMARL-CD page of the documentation)."""
+    unseen_tolerance: float = added_setting(0.0, "0.7.0")
+    """[choice] (``keyed`` with an estimate) Within how many standard deviations of the
+    returns folded so far (a running spread, per seed) a state not kept ties the record
+    network's estimate, and beyond how many above it is a new record: the record network
+    with a tolerance, so that the common return of states that do not recur (0 on sparse
+    rewards) ties the estimate and moves the network's degrees there by ``delta``, as the
+    table's ties would, rather than matching it only by accident. 0: ``tolerance``, as
+    kept states (whose record is exact) always are."""
     act_from: str = added_setting("network", "0.6.0")
     """[choice] (``keyed``) Where the degrees it acts with (eq. 17) and executes greedily
     come from: ``"network"``, the degree network everywhere; ``"memory"``, the keyed
@@ -183,7 +192,19 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     delta_reset: float = 0.5
     """Step used after a new record resets the degrees to ``c_init``."""
     temperature: float = 1.0
-    """T of eq. (17), > 0."""
+    """T of eq. (17), > 0 (the behaviour's at the start where it anneals)."""
+    temperature_end: float = added_setting(0.1, "0.7.0")
+    """[choice] (with ``temperature_steps`` > 0) The behaviour's T of eq. (17) after its
+    anneal, > 0."""
+    temperature_steps: int = added_setting(0, "0.7.0")
+    """[choice] Over how many environment steps the behaviour's T anneals linearly from
+    ``temperature`` to ``temperature_end`` (a seed's own steps, counted over its whole
+    learning); 0, the paper's fixed T. With degrees in ``[c_min, c_max]`` a fixed T = 1
+    keeps the behaviour near uniform (the largest probability ratio ``e^(c_max - c_min)``),
+    so where few episodes are rewarded it explores near the greedy policy only once T has
+    fallen, as VDN's ε-greedy does once its ε has (the deep CMARL-CD page of the
+    documentation measures it). Only acting anneals: the self-imitation loss's
+    ``softmax(c / T)`` keeps ``temperature``."""
     c_min: float = 0.5
     """Lower clip of the degrees (positive, Section IV-D)."""
     c_max: float = 3.0
@@ -258,6 +279,18 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             "the keyed memory folds the table's Monte-Carlo returns (1); λ-returns are for "
             "a ring of visits (update='replayed' or 'imitation')",
         )
+        spread = self.unseen_tolerance
+        require(
+            bool(np.isfinite(spread)) and spread >= 0,
+            "unseen_tolerance",
+            f"must be >= 0 (got {spread})",
+        )
+        require(
+            spread == 0 or (self.keyed and self.estimates_unseen),
+            "unseen_tolerance",
+            "is the keyed memory's tolerance for a state not kept against the record "
+            "network's estimate (update='keyed', unseen_record other than 'first-visit')",
+        )
         step = self.record_step
         in_range = bool(np.isfinite(step)) and 0 < step <= 1
         require(in_range, "record_step", f"must be in (0, 1] (got {step})")
@@ -280,6 +313,10 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
         check_discount(self.gamma)
         tau = self.expectile
         require(0 < tau < 1, "expectile", f"must be in (0, 1) (got {tau})")
+        end = self.temperature_end
+        require(bool(np.isfinite(end)) and end > 0, "temperature_end", f"must be > 0 (got {end})")
+        steps = self.temperature_steps
+        require(steps >= 0, "temperature_steps", f"must be >= 0 (got {steps})")
         for name in ("margin", "tolerance"):
             value = getattr(self, name)
             require(bool(np.isfinite(value)) and value >= 0, name, f"must be >= 0 (got {value})")
@@ -321,7 +358,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
         return False
 
     def schedule(self, learn_episodes: int) -> list[float]:
-        """T, c_min, c_max, γ, L, ``train_every``."""
+        """T, c_min, c_max, γ, L, ``train_every``, the end of T's anneal and its steps."""
         return [
             self.temperature,
             self.c_min,
@@ -329,7 +366,13 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.gamma,
             learn_episodes,
             self.train_every,
+            self.temperature_end,
+            self.temperature_steps,
         ]
+
+    def behaviour_temperature(self, steps: int) -> float:
+        """The behaviour's T of eq. (17) after ``steps`` environment steps."""
+        return annealed(self.temperature, self.temperature_end, self.temperature_steps, steps)
 
 
 #: The first design, kept to compare with: targets recomputed at every replay against

@@ -115,13 +115,15 @@ class DegreeAgent(StepAgent):
 
     def act_many(self, states, masks, copies) -> list:
         """A draw from softmax(c/T) over each agent's legal actions (eq. 17) at each
-        state, with one forward pass; the draws go state by state, agent by agent."""
+        state, with one forward pass; the draws go state by state, agent by agent. T is
+        annealed over the steps observed where ``temperature_steps`` > 0."""
         all_degrees, all_legal = self._degrees(states, masks)
+        temperature = self.config.behaviour_temperature(self.steps)
         joints = []
         for degrees, legal in zip(all_degrees, all_legal, strict=True):
             joint = []
             for d, row in zip(degrees, legal, strict=True):
-                logits = np.where(row, d / self.config.temperature, -np.inf)
+                logits = np.where(row, d / temperature, -np.inf)
                 p = np.exp(logits - logits.max())
                 joint.append(int(self.act_rng.choice(self.width, p=p / p.sum())))
             joints.append(tuple(joint))

@@ -69,6 +69,9 @@ class KeyedParams(NamedTuple):
     estimate_once_kept: bool = False
     """Whether the estimate is read only once the memory keeps any state: an episode
     folded into an empty memory compares every state with ``-inf`` (the table's rule)."""
+    unseen_tolerance: float = 0.0
+    """Within how many standard deviations of the returns folded so far a state not kept
+    ties its estimate (beyond them above, a new record); 0: ``tolerance``."""
 
 
 def keyed_params(config) -> KeyedParams:
@@ -88,6 +91,7 @@ def keyed_params(config) -> KeyedParams:
         config.margin,
         config.record_step,
         config.unseen_record == "estimate-once-kept",
+        config.unseen_tolerance,
     )
 
 
@@ -117,6 +121,9 @@ class DegreeMemory(NamedTuple):
     """(B,) int64: episodes folded in."""
     ways: np.ndarray
     """(B,) int64: slots per set (1: direct-mapped)."""
+    returns: np.ndarray
+    """(B, 3) float64: the count, mean and sum of squared deviations of the returns folded
+    in (Welford's running moments), whose spread scales ``unseen_tolerance``."""
 
 
 def new_memory(
@@ -138,6 +145,7 @@ def new_memory(
         np.zeros(seeds, np.int64),
         np.zeros(seeds, np.int64),
         np.full(seeds, ways, np.int64),
+        np.zeros((seeds, 3)),
     )
 
 
@@ -274,6 +282,35 @@ def classify_return(g: float, best: float, params) -> int:
 
 
 @kernel
+def count_return(moments, g: float) -> None:
+    """Fold return ``g`` into the running ``(count, mean, M2)`` (Welford)."""
+    moments[0] += 1.0
+    shift = g - moments[1]
+    moments[1] += shift / moments[0]
+    moments[2] += shift * (g - moments[1])
+
+
+@kernel
+def unseen_tolerance(memory, params) -> float:
+    """The tolerance a state not kept is compared with its estimate by: ``tolerance``,
+    or ``unseen_tolerance`` standard deviations of the returns folded so far where that
+    is larger."""
+    moments = memory.returns[0]
+    spread = np.sqrt(moments[2] / moments[0]) if moments[0] > 1.0 else 0.0
+    return max(params.tolerance, params.unseen_tolerance * spread)
+
+
+@kernel
+def classify_unseen(g: float, estimate: float, memory, params) -> int:
+    """Eq. (16) for a state not kept, against ``estimate``: as :func:`classify_return`,
+    or, with ``unseen_tolerance``, a tie within that many standard deviations of the
+    returns folded so far and a new record beyond them above."""
+    if params.unseen_tolerance <= 0.0:
+        return classify_return(g, estimate, params)
+    return compare_return(g, estimate, unseen_tolerance(memory, params))
+
+
+@kernel
 def record_after(best: float, g: float, outcome: int, params) -> float:
     """A state's record after a visit of return ``g`` classified ``outcome`` against its
     record ``best``: the maximum becomes ``g`` on a new record and stays otherwise; the
@@ -305,7 +342,9 @@ def fold_episode(
     ``keep_below`` a state not kept whose return falls below its estimate enters too,
     with that return as its record and those degrees unmoved. With
     ``estimate_once_kept`` an episode folded into an empty memory reads no estimate:
-    each of its states is compared with ``-inf``, as the table's first visit is."""
+    each of its states is compared with ``-inf``, as the table's first visit is. With
+    ``unseen_tolerance`` a state not kept ties its estimate within that many standard
+    deviations of the returns folded before the visit (:func:`classify_unseen`)."""
     g = 0.0
     memory.clock[0] += 1
     unseen_floor = params.estimate_once_kept and memory.size[0] == 0
@@ -316,7 +355,11 @@ def fold_episode(
             mark_visited(memory, slot)
         estimate = -np.inf if unseen_floor else estimates[t]
         best = memory.record[slot] if slot >= 0 else estimate
-        outcome = classify_return(g, best, params)
+        if slot >= 0:
+            outcome = classify_return(g, best, params)
+        else:
+            outcome = classify_unseen(g, best, memory, params)
+        count_return(memory.returns[0], g)
         if slot >= 0:
             memory.record[slot] = record_after(best, g, outcome, params)
         if outcome == BELOW and (slot >= 0 or not params.keep_below):
