@@ -64,13 +64,15 @@ DIFFERENCES = (
         "agent network",
         "two hidden layers of hidden_dim (IQL: a GRU for the second)",
         "one hidden layer of hidden_dim, the paper's; ``hidden_layers=2`` gives EPyMARL's "
-        "feed-forward agent (``use_rnn=False``), stepped by autograd; no recurrent layer",
+        "feed-forward agent (``use_rnn=False``), stepped by autograd under ``step=auto`` "
+        "(``step=fused`` takes it); no recurrent layer",
     ),
     (
         "QMIX's hypernetworks",
         "two layers (hypernet_embed 64) for the mixing weights",
         "one layer, the mixer of the paper's QMIX; ``hypernet_layers=2`` gives EPyMARL's "
-        "(``hypernet_hidden`` 64), stepped by autograd",
+        "(``hypernet_hidden`` 64), stepped by autograd under ``step=auto`` (``step=fused`` "
+        "takes them)",
     ),
     (
         "batches",
