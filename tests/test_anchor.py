@@ -7,8 +7,10 @@ from __future__ import annotations
 import importlib.util
 import subprocess
 import sys
+import types
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 SCRIPT = Path(__file__).parents[1] / "benchmarks/anchors/benchmarl_simple_spread.py"
@@ -337,3 +339,53 @@ def test_cmarl_cds_command_and_job_of_each_form(ours, layers, hyper, step, monke
                    *((f"layers{layers}",) if layers > 1 else ()),
                    *(("hyper2",) if hyper == 2 else ()),
                    *((step,) if step != "auto" else ()))  # fmt: skip
+
+
+def test_the_epymarl_speed_run_alternates_the_sides_and_takes_medians(tmp_path: Path) -> None:
+    """Stand-ins for the two sides' launchers and a clock: EPyMARL's 1,000 steps take 2 s
+    every round (500 a second); cmarl-cd's 3 seeds x 1,000 take 0.5, 1 and 0.25 s (6,000,
+    3,000 and 12,000 a second): medians 500 and 6,000, ratio 12. Each side runs the task's
+    budget with one short test, cmarl-cd into a fresh folder each round."""
+    sys.path.insert(0, str(EPYMARL.parent))
+    from epymarl_speed import TEST_EPISODES, measure, speed_table
+
+    calls = []
+    anchor = types.SimpleNamespace(
+        epymarl=lambda task, algorithm, seed, protocol, *rest: calls.append(
+            ("epymarl", algorithm, seed, protocol)) or {"steps_trained": 1_000},
+        ours=lambda task, protocol, where, log: calls.append(
+            ("cmarl-cd", where, protocol)) or {"curves": {}},
+        machine=lambda: {},
+    )  # fmt: skip
+    durations = iter([2.0, 0.5, 2.0, 1.0, 2.0, 0.25])
+    ticks = iter(np.cumsum([0.0, *(x for d in durations for x in (d, 0.0))]))
+    protocol = {"tasks": ["8x8-2p-2f-coop", "10x10-3p-3f"], "algorithms": ["vdn"], "seeds": 3,
+                "steps": 1_000, "eval_interval": 500, "eval_episodes": 100, "agent": "mlp",
+                "ours": "shared"}  # fmt: skip
+    result = measure(anchor, protocol, tmp_path, tmp_path, 3, False, clock=lambda: next(ticks))
+    assert [c[0] for c in calls] == ["epymarl", "cmarl-cd"] * 3
+    assert result["medians"]["vdn"] == pytest.approx(
+        {"epymarl": 500.0, "cmarl-cd": 6_000.0, "ratio": 12.0}
+    )
+    assert [r["cmarl-cd"]["rate"] for r in result["runs"]] == pytest.approx([6e3, 3e3, 12e3])
+    folders = [c[1] for c in calls if c[0] == "cmarl-cd"]
+    assert len(set(folders)) == 3
+    for call in calls:
+        run = call[-1]
+        assert (run["eval_interval"], run["eval_episodes"]) == (1_000, TEST_EPISODES)
+        assert run["algorithms"] == ["vdn"]
+    assert result["task"] == "8x8-2p-2f-coop"
+    assert "| vdn | 500 | 6,000 | 12.0x |" in speed_table(result)
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [(["--rounds", "0"], "--rounds: must be >= 1"), (["--speed", "--report-only"], "give one")],
+)
+def test_the_epymarl_speed_run_refuses_bad_input_in_one_line(args, says, tmp_path) -> None:
+    done = subprocess.run(
+        [sys.executable, str(EPYMARL), *args, "--out", str(tmp_path / "out")],
+        capture_output=True, text=True, check=False, cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert says in done.stderr and done.stderr.count("\n") == 1, done.stderr

@@ -88,6 +88,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     out = Path(args.out)
+    if args.speed:
+        return speed(protocol, out, args)
     if not args.report_only:
         for side in protocol["sides"]:
             run_jobs(side, jobs(side, protocol), protocol, out, args)
@@ -99,6 +101,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     (out / f"{name}.md").write_text(table(summary) + "\n")
     figure(summary, out / f"{name}.png")
     print(table(summary))
+    return 0
+
+
+def speed(protocol: dict, out: Path, args: argparse.Namespace) -> int:
+    """``--speed``: both sides' steps a second in turns (``epymarl_speed.py``)."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from epymarl_speed import measure, speed_table
+
+    result = measure(sys.modules[__name__], protocol, Path(args.epymarl), out, args.rounds,
+                     args.any_commit)  # fmt: skip
+    name = "-".join(["speed", protocol["tasks"][0], protocol["agent"], protocol["ours"],
+                     *layers_tag(protocol)])  # fmt: skip
+    write(out / f"{name}.json", result)
+    (out / f"{name}.md").write_text(speed_table(result) + "\n")
+    print(speed_table(result))
     return 0
 
 
@@ -128,6 +145,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--parallel", type=int, default=1, help="EPyMARL runs at a time (one "
                    "core each)")  # fmt: skip
     p.add_argument("--report-only", action="store_true", help="compute nothing, report")
+    p.add_argument("--speed", action="store_true", help="measure only steps a second: each "
+                   "algorithm's EPyMARL run and cmarl-cd command in turns on the first task, "
+                   "--steps each, under the same load")  # fmt: skip
+    p.add_argument("--rounds", type=int, default=3, help="(--speed) turns of each side")
     return p
 
 
@@ -162,6 +183,10 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     for side in sides:
         if side not in SIDES:
             raise ValueError(f"--sides: unknown {side!r} (one of {', '.join(SIDES)})")
+    if args.rounds < 1:
+        raise ValueError(f"--rounds: must be >= 1 (got {args.rounds})")
+    if args.speed and args.report_only:
+        raise ValueError("--speed computes; --report-only computes nothing: give one")
     if args.parallel < 1:
         raise ValueError(f"--parallel: must be >= 1 (got {args.parallel})")
     if args.layers < 1:
@@ -179,7 +204,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     steps, interval = count(args.steps, "steps"), count(args.eval_interval, "eval-interval")
     if steps % interval:
         raise ValueError(f"--eval-interval must divide --steps (got {interval} and {steps})")
-    if "epymarl" in sides and not args.report_only:
+    if args.speed or ("epymarl" in sides and not args.report_only):
         checkout_commit(args.epymarl, args.any_commit)
     protocol = {"tasks": tasks, "algorithms": algorithms, "sides": sides, "seeds": args.seeds,
                 "agent": args.agent, "ours": args.ours, "layers": args.layers,
