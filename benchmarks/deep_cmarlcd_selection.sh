@@ -18,6 +18,10 @@
 #   spread     the default with the record network's tolerance: a state not kept ties
 #              the estimate within 0.25 standard deviations of the returns folded
 #   spread-anneal  both
+#   range      the record network's tolerance scaled by the range of the returns folded
+#              (largest minus smallest), 0.1 of it: the size of a reward where rewards are
+#              sparse, where their standard deviation is a small fraction of one
+#   range-anneal  range with the anneal
 #   imitation-anneal  imitation-lambda with the anneal
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
@@ -29,9 +33,9 @@ designs=("$@")
 [ ${#designs[@]} -eq 0 ] && designs=(keyed replayed imitation imitation-lambda)
 for design in "${designs[@]}"; do
   case "$design" in
-    keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | imitation-anneal) ;;
+    keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | imitation-anneal | range | range-anneal) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
-         "anneal, spread, spread-anneal, imitation-anneal)" >&2
+         "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal)" >&2
        exit 2 ;;
   esac
 done
@@ -39,6 +43,7 @@ mkdir -p "$out"
 tasks="foraging:8x8-2p-2f-coop,foraging:2s-8x8-2p-2f-coop,foraging:10x10-3p-3f,simple_spread"
 d=deep-cmarl-cd
 anneal="$d.temperature_end=0.1,$d.temperature_steps=50000"
+range="$d.unseen_tolerance=0.1,$d.unseen_spread=range"
 imitation="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500"
 for design in "${designs[@]}"; do
   case "$design" in
@@ -49,6 +54,8 @@ for design in "${designs[@]}"; do
     anneal) settings="$anneal,$d.gamma=0.99" ;;
     spread) settings="$d.unseen_tolerance=0.25,$d.gamma=0.99" ;;
     spread-anneal) settings="$d.unseen_tolerance=0.25,$anneal,$d.gamma=0.99" ;;
+    range) settings="$range,$d.gamma=0.99" ;;
+    range-anneal) settings="$range,$anneal,$d.gamma=0.99" ;;
     imitation-anneal) settings="$imitation,$d.return_lambda=0.9,$anneal,$d.gamma=0.99" ;;
   esac
   echo "$(date +%T) $design" >&2

@@ -84,13 +84,3 @@ def test_the_object_api_anneals_over_the_steps_it_observed() -> None:
 def test_bad_anneals_are_rejected(settings: dict, named: str) -> None:
     with pytest.raises(ConfigError, match=named):
         DeepCMARLCDConfig(**settings)
-
-
-def test_the_spread_tolerance_is_rejected_where_no_estimate_is_read() -> None:
-    with pytest.raises(ConfigError, match="unseen_tolerance"):
-        DeepCMARLCDConfig(unseen_tolerance=0.1, unseen_record="first-visit")
-    with pytest.raises(ConfigError, match="unseen_tolerance"):
-        DeepCMARLCDConfig(unseen_tolerance=0.1, update="imitation")
-    with pytest.raises(ConfigError, match="unseen_tolerance"):
-        DeepCMARLCDConfig(unseen_tolerance=-1.0)
-    assert DeepCMARLCDConfig(unseen_tolerance=0.1).unseen_tolerance == 0.1

@@ -153,3 +153,15 @@ def test_a_one_state_game_is_solved() -> None:
     batch = DeepBatch(spec, config, [np.random.SeedSequence(k) for k in range(5)], 3_000)
     batch.train([], lambda k, budget, policy: final.__setitem__(k, policy.table[0].tolist()))
     assert list(final.values()) == [[0, 0]] * 5
+
+
+def test_the_spread_tolerance_is_rejected_where_no_estimate_is_read() -> None:
+    with pytest.raises(ConfigError, match="unseen_tolerance"):
+        DeepCMARLCDConfig(unseen_tolerance=0.1, unseen_record="first-visit")
+    with pytest.raises(ConfigError, match="unseen_tolerance"):
+        DeepCMARLCDConfig(unseen_tolerance=0.1, update="imitation")
+    with pytest.raises(ConfigError, match="unseen_tolerance"):
+        DeepCMARLCDConfig(unseen_tolerance=-1.0)
+    with pytest.raises(ConfigError, match="unseen_spread"):
+        DeepCMARLCDConfig(unseen_tolerance=0.1, unseen_spread="iqr")
+    assert DeepCMARLCDConfig(unseen_tolerance=0.1, unseen_spread="range").unseen_tolerance == 0.1

@@ -168,7 +168,7 @@ def test_a_state_not_kept_ties_its_estimate_within_the_spread_of_the_returns() -
         return memory
 
     memory = spread_of_two(params)
-    assert memory.returns[0].tolist() == pytest.approx([2.0, 3.0, 2.0])
+    assert memory.returns[0].tolist() == pytest.approx([2.0, 3.0, 2.0, 2.0, 4.0])
     fold(memory, [5], [[1, 0]], [3.6], bases=bases, estimates=[4.0], params=params)
     record, target = entry(memory, 5)
     assert record == 4.0
@@ -183,6 +183,32 @@ def test_a_state_not_kept_ties_its_estimate_within_the_spread_of_the_returns() -
     memory = spread_of_two(exact)
     fold(memory, [5], [[1, 0]], [3.6], bases=bases, estimates=[4.0], params=exact)
     assert find(memory, np.uint64(5)) < 0
+
+
+def test_the_spread_may_be_the_range_of_the_returns() -> None:
+    """``unseen_range``: returns 2 and 4 folded (range 2), ``unseen_tolerance`` 0.2: a
+    tolerance of 0.4. Against an estimate of 4, 3.7 ties (state 5 kept, moved by δ); 4.5
+    is a new record (state 6 reset), and the range is 2.5 after it: 3.4 is below 4 - 0.5
+    (state 7 not kept). By the standard deviation (1) the tolerance would be 0.2 and 3.7
+    below."""
+    params = PARAMS._replace(
+        tolerance=1e-9, estimate_unseen=True, unseen_tolerance=0.2, unseen_range=True
+    )
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    fold(memory, [1, 2], [[0, 0], [0, 0]], [0.0, 4.0], estimates=[100.0] * 2, params=params)
+    for state, g in ((5, 3.7), (6, 4.5), (7, 3.4)):
+        fold(memory, [state], [[1, 0]], [g], estimates=[4.0], params=params)
+    assert entry(memory, 5)[0] == 4.0 and entry(memory, 5)[1][0].tolist() == pytest.approx(
+        [1.45, 1.55, 1.45]
+    )
+    assert entry(memory, 6)[0] == 4.5 and entry(memory, 6)[1][0].tolist() == [1.0, 2.0, 1.0]
+    assert find(memory, np.uint64(7)) < 0
+    assert memory.returns[0, 3:].tolist() == [2.0, 4.5]  # 3.4 counted too
+    by_std = memory_view(new_memory(1, 10, 2, 3), 0)
+    std = params._replace(unseen_range=False)
+    fold(by_std, [1, 2], [[0, 0], [0, 0]], [0.0, 4.0], estimates=[100.0] * 2, params=std)
+    fold(by_std, [5], [[1, 0]], [3.7], estimates=[4.0], params=std)
+    assert find(by_std, np.uint64(5)) < 0
 
 
 def test_into_an_empty_memory_every_state_is_a_first_visit_once_kept_asked() -> None:

@@ -70,8 +70,11 @@ class KeyedParams(NamedTuple):
     """Whether the estimate is read only once the memory keeps any state: an episode
     folded into an empty memory compares every state with ``-inf`` (the table's rule)."""
     unseen_tolerance: float = 0.0
-    """Within how many standard deviations of the returns folded so far a state not kept
-    ties its estimate (beyond them above, a new record); 0: ``tolerance``."""
+    """Within how many spreads of the returns folded so far a state not kept ties its
+    estimate (beyond them above, a new record); 0: ``tolerance``."""
+    unseen_range: bool = False
+    """Whether that spread is the returns' range (largest minus smallest), else their
+    standard deviation."""
 
 
 def keyed_params(config) -> KeyedParams:
@@ -92,6 +95,7 @@ def keyed_params(config) -> KeyedParams:
         config.record_step,
         config.unseen_record == "estimate-once-kept",
         config.unseen_tolerance,
+        config.unseen_spread == "range",
     )
 
 
@@ -122,8 +126,9 @@ class DegreeMemory(NamedTuple):
     ways: np.ndarray
     """(B,) int64: slots per set (1: direct-mapped)."""
     returns: np.ndarray
-    """(B, 3) float64: the count, mean and sum of squared deviations of the returns folded
-    in (Welford's running moments), whose spread scales ``unseen_tolerance``."""
+    """(B, 5) float64: the count, mean and sum of squared deviations of the returns folded
+    in (Welford's running moments), their smallest and largest: the spread that scales
+    ``unseen_tolerance``."""
 
 
 def new_memory(
@@ -145,7 +150,7 @@ def new_memory(
         np.zeros(seeds, np.int64),
         np.zeros(seeds, np.int64),
         np.full(seeds, ways, np.int64),
-        np.zeros((seeds, 3)),
+        np.zeros((seeds, 5)),
     )
 
 
@@ -283,7 +288,10 @@ def classify_return(g: float, best: float, params) -> int:
 
 @kernel
 def count_return(moments, g: float) -> None:
-    """Fold return ``g`` into the running ``(count, mean, M2)`` (Welford)."""
+    """Fold return ``g`` into the running ``(count, mean, M2, smallest, largest)``
+    (Welford's moments)."""
+    moments[3] = g if moments[0] == 0.0 else min(moments[3], g)
+    moments[4] = g if moments[0] == 0.0 else max(moments[4], g)
     moments[0] += 1.0
     shift = g - moments[1]
     moments[1] += shift / moments[0]
@@ -293,18 +301,21 @@ def count_return(moments, g: float) -> None:
 @kernel
 def unseen_tolerance(memory, params) -> float:
     """The tolerance a state not kept is compared with its estimate by: ``tolerance``,
-    or ``unseen_tolerance`` standard deviations of the returns folded so far where that
-    is larger."""
+    or ``unseen_tolerance`` spreads of the returns folded so far (their standard
+    deviation, or with ``unseen_range`` their range) where that is larger."""
     moments = memory.returns[0]
-    spread = np.sqrt(moments[2] / moments[0]) if moments[0] > 1.0 else 0.0
+    if params.unseen_range:
+        spread = moments[4] - moments[3]
+    else:
+        spread = np.sqrt(moments[2] / moments[0]) if moments[0] > 1.0 else 0.0
     return max(params.tolerance, params.unseen_tolerance * spread)
 
 
 @kernel
 def classify_unseen(g: float, estimate: float, memory, params) -> int:
     """Eq. (16) for a state not kept, against ``estimate``: as :func:`classify_return`,
-    or, with ``unseen_tolerance``, a tie within that many standard deviations of the
-    returns folded so far and a new record beyond them above."""
+    or, with ``unseen_tolerance``, a tie within that many spreads of the returns folded
+    so far and a new record beyond them above."""
     if params.unseen_tolerance <= 0.0:
         return classify_return(g, estimate, params)
     return compare_return(g, estimate, unseen_tolerance(memory, params))
