@@ -151,6 +151,15 @@ def test_a_state_not_kept_is_compared_with_the_estimate_and_starts_from_the_netw
     assert record == 9.0 and target[0].tolist() == [2.0, 1.0, 1.0]
 
 
+def returns_2_and_4(params: KeyedParams):
+    """A memory that has folded returns 2 and 4 (rewards 0, 4, γ 0.5) and kept nothing
+    (both below an estimate of 100)."""
+    memory = memory_view(new_memory(1, 10, 2, 3), 0)
+    fold(memory, [1, 2], [[0, 0], [0, 0]], [0.0, 4.0], estimates=[100.0] * 2, params=params)
+    assert memory.size[0] == 0
+    return memory
+
+
 def test_a_state_not_kept_ties_its_estimate_within_the_spread_of_the_returns() -> None:
     """``unseen_tolerance`` 1 (tolerance 1e-9): rewards 0, 4 with γ 0.5 fold returns 2
     and 4, both below an estimate of 100 (not kept): count 2, mean 3, spread 1. A return of
@@ -161,13 +170,7 @@ def test_a_state_not_kept_ties_its_estimate_within_the_spread_of_the_returns() -
     params = PARAMS._replace(tolerance=1e-9, estimate_unseen=True, unseen_tolerance=1.0)
     bases = np.array([[[2.0, 1.0, 1.0], [1.0, 1.2, 0.0]]], np.float32)
 
-    def spread_of_two(params):
-        memory = memory_view(new_memory(1, 10, 2, 3), 0)
-        fold(memory, [1, 2], [[0, 0], [0, 0]], [0.0, 4.0], estimates=[100.0] * 2, params=params)
-        assert memory.size[0] == 0
-        return memory
-
-    memory = spread_of_two(params)
+    memory = returns_2_and_4(params)
     assert memory.returns[0].tolist() == pytest.approx([2.0, 3.0, 2.0, 2.0, 4.0])
     fold(memory, [5], [[1, 0]], [3.6], bases=bases, estimates=[4.0], params=params)
     record, target = entry(memory, 5)
@@ -180,7 +183,7 @@ def test_a_state_not_kept_ties_its_estimate_within_the_spread_of_the_returns() -
     fold(memory, [5], [[0, 1]], [3.6], bases=bases, estimates=[4.0], params=params)
     assert entry(memory, 5)[1] == pytest.approx(np.stack([[1.95, 1.05, 0.95], [1.05, 1.15, 0]]))
     exact = params._replace(unseen_tolerance=0.0)
-    memory = spread_of_two(exact)
+    memory = returns_2_and_4(exact)
     fold(memory, [5], [[1, 0]], [3.6], bases=bases, estimates=[4.0], params=exact)
     assert find(memory, np.uint64(5)) < 0
 
@@ -194,8 +197,7 @@ def test_the_spread_may_be_the_range_of_the_returns() -> None:
     params = PARAMS._replace(
         tolerance=1e-9, estimate_unseen=True, unseen_tolerance=0.2, unseen_range=True
     )
-    memory = memory_view(new_memory(1, 10, 2, 3), 0)
-    fold(memory, [1, 2], [[0, 0], [0, 0]], [0.0, 4.0], estimates=[100.0] * 2, params=params)
+    memory = returns_2_and_4(params)
     for state, g in ((5, 3.7), (6, 4.5), (7, 3.4)):
         fold(memory, [state], [[1, 0]], [g], estimates=[4.0], params=params)
     assert entry(memory, 5)[0] == 4.0 and entry(memory, 5)[1][0].tolist() == pytest.approx(
@@ -204,9 +206,8 @@ def test_the_spread_may_be_the_range_of_the_returns() -> None:
     assert entry(memory, 6)[0] == 4.5 and entry(memory, 6)[1][0].tolist() == [1.0, 2.0, 1.0]
     assert find(memory, np.uint64(7)) < 0
     assert memory.returns[0, 3:].tolist() == [2.0, 4.5]  # 3.4 counted too
-    by_std = memory_view(new_memory(1, 10, 2, 3), 0)
     std = params._replace(unseen_range=False)
-    fold(by_std, [1, 2], [[0, 0], [0, 0]], [0.0, 4.0], estimates=[100.0] * 2, params=std)
+    by_std = returns_2_and_4(std)
     fold(by_std, [5], [[1, 0]], [3.7], estimates=[4.0], params=std)
     assert find(by_std, np.uint64(5)) < 0
 
