@@ -345,16 +345,17 @@ def test_cmarl_cds_command_and_job_of_each_form(ours, layers, hyper, step, monke
 
 def test_the_epymarl_speed_run_alternates_the_sides_and_takes_medians(tmp_path: Path) -> None:
     """Stand-ins for the two sides' launchers and a clock: EPyMARL's 1,000 steps take 2 s
-    every round (500 a second); cmarl-cd's 3 seeds x 1,000 take 0.5, 1 and 0.25 s (6,000,
-    3,000 and 12,000 a second): medians 500 and 6,000, ratio 12. Each side runs the task's
-    budget with one short test, cmarl-cd into a fresh folder each round."""
+    every round (500 a second: its budget, not the step of its last test, 50); cmarl-cd's
+    3 seeds x 1,000 take 0.5, 1 and 0.25 s (6,000, 3,000 and 12,000 a second): medians
+    500 and 6,000, ratio 12. Each side runs the task's budget with one short test,
+    cmarl-cd into a fresh folder each round."""
     sys.path.insert(0, str(EPYMARL.parent))
     from epymarl_speed import TEST_EPISODES, measure, speed_table
 
     calls = []
     anchor = types.SimpleNamespace(
         epymarl=lambda task, algorithm, seed, protocol, *rest: calls.append(
-            ("epymarl", algorithm, seed, protocol)) or {"steps_trained": 1_000},
+            ("epymarl", algorithm, seed, protocol)) or {"steps_trained": 50},
         ours=lambda task, protocol, where, log: calls.append(
             ("cmarl-cd", where, protocol)) or {"curves": {}},
         machine=lambda: {},

@@ -6,7 +6,8 @@ that of its own hours: they are not comparable. Here, on the anchor's first task
 algorithm's EPyMARL run (seed 0) and cmarl-cd's command (its seeds stacked, into a fresh
 store, so nothing is read back) take turns, ``rounds`` times, each for the anchor's
 budget with one greedy test of a few episodes at its start and end on each side. A rate is
-a run's environment steps over its wall time, start-up included (Python's, torch's and
+a run's budget of environment steps over its wall time, start-up included (EPyMARL's loop
+runs until its step count passes the budget; its last test may come earlier) (Python's, torch's and
 the compiled kernels' loading on both sides), so a short budget favours neither side's
 steady state; cmarl-cd's counts every stacked seed's steps, as the anchor's table does.
 Per algorithm the median over rounds of each side and their ratio are reported, with the
@@ -51,13 +52,13 @@ def measure(
             log = where / "epymarl.log"
             launch = partial(anchor.epymarl, task, algorithm, 0, one, epymarl, log, any_commit)
             theirs = timed(launch, clock)
-            theirs_steps = theirs.pop("result")["steps_trained"]
+            del theirs["result"]  # its loop runs until t_env passes t_max: the budget
             mine = timed(partial(anchor.ours, task, one, where, where / "cmarl-cd.log"), clock)
             del mine["result"]
             stacked = protocol["seeds"] * protocol["steps"]
             runs.append({
                 "round": round_, "algorithm": algorithm,
-                "epymarl": {**theirs, "rate": theirs_steps / theirs["seconds"]},
+                "epymarl": {**theirs, "rate": protocol["steps"] / theirs["seconds"]},
                 "cmarl-cd": {**mine, "rate": stacked / mine["seconds"]},
             })  # fmt: skip
             print(f"[{time.strftime('%H:%M:%S')}] {algorithm} round {round_}: EPyMARL "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -34,7 +35,7 @@ def test_team_rewards() -> None:
     assert envs.REWARDS["mean"]({"a": 0.5, "b": 1.5}) == 1.0
 
 
-def test_only_vdn_and_qmix_read_their_own_observations() -> None:
+def test_only_the_deep_learners_read_their_own_observations() -> None:
     pytest.importorskip("torch")
     from cmarlcd import ConfigError, registry
 
@@ -42,8 +43,12 @@ def test_only_vdn_and_qmix_read_their_own_observations() -> None:
     seed = np.random.SeedSequence(0)
     counts = np.array([2, 2])
     assert envs.new_learner(registry.require_learner("qmix"), counts, shape, 10, seed)
+    assert envs.new_learner(registry.require_learner("deep-cmarl-cd"), counts, shape, 10, seed)
+    fused = replace(registry.require_learner("deep-cmarl-cd"), step="fused")
+    with pytest.raises(ConfigError, match="fused step reads the whole state"):
+        envs.new_learner(fused, counts, shape, 10, seed)
     with pytest.raises(ConfigError, match="own-observations is for vdn, qmix, deep-iql"):
-        envs.new_learner(registry.require_learner("deep-cmarl-cd"), counts, shape, 10, seed)
+        envs.check_reads_own_observations(registry.require_learner("cmarl-cd"), "own-observations")
 
 
 def test_each_agent_reads_its_own_observation_end_to_end(paths) -> None:  # noqa: F811

@@ -73,3 +73,49 @@ def test_lbf_with_own_observations_learns_in_the_compiled_loop() -> None:
     batch.train([20, 40], lambda k, point, policy: points.append((k, point)))
     assert sorted(points) == [(0, 20), (0, 40), (1, 20), (1, 40)]
     assert all(play.episodes == 40 for play in batch.plays)
+
+
+def test_deep_cmarl_cd_s_compiled_degrees_read_each_agent_s_own_observation() -> None:
+    """Deep CMARL-CD on own observations (the degree networks; the record network and the
+    memory read the whole input): the compiled loop's degrees of each agent, read from its
+    own observation, are the model's to float32 rounding, and an agent's degrees do not
+    move when another agent's observation does."""
+    from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+    from cmarlcd.training.degree_kernels import agent_degrees
+
+    config = DeepCMARLCDConfig(buffer_size=400, batch_size=16)
+    batch = DeepBatch(SPEC, config, [np.random.SeedSequence(1)], 30)
+    batch.train([30], lambda *_: None)
+    view = batch.group.views[0]
+    model, side = view.model, view.data
+    assert model.agents.own_dim == RULES.observation_size and model.fused is None
+    assert side.weights.w1.shape[1] == RULES.observation_size
+    assert side.starts.tolist() == [SPEC.n_features - (3 - i) * SPEC.own_dim for i in range(3)]
+    features = np.random.default_rng(3).normal(size=(50, SPEC.n_features)).astype(np.float32)
+    with torch.no_grad():
+        degrees = model.agents(torch.from_numpy(features)[None])[0].numpy()
+    out = np.zeros(5)
+    for n in range(50):
+        for i in range(3):
+            agent_degrees(side.weights, i, features[n], side.starts[i], 5, side.hidden, out)
+            assert out == pytest.approx(degrees[n, i], abs=1e-5)
+    changed = features.copy()
+    changed[:, side.starts[1] : side.starts[1] + SPEC.own_dim] += 5.0
+    with torch.no_grad():
+        again = model.agents(torch.from_numpy(changed)[None])[0]
+    assert torch.equal(again[:, 0], model.agents(torch.from_numpy(features)[None])[0][:, 0])
+    assert not torch.equal(again[:, 1], model.agents(torch.from_numpy(features)[None])[0][:, 1])
+
+
+def test_deep_cmarl_cd_s_object_api_reads_own_observations() -> None:
+    from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+    from cmarlcd.learners.deep.degree_agent import DegreeAgent
+
+    agent = DegreeAgent([3, 3], DeepCMARLCDConfig(), 10, state_dim=7, own_dim=2, seed=0)
+    state = np.arange(7, dtype=np.float32)
+    other = state.copy()
+    other[5:] += 4.0  # agent 1's own observation, the last two features
+    assert np.array_equal(agent.degrees(state)[0], agent.degrees(other)[0])
+    assert not np.array_equal(agent.degrees(state)[1], agent.degrees(other)[1])
+    with pytest.raises(ConfigError, match="own_dim"):
+        DegreeAgent([3, 3], DeepCMARLCDConfig(), 10, state_dim=4, own_dim=2, seed=0)

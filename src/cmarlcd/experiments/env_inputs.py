@@ -130,14 +130,23 @@ def check_deep_inputs(shape: StateShape) -> None:
     )
 
 
-def check_reads_own_observations(learner: str, inputs: str) -> None:
-    """One clear error where ``inputs`` is ``own-observations`` and ``learner`` cannot
-    read them."""
+def check_reads_own_observations(config: Any, inputs: str) -> None:
+    """One clear error where ``inputs`` is ``own-observations`` and the learner of
+    ``config`` cannot read them (deep CMARL-CD's fused step reads the whole state)."""
+    if inputs != "own-observations":
+        return
+    learner = config.name
     require(
-        inputs != "own-observations" or learner in OWN_OBSERVATION_LEARNERS,
+        learner in OWN_OBSERVATION_LEARNERS,
         "inputs",
         f"own-observations is for {', '.join(OWN_OBSERVATION_LEARNERS)}; "
         f"{learner} reads the state or the observations joined",
+    )
+    require(
+        learner != "deep-cmarl-cd" or config.step != "fused",
+        "inputs",
+        "own-observations: deep-cmarl-cd's fused step reads the whole state; set "
+        "deep-cmarl-cd.step=auto or autograd",
     )
 
 

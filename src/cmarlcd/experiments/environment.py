@@ -182,7 +182,7 @@ def new_learner(
         kind = DegreeAgent if isinstance(config, DeepCMARLCDConfig) else DeepAgent
         inputs = {"n_states": shape.n_states} if shape.n_states else {"state_dim": shape.dim}
         if shape.own_dim:
-            check_reads_own_observations(config.name, "own-observations")
+            check_reads_own_observations(config, "own-observations")
             inputs["own_dim"] = shape.own_dim
         return kind(counts, config, total, **inputs, seed=seed, unit=unit)
     from cmarlcd.learners.tabular.protocol import TabularLearner
@@ -412,7 +412,7 @@ class EnvSweep:
         except Exception as error:  # the user's environment: its failure is theirs to read
             raise ConfigError("env", f"{self.env}: reset failed: {error}") from None
         for config in self.learners:
-            check_reads_own_observations(config.name, self.inputs)
+            check_reads_own_observations(config, self.inputs)
             if isinstance(config, DeepLearnerConfig):
                 check_deep_inputs(shape)
             else:

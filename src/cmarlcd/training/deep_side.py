@@ -42,6 +42,7 @@ from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep.config import (
     EPISODES_UNIT,
+    OWN_OBSERVATION_LEARNERS,
     STEPS_UNIT,
     DeepConfig,
     DeepLearnerConfig,
@@ -178,9 +179,9 @@ class DeepGroup(Group):
         self.last_loss: float | None = None  # the latest gradient step's (live curves)
         new_kernels, new_model, self.replay_kind = parts_of(config)
         device = devices.current() if device is None else device
-        # VDN's and QMIX's agents read their own observation where the game lays the
-        # features out so (GameSpec.own_dim); other learners read them whole
-        own = spec.own_dim if features and isinstance(config, DeepConfig) else 0
+        # the agents of the learners that can read their own observation do where the
+        # game lays the features out so (GameSpec.own_dim); other learners read them whole
+        own = spec.own_dim if features and config.name in OWN_OBSERVATION_LEARNERS else 0
         self.own_dim = own
         mine = {"own_dim": own} if own else {}
         self.model = new_model(

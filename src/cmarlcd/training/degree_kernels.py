@@ -37,6 +37,7 @@ from cmarlcd.training.deep_kernels import (
     features_enter,
     game,
     hidden_layer,
+    hidden_layer_at,
     index_enter,
     output_unit,
 )
@@ -55,9 +56,10 @@ def clip_row(values, count: int, lo: float, hi: float, out) -> None:
 
 
 @kernel
-def agent_degrees(weights, agent: int, x, count: int, hidden, out) -> None:
-    """``out[:count]`` := agent ``agent``'s degree network at features ``x``."""
-    hidden_layer(weights, agent, x, hidden)
+def agent_degrees(weights, agent: int, x, lo: int, count: int, hidden, out) -> None:
+    """``out[:count]`` := agent ``agent``'s degree network at features ``x`` (from
+    feature ``lo``: its own observation's, or 0 where it reads them all)."""
+    hidden_layer_at(weights, agent, x, lo, hidden)
     for a in range(count):
         out[a] = output_unit(weights, agent, hidden, a)
 
@@ -95,7 +97,7 @@ def features_act(side, key: int, rng, joint) -> None:
     x, legal, raw = side.obs[key], side.legal[key], side.scratch[1]
     for i in range(side.counts.shape[0]):
         count = side.counts[i]
-        agent_degrees(side.weights, i, x, count, side.hidden, raw)
+        agent_degrees(side.weights, i, x, side.starts[i], count, side.hidden, raw)
         joint[i] = sample_degrees(side, raw, legal[i], count, rng)
 
 
@@ -116,7 +118,7 @@ def features_greedy(side, env, team, offset, legal, rng, joint) -> None:
     game.legal(env, legal)
     for i in range(joint.shape[0]):
         count = side.counts[i]
-        agent_degrees(side.weights, i, x, count, side.hidden, raw)
+        agent_degrees(side.weights, i, x, side.starts[i], count, side.hidden, raw)
         joint[i] = greedy_degrees(side, raw, legal[offset + i], count)
 
 
@@ -190,7 +192,7 @@ def kept_or_network_degrees(side, slot: int, i: int, x, count: int, raw) -> None
         for a in range(count):
             raw[a] = side.replay.memory.target[slot, i, a]
     else:
-        agent_degrees(side.weights, i, x, count, side.hidden, raw)
+        agent_degrees(side.weights, i, x, side.starts[i], count, side.hidden, raw)
 
 
 @kernel
@@ -293,7 +295,15 @@ def keyed_features_store(side, length: int) -> None:
         if may_be_missing(replay.memory, replay.keys, length, t):
             x = side.obs[t]
             for i in range(side.counts.shape[0]):
-                agent_degrees(side.weights, i, x, side.counts[i], side.hidden, replay.bases[t, i])
+                agent_degrees(
+                    side.weights,
+                    i,
+                    x,
+                    side.starts[i],
+                    side.counts[i],
+                    side.hidden,
+                    replay.bases[t, i],
+                )
             replay.estimates[t] = record_estimate(replay, x) if estimate else -np.inf
     fold_episode(
         replay.memory, replay.keys, side.obs, replay.bases, replay.estimates, side.joints,

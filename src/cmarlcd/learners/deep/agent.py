@@ -20,6 +20,18 @@ from cmarlcd.learners.deep.threads import intra_op_threads
 from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
 
 
+def check_own_dim(own_dim: int | None, state_dim: int | None, n_agents: int) -> None:
+    """One clear error where ``own_dim`` cannot lay out own observations in the state:
+    they are the last ``n_agents * own_dim`` features, after the state."""
+    if own_dim is not None:
+        require(
+            state_dim is not None and 0 < own_dim * n_agents < state_dim,
+            "own_dim",
+            "own observations are the last n_agents * own_dim of a feature state, "
+            "after the state the mixer reads",
+        )
+
+
 class StepAgent:
     """What the step-by-step deep learners share: a seed's streams (spawned in the order
     parameters, acting, replay), the action counts, how states reach a network and the
@@ -134,13 +146,7 @@ class DeepAgent(StepAgent):
         unit: str = "episodes",
     ) -> None:
         super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device, unit)
-        if own_dim is not None:
-            require(
-                state_dim is not None and 0 < own_dim * len(self.counts) < state_dim,
-                "own_dim",
-                "own observations are the last n_agents * own_dim of a feature state, "
-                "after the state the mixer reads",
-            )
+        check_own_dim(own_dim, state_dim, len(self.counts))
         self.config = config
         self.model = ValueDecomposition(
             self.counts, self.in_dim, config, [self.init_seed], self.device, own_dim

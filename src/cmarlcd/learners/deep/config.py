@@ -72,8 +72,10 @@ LEARNER_NAMES = {
     "hysteretic": "hysteretic-dqn",
 }
 #: The learners that can read each agent its own observation (``own-observations``):
-#: every learner of :class:`DeepConfig`, whose agent networks take ``own_dim``.
-OWN_OBSERVATION_LEARNERS = tuple(LEARNER_NAMES.values())
+#: every learner of :class:`DeepConfig`, and deep CMARL-CD (its degree networks; its
+#: record network and keyed memory read the whole input), whose agent networks take
+#: ``own_dim``.
+OWN_OBSERVATION_LEARNERS = (*LEARNER_NAMES.values(), "deep-cmarl-cd")
 
 
 class DeepLearnerConfig:

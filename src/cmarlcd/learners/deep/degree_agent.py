@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from cmarlcd.learners.deep.agent import StepAgent
+from cmarlcd.learners.deep.agent import StepAgent, check_own_dim
 from cmarlcd.learners.deep.config import scheduled_work
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.learners.deep.degree_memory import (
@@ -52,11 +52,15 @@ class DegreeAgent(StepAgent):
         state_dim: int | None = None,
         seed: int | np.random.SeedSequence | None = None,
         device: str | None = None,
+        own_dim: int | None = None,
         unit: str = "episodes",
     ) -> None:
         super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device, unit)
+        check_own_dim(own_dim, state_dim, len(self.counts))
         self.config = config
-        self.model = DegreeModel(self.counts, self.in_dim, config, [self.init_seed], self.device)
+        self.model = DegreeModel(
+            self.counts, self.in_dim, config, [self.init_seed], self.device, own_dim
+        )
         n = len(self.counts)
         if config.keyed:
             capacity = min(config.buffer_size, n_states) if n_states else config.buffer_size

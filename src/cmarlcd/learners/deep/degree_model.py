@@ -17,6 +17,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from cmarlcd.errors import require
 from cmarlcd.learners.deep.agent_networks import (
     AgentNetworks,
     GroupLinear,
@@ -52,6 +53,10 @@ class DegreeModel(StackedModel):
         in_dim: state features, or the number of states for integer (one-hot) states.
         seeds: one :class:`numpy.random.SeedSequence` per seed (parameter initialisation).
         device: where it computes (``cpu``, ``cuda:N``; :mod:`cmarlcd.devices`).
+        own_dim: features of each agent's own observation, for inputs laid out as
+            ``[s, o_1, ..., o_n]``: agent ``i``'s degree network reads ``o_i`` alone; the
+            record network reads the whole input. The fused step reads the whole input,
+            so the model then steps by autograd (``step="fused"`` is refused).
     """
 
     def __init__(
@@ -61,18 +66,25 @@ class DegreeModel(StackedModel):
         config: DeepCMARLCDConfig,
         seeds: Sequence[np.random.SeedSequence],
         device: str = "cpu",
+        own_dim: int | None = None,
     ) -> None:
+        require(
+            own_dim is None or config.step != "fused",
+            "step",
+            "deep-cmarl-cd's fused step reads the whole state; with each agent on its own "
+            "observation it takes autograd's (step=auto or autograd)",
+        )
         super().__init__(action_counts, config, seeds, device)
         gens, width = self.generators, self.width
         self.agents: nn.Module
         if config.share:
             shared = [g[0] for g in gens]
             self.agents = SharedAgentNetwork(
-                self.n_seeds, self.n_agents, in_dim, config.hidden, width, shared
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, shared, own_dim
             )
         else:
             self.agents = AgentNetworks(
-                self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens, own_dim
             )
         self.record = RecordNetwork(in_dim, config.record_hidden, [g[-1] for g in gens])
         self.target_record = copy.deepcopy(self.record).requires_grad_(False)
@@ -84,7 +96,8 @@ class DegreeModel(StackedModel):
             ],
             fused=True,
         )
-        fused = takes_fused_step(config.step, self.device, config.fused_covered)
+        covered = config.fused_covered and own_dim is None
+        fused = takes_fused_step(config.step, self.device, covered)
         self.fused = FusedDegreeStep(self) if fused else None
 
     def targets(
