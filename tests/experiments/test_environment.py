@@ -45,8 +45,7 @@ def test_only_the_deep_learners_read_their_own_observations() -> None:
     assert envs.new_learner(registry.require_learner("qmix"), counts, shape, 10, seed)
     assert envs.new_learner(registry.require_learner("deep-cmarl-cd"), counts, shape, 10, seed)
     fused = replace(registry.require_learner("deep-cmarl-cd"), step="fused")
-    with pytest.raises(ConfigError, match="fused step reads the whole state"):
-        envs.new_learner(fused, counts, shape, 10, seed)
+    assert envs.new_learner(fused, counts, shape, 10, seed).model.fused is not None
     with pytest.raises(ConfigError, match="own-observations is for vdn, qmix, deep-iql"):
         envs.check_reads_own_observations(registry.require_learner("cmarl-cd"), "own-observations")
 

@@ -88,7 +88,7 @@ def test_deep_cmarl_cd_s_compiled_degrees_read_each_agent_s_own_observation() ->
     batch.train([30], lambda *_: None)
     view = batch.group.views[0]
     model, side = view.model, view.data
-    assert model.agents.own_dim == RULES.observation_size and model.fused is None
+    assert model.agents.own_dim == RULES.observation_size and model.fused is not None
     assert side.weights.w1.shape[1] == RULES.observation_size
     assert side.starts.tolist() == [SPEC.n_features - (3 - i) * SPEC.own_dim for i in range(3)]
     features = np.random.default_rng(3).normal(size=(50, SPEC.n_features)).astype(np.float32)

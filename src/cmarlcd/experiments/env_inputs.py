@@ -132,7 +132,7 @@ def check_deep_inputs(shape: StateShape) -> None:
 
 def check_reads_own_observations(config: Any, inputs: str) -> None:
     """One clear error where ``inputs`` is ``own-observations`` and the learner of
-    ``config`` cannot read them (deep CMARL-CD's fused step reads the whole state)."""
+    ``config`` cannot read them."""
     if inputs != "own-observations":
         return
     learner = config.name
@@ -141,12 +141,6 @@ def check_reads_own_observations(config: Any, inputs: str) -> None:
         "inputs",
         f"own-observations is for {', '.join(OWN_OBSERVATION_LEARNERS)}; "
         f"{learner} reads the state or the observations joined",
-    )
-    require(
-        learner != "deep-cmarl-cd" or config.step != "fused",
-        "inputs",
-        "own-observations: deep-cmarl-cd's fused step reads the whole state; set "
-        "deep-cmarl-cd.step=auto or autograd",
     )
 
 

@@ -17,7 +17,6 @@ import numpy as np
 import torch
 from torch import nn
 
-from cmarlcd.errors import require
 from cmarlcd.learners.deep.agent_networks import (
     AgentNetworks,
     GroupLinear,
@@ -55,8 +54,7 @@ class DegreeModel(StackedModel):
         device: where it computes (``cpu``, ``cuda:N``; :mod:`cmarlcd.devices`).
         own_dim: features of each agent's own observation, for inputs laid out as
             ``[s, o_1, ..., o_n]``: agent ``i``'s degree network reads ``o_i`` alone; the
-            record network reads the whole input. The fused step reads the whole input,
-            so the model then steps by autograd (``step="fused"`` is refused).
+            record network reads the whole input.
     """
 
     def __init__(
@@ -68,12 +66,6 @@ class DegreeModel(StackedModel):
         device: str = "cpu",
         own_dim: int | None = None,
     ) -> None:
-        require(
-            own_dim is None or config.step != "fused",
-            "step",
-            "deep-cmarl-cd's fused step reads the whole state; with each agent on its own "
-            "observation it takes autograd's (step=auto or autograd)",
-        )
         super().__init__(action_counts, config, seeds, device)
         gens, width = self.generators, self.width
         self.agents: nn.Module
@@ -96,8 +88,7 @@ class DegreeModel(StackedModel):
             ],
             fused=True,
         )
-        covered = config.fused_covered and own_dim is None
-        fused = takes_fused_step(config.step, self.device, covered)
+        fused = takes_fused_step(config.step, self.device, config.fused_covered)
         self.fused = FusedDegreeStep(self) if fused else None
 
     def targets(

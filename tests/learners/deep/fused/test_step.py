@@ -321,13 +321,14 @@ def test_fused_step_runs_on_the_cpu_only() -> None:
 # ------------------------------------------------------------ deep CMARL-CD
 
 
-def degree_pair(index: bool, unseen: str):
+def degree_pair(index: bool, unseen: str, own_dim: int | None = None):
     """Deep CMARL-CD's model twice (autograd's and the fused step's) and a maker of keyed
-    batches: kept states, the memory's degrees there and its records."""
+    batches: kept states, the memory's degrees there and its records; with ``own_dim``
+    each agent's degree network reads its own observation, the last features."""
     from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
     from cmarlcd.learners.deep.degree_model import DegreeModel
 
-    in_dim = 6 if index else 5
+    in_dim = 6 if index else 5 + len(COUNTS) * (own_dim or 0)
     sequences = [np.random.SeedSequence(k) for k in range(SEEDS)]
     models = [
         DegreeModel(
@@ -337,6 +338,7 @@ def degree_pair(index: bool, unseen: str):
                 hidden=7, record_hidden=5, batch_size=BATCH, unseen_record=unseen, step=step
             ),
             sequences,
+            own_dim=own_dim,
         )
         for step in ("autograd", "fused")
     ]
@@ -360,13 +362,21 @@ def degree_pair(index: bool, unseen: str):
 
 
 @pytest.mark.parametrize("unseen", ["estimate", "first-visit"])
-@pytest.mark.parametrize("index", [False, True], ids=["features", "integer states"])
-def test_fused_degree_step_equals_autograd(index: bool, unseen: str) -> None:
+@pytest.mark.parametrize(
+    ("index", "own_dim"),
+    [(False, None), (True, None), (False, 2)],
+    ids=["features", "integer states", "own observations"],
+)
+def test_fused_degree_step_equals_autograd(index: bool, own_dim: int | None, unseen: str) -> None:
     """The keyed update: the degree networks regressed onto the memory's degrees over each
-    agent's real actions and (``estimate``) the record network onto the records. One step:
-    the same loss and gradients; three more: the same weights, with each network's own
-    learning rate; without an estimate the record network is never stepped."""
-    auto, fused, batch = degree_pair(index, unseen)
+    agent's real actions and (``estimate``) the record network onto the records (each
+    agent's degree network on its own observation, the record network on the whole input,
+    with ``own_dim``). One step: the same loss and gradients; three more: the same
+    weights, with each network's own learning rate; without an estimate the record
+    network is never stepped."""
+    auto, fused, batch = degree_pair(index, unseen, own_dim)
+    if own_dim:
+        assert fused.agents.first.weight.shape[1] == own_dim
     sample = batch()
     auto.optimizer.zero_grad()
     loss = auto.loss(sample)

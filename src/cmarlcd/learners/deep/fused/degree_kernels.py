@@ -89,13 +89,16 @@ def keyed_step(nets, grads, batch, valid, shape, optimiser) -> float:
     the PyTorch modules hold them; ``grads`` likewise. ``batch``: (state features (B, N, F)
     or integer states (B, N), the memory's degrees (B, N, n, A), its records (B, N)).
     ``valid`` (n, A): each agent's real actions. ``shape``: (index: integer states, the
-    number of states, estimates: whether the record network is fitted).
+    number of states, estimates: whether the record network is fitted, each agent's
+    first feature (n,) and ``own``: the features of each agent's own observation, its
+    degree network's inputs, or 0 where it reads them all; the record network reads
+    them all).
     ``optimiser``: as :func:`cmarlcd.learners.deep.fused.layers.update_seed` reads it.
     """
     agents, record = nets
     agent_grads, record_grads = grads
     features, states, target, records = batch
-    index, n_states, estimates = shape
+    index, n_states, estimates, starts, own = shape
     seeds, count, n, width = target.shape
     size = n_states if index else count
     inputs = 0 if index else features.shape[2]
@@ -110,10 +113,17 @@ def keyed_step(nets, grads, batch, valid, shape, optimiser) -> float:
             transpose_into(features[b], x)
         zero_seed(optimiser[1], b, seeds)
         for i in range(n):
-            loss += regress(
-                agents, agent_grads, b * n + i, x, states[b], index, target[b, :, i],
-                valid[i], agent_scratch,
-            )  # fmt: skip
+            if own:  # its own observation: rows of the transposed features
+                xi = x[starts[i] : starts[i] + own]
+                loss += regress(
+                    agents, agent_grads, b * n + i, xi, states[b], index, target[b, :, i],
+                    valid[i], agent_scratch,
+                )  # fmt: skip
+            else:
+                loss += regress(
+                    agents, agent_grads, b * n + i, x, states[b], index, target[b, :, i],
+                    valid[i], agent_scratch,
+                )  # fmt: skip
         if estimates:
             record_target[:, 0] = records[b]
             loss += regress(

@@ -185,6 +185,10 @@ class FusedDegreeStep:
         self.rates = np.array(rates, np.float64)
         self.adam = adam_settings(model.optimizer)
         self.steps = 0
+        # each agent's own observation, the last n * own features, where it reads one
+        self.own = model.agents.own_dim or 0
+        n, features = model.n_agents, self.record[0].shape[1]
+        self.starts = np.array([features - (n - i) * self.own for i in range(n)], np.int64)
 
     def __call__(self, batch: dict[str, torch.Tensor]) -> float:
         """One step on a batch of kept states (:meth:`DegreeModel.keyed_loss`'s keys); the
@@ -203,7 +207,7 @@ class FusedDegreeStep:
                 np.ascontiguousarray(batch["record"].numpy(), np.float32),
             ),
             self.model.valid.numpy(),
-            (index, n_states, self.estimates),
+            (index, n_states, self.estimates, self.starts, self.own),
             (*self.flat, self.rates, (self.steps, *self.adam)),
         )
         with subnormals_flushed():
