@@ -1,0 +1,1 @@
+"""Stand-in: the LBF anchor runs no SMAClite map."""
