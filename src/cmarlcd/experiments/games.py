@@ -29,7 +29,6 @@ from typing import Any
 import numpy as np
 
 from cmarlcd.errors import ConfigError, require
-from cmarlcd.experiments.env_inputs import check_reads_own_observations
 from cmarlcd.experiments.episodic import (
     MAX_POLICY_ENTRIES,
     EpisodicGame,
@@ -192,8 +191,6 @@ class GameSweep(EpisodicSweep):
                 f"own-observations is read by {', '.join(OWN_OBSERVATION_LEARNERS)} only "
                 f"(not {', '.join(others)})",
             )
-            for config in self.learners:
-                check_reads_own_observations(config, "own-observations")
         tabular = [c.name for c in self.learners if not is_deep(c)]
         if tabular and not family.tabular_fits(rules):
             spec = rules.spec()

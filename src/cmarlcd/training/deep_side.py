@@ -40,6 +40,7 @@ import torch
 from cmarlcd import devices
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
+from cmarlcd.learners.deep.agent_networks import own_starts
 from cmarlcd.learners.deep.config import (
     EPISODES_UNIT,
     OWN_OBSERVATION_LEARNERS,
@@ -93,14 +94,6 @@ def register_deep_learner(
     the sweep's worker processes too (:mod:`cmarlcd.plugins`)."""
     DEEP_LEARNERS[config_type] = (kernels, model, replay)
     note("deep learner", f"{config_type.__module__}.{config_type.__qualname__}")
-
-
-def own_starts(n_features: int, n: int, own_dim: int) -> np.ndarray:
-    """The first feature each of ``n`` agents' networks reads: its own observation's,
-    the last ``n * own_dim`` features in agent order, or 0 (all of them)."""
-    if not own_dim:
-        return np.zeros(n, np.int64)
-    return np.array([n_features - (n - i) * own_dim for i in range(n)], np.int64)
 
 
 def parts_of(config: DeepLearnerConfig) -> tuple[Callable, Callable, Any]:

@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from cmarlcd.errors import require
+from cmarlcd.learners.deep.agent_networks import own_starts
 from cmarlcd.learners.deep.fused import degree_kernels as fused_degree_kernels
 from cmarlcd.learners.deep.fused import kernels as fused_kernels
 from cmarlcd.learners.deep.fused.networks import spread_shared, stacked
@@ -187,8 +188,7 @@ class FusedDegreeStep:
         self.steps = 0
         # each agent's own observation, the last n * own features, where it reads one
         self.own = model.agents.own_dim or 0
-        n, features = model.n_agents, self.record[0].shape[1]
-        self.starts = np.array([features - (n - i) * self.own for i in range(n)], np.int64)
+        self.starts = own_starts(self.record[0].shape[1], model.n_agents, self.own)
 
     def __call__(self, batch: dict[str, torch.Tensor]) -> float:
         """One step on a batch of kept states (:meth:`DegreeModel.keyed_loss`'s keys); the
