@@ -40,7 +40,6 @@ import torch
 from cmarlcd import devices
 from cmarlcd.errors import require
 from cmarlcd.games.spec import GameSpec
-from cmarlcd.learners.deep.agent_networks import own_starts
 from cmarlcd.learners.deep.config import (
     EPISODES_UNIT,
     OWN_OBSERVATION_LEARNERS,
@@ -51,6 +50,7 @@ from cmarlcd.learners.deep.config import (
 )
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.learners.deep.degree_model import DegreeModel
+from cmarlcd.learners.deep.fused.networks import own_starts
 from cmarlcd.learners.deep.threads import intra_op_threads
 from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
 from cmarlcd.learners.tabular.protocol import full_legal

@@ -112,14 +112,6 @@ def stacked_middle(middle: nn.ModuleList, groups: int, hidden: int, like: torch.
     return weights, torch.stack([layer.bias for layer in middle], dim=1)
 
 
-def own_starts(n_features: int, n: int, own_dim: int) -> np.ndarray:
-    """The first feature each of ``n`` agents' networks reads: its own observation's,
-    the last ``n * own_dim`` features in agent order, or 0 (all of them)."""
-    if not own_dim:
-        return np.zeros(n, np.int64)
-    return np.array([n_features - (n - i) * own_dim for i in range(n)], np.int64)
-
-
 class AgentNetworks(nn.Module):
     """Per-agent MLPs for B seeds: state -> Linear -> ReLU -> (``layers - 1`` times
     Linear -> ReLU) -> Linear -> Q over actions.

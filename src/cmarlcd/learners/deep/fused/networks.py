@@ -27,6 +27,15 @@ import numpy as np
 from cmarlcd.learners.deep.fused.layers import dense_backward, dense_forward, fused, relu_inplace
 
 
+def own_starts(n_features: int, n: int, own_dim: int) -> np.ndarray:
+    """The first feature each of ``n`` agents' networks reads: its own observation's,
+    the last ``n * own_dim`` features in agent order (the layout ``[s, o_1, ..., o_n]`` of
+    ``cmarlcd.learners.deep.agent_networks``), or 0 (all of them)."""
+    if not own_dim:
+        return np.zeros(n, np.int64)
+    return np.array([n_features - (n - i) * own_dim for i in range(n)], np.int64)
+
+
 @fused
 def network_forward(net, g: int, x, hidden, q) -> None:
     """Group ``g``'s network ``net`` on ``x`` (F, N): ``hidden`` (L, H, N) := every hidden

@@ -21,10 +21,9 @@ import numpy as np
 import torch
 
 from cmarlcd.errors import require
-from cmarlcd.learners.deep.agent_networks import own_starts
 from cmarlcd.learners.deep.fused import degree_kernels as fused_degree_kernels
 from cmarlcd.learners.deep.fused import kernels as fused_kernels
-from cmarlcd.learners.deep.fused.networks import spread_shared, stacked
+from cmarlcd.learners.deep.fused.networks import own_starts, spread_shared, stacked
 
 
 def _arrays(module: torch.nn.Module) -> tuple[np.ndarray, ...]:
