@@ -23,6 +23,10 @@
 #              sparse, where their standard deviation is a small fraction of one
 #   range-anneal  range with the anneal
 #   imitation-anneal  imitation-lambda with the anneal
+#   critic     a centralised critic of joint actions as the record (CRITIC_DEEP_CMARLCD):
+#              the degrees move towards its best joint action, λ-returns (0.9)
+#              bootstrapped from its best
+#   critic-anneal  critic with the anneal
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -33,9 +37,11 @@ designs=("$@")
 [ ${#designs[@]} -eq 0 ] && designs=(keyed replayed imitation imitation-lambda)
 for design in "${designs[@]}"; do
   case "$design" in
-    keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | imitation-anneal | range | range-anneal) ;;
+    keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | \
+      imitation-anneal | range | range-anneal | critic | critic-anneal) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
-         "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal)" >&2
+         "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
+         "critic-anneal)" >&2
        exit 2 ;;
   esac
 done
@@ -45,6 +51,7 @@ d=deep-cmarl-cd
 anneal="$d.temperature_end=0.1,$d.temperature_steps=50000"
 range="$d.unseen_tolerance=0.1,$d.unseen_spread=range"
 imitation="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500"
+critic="$d.update=critic,$d.expectile=0.9,$d.return_lambda=0.9,$d.train_every=50,$d.target_every=500"
 for design in "${designs[@]}"; do
   case "$design" in
     keyed) settings="$d.gamma=0.99" ;;
@@ -57,6 +64,8 @@ for design in "${designs[@]}"; do
     range) settings="$range,$d.gamma=0.99" ;;
     range-anneal) settings="$range,$anneal,$d.gamma=0.99" ;;
     imitation-anneal) settings="$imitation,$d.return_lambda=0.9,$anneal,$d.gamma=0.99" ;;
+    critic) settings="$critic,$d.gamma=0.99" ;;
+    critic-anneal) settings="$critic,$anneal,$d.gamma=0.99" ;;
   esac
   echo "$(date +%T) $design" >&2
   python -m cmarlcd field --tasks "$tasks" --learners "$d" --set "$settings" \

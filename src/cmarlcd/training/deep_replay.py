@@ -76,13 +76,16 @@ class BootstrappedRing(NamedTuple):
     """λ of the returns (``DeepCMARLCDConfig.return_lambda``)."""
 
 
-def record_copies(config, seeds: int, spec: GameSpec, features: int) -> tuple:
+def record_copies(config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int) -> tuple:
     """Zeros for a copy of the record network: every integer state's estimate (B, S) or
     (B, 0), its layers for feature inputs (one hidden layer, no middle ones) or empty, and
-    the scratch of its hidden layer."""
-    hidden = config.record_hidden
+    the scratch of its hidden layer. Its outputs: one, or one per joint action
+    (``update="critic"``, of the side's agents, ``counts`` actions each; the compiled loop
+    reads their best)."""
+    hidden, outputs = config.record_hidden, config.record_outputs(counts)
+    first = ((features, hidden), (hidden,), (hidden, outputs), (outputs,))
     shapes = (
-        ((features, hidden), (hidden,), (hidden, 1), (1,), (0, hidden, hidden), (0, hidden))
+        (*first, (0, hidden, hidden), (0, hidden))
         if features
         else ((0, 0), (0, 0), (0, 0), (0, 0), (0, 0, 0), (0, 0))
     )
@@ -148,7 +151,7 @@ class KeyedKind:
             np.zeros((seeds, steps), np.uint64),
             np.zeros((seeds, steps, n, width), np.float32),
             np.zeros((seeds, steps)),
-            *record_copies(config, seeds, spec, features),
+            *record_copies(config, seeds, counts, spec, features),
             keyed_params(config),
         )
 
@@ -202,7 +205,7 @@ class BootstrappedKind:
 
     def new(self, config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int):
         ring = RING.new(config, seeds, counts, spec, features)
-        copies = record_copies(config, seeds, spec, features)
+        copies = record_copies(config, seeds, counts, spec, features)
         return BootstrappedRing(ring, *copies, float(config.return_lambda))
 
     def view(self, replay: BootstrappedRing, b: int) -> BootstrappedRing:

@@ -254,10 +254,14 @@ def memory_index_greedy(side, env, team, offset, legal, rng, joint) -> None:
 
 @kernel
 def record_estimate(replay, x) -> float:
-    """The record network's estimate at features ``x``."""
+    """The record network's estimate at features ``x``: the best of its outputs (one, or
+    one per joint action for ``update="critic"``)."""
     weights, hidden = replay.record_weights, replay.record_hidden
     hidden_layer(weights, 0, x, hidden)
-    return output_unit(weights, 0, hidden, 0)
+    best = output_unit(weights, 0, hidden, 0)
+    for k in range(1, weights[3].shape[1]):
+        best = max(best, output_unit(weights, 0, hidden, k))
+    return best
 
 
 @kernel

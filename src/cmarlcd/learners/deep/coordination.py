@@ -34,6 +34,14 @@ is the ``update`` [choice]:
   action, weighted by how far it passes the record; a lower return moves no degree.
   What the network learns in one state carries to its neighbours through the network,
   where a tie and a record of the table need the same state twice.
+* ``critic`` (beyond the table's rule): the record network becomes a *centralised
+  critic of joint actions*, ``R(s, a)`` for every joint action ``a`` (trained centrally
+  on the ring's returns by the expectile loss at the taken joint action), and the
+  state's record is its best, ``R(s) = max_a R(s, a)``, which λ-returns bootstrap from.
+  The joint action that reaches the record ties it: each replayed visit moves every
+  agent's degrees by ``±delta`` towards the critic's best joint action at the visit's
+  state (eqs. 14-15 at a tie), so the agents act decentralised, each from its own
+  degrees, on what the critic learned centrally.
 """
 
 from __future__ import annotations
@@ -50,7 +58,9 @@ from cmarlcd.learners.policy import annealed
 from cmarlcd.runs import added_setting
 
 #: The ways Algorithm 2's updates reach the degree network (``DeepCMARLCDConfig.update``).
-UPDATES = ("keyed", "replayed", "imitation")
+UPDATES = ("keyed", "replayed", "imitation", "critic")
+#: (``update="critic"``) The most joint actions the critic may have outputs for.
+MAX_JOINT_ACTIONS = 4_096
 #: [choice] (``update="imitation"``) Weight of the penalty that keeps each raw degree
 #: within ``[c_min, c_max]``: the strategy reads the clipped degrees, whose gradient is
 #: zero outside the range, so a degree pushed past a bound would stay there when a better
@@ -82,7 +92,9 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     expectile record (the first design; a tie then moves its state once per replay);
     ``"imitation"``, the same ring and record network, the degrees fitted by
     self-imitation of the visits whose return reaches the record (for states that do not
-    recur; :meth:`~cmarlcd.learners.deep.degree_model.DegreeModel.imitation_loss`)."""
+    recur; :meth:`~cmarlcd.learners.deep.degree_model.DegreeModel.imitation_loss`);
+    ``"critic"``, the same ring with a record network of every joint action, the degrees
+    moved towards its best (:meth:`~cmarlcd.learners.deep.degree_model.DegreeModel.critic_loss`)."""
     unseen_record: str = "estimate"
     """[choice] (``keyed``) What a state not in the memory is compared with:
     ``"estimate"``, the record network's estimate (fitted to the memory's records): a
@@ -139,7 +151,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     the maximum is set by a lucky draw and never falls (the deep CMARL-CD page of the
     documentation measures both)."""
     return_lambda: float = added_setting(1.0, "0.7.0")
-    """[choice] (``replayed``, ``imitation``) λ of the returns the ring stores: 1, each
+    """[choice] (``replayed``, ``imitation``, ``critic``) λ of the returns the ring stores: 1, each
     visit's discounted return (eq. 1, Monte Carlo, as the table); below 1, the λ-return
     bootstrapped from the record network, ``G_t = r_{t+1} + γ ((1 - λ) R(s_{t+1}) + λ
     G_{t+1})`` (0 after an episode's last visit), computed when the episode ends with
@@ -287,7 +299,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             lam == 1 or not self.keyed,
             "return_lambda",
             "the keyed memory folds the table's Monte-Carlo returns (1); λ-returns are for "
-            "a ring of visits (update='replayed' or 'imitation')",
+            "a ring of visits (update='replayed', 'imitation' or 'critic')",
         )
         spread = self.unseen_tolerance
         require(
@@ -340,6 +352,20 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     def keyed(self) -> bool:
         """Whether the updates go through the keyed memory."""
         return self.update == "keyed"
+
+    def record_outputs(self, action_counts) -> int:
+        """The record network's outputs: one per joint action of agents with
+        ``action_counts`` (``critic``), else 1 (the state's record)."""
+        if self.update != "critic":
+            return 1
+        joint = int(np.prod(np.asarray(action_counts, np.int64)))
+        require(
+            joint <= MAX_JOINT_ACTIONS,
+            "update",
+            f"'critic' has an output per joint action: {joint} here, more than "
+            f"{MAX_JOINT_ACTIONS}; take another update for this game",
+        )
+        return joint
 
     @property
     def bootstraps(self) -> bool:
@@ -408,6 +434,12 @@ IMITATION_DEEP_CMARLCD = DeepCMARLCDConfig(
 #: before its selection run): a reward reaches the visits before it through the record
 #: of the states between, where on sparse tasks few episodes earn one.
 IMITATION_LAMBDA_DEEP_CMARLCD = replace(IMITATION_DEEP_CMARLCD, return_lambda=0.9)
+
+#: A centralised critic of joint actions as the record (``update="critic"``; declared
+#: before its selection run): the ring on λ-returns (λ 0.9) bootstrapped from the critic's
+#: best joint action, a 0.9-expectile critic (optimistic, as the record is), the
+#: self-imitation designs' schedule.
+CRITIC_DEEP_CMARLCD = replace(IMITATION_LAMBDA_DEEP_CMARLCD, update="critic")
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would

@@ -31,16 +31,24 @@ from cmarlcd.learners.deep.value_decomposition import StackedModel
 
 
 class RecordNetwork(nn.Module):
-    """``R(s)`` for B seeds: state -> Linear -> ReLU -> Linear -> one value."""
+    """``R(s)`` for B seeds: state -> Linear -> ReLU -> Linear -> ``outputs`` values, one
+    (the state's record) or one per joint action ``R(s, a)`` (``update="critic"``), whose
+    best is the state's record."""
 
-    def __init__(self, in_dim: int, hidden: int, generators: Sequence[torch.Generator]) -> None:
+    def __init__(
+        self, in_dim: int, hidden: int, generators: Sequence[torch.Generator], outputs: int = 1
+    ) -> None:
         super().__init__()
         self.first = GroupLinear(in_dim, hidden, generators)
-        self.second = GroupLinear(hidden, 1, generators)
+        self.second = GroupLinear(hidden, outputs, generators)
+
+    def values(self, state: torch.Tensor) -> torch.Tensor:
+        """(B, N[, in]) -> (B, N, outputs)."""
+        return per_state(self.first, state, lambda x: self.second(torch.relu(x)))
 
     def forward(self, state: torch.Tensor) -> torch.Tensor:
-        """(B, N[, in]) -> (B, N)."""
-        return per_state(self.first, state, lambda x: self.second(torch.relu(x)))[..., 0]
+        """The state's record, (B, N[, in]) -> (B, N): the best of the outputs."""
+        return self.values(state).amax(dim=-1)
 
 
 class DegreeModel(StackedModel):
@@ -78,7 +86,12 @@ class DegreeModel(StackedModel):
             self.agents = AgentNetworks(
                 self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens, own_dim
             )
-        self.record = RecordNetwork(in_dim, config.record_hidden, [g[-1] for g in gens])
+        outputs = config.record_outputs(action_counts)
+        self.record = RecordNetwork(in_dim, config.record_hidden, [g[-1] for g in gens], outputs)
+        # joint action index = sum_i a_i * strides[i], the last agent's action fastest
+        counts = torch.as_tensor(np.asarray(action_counts, np.int64), device=self.device)
+        self.strides = torch.cat([counts.flip(0).cumprod(0).flip(0)[1:], counts.new_ones(1)])
+        self.counts = counts
         self.target_record = copy.deepcopy(self.record).requires_grad_(False)
         self.place()
         self.optimizer = torch.optim.Adam(
@@ -104,9 +117,14 @@ class DegreeModel(StackedModel):
         tie = ~new_record & ((returns - record).abs() <= c.tolerance)
         base = torch.where(new_record[..., None, None], c.c_init, degrees.clamp(c.c_min, c.c_max))
         step = torch.where(new_record, c.delta_reset, c.delta)[..., None, None]
-        taken = nn.functional.one_hot(actions, degrees.shape[-1]).bool()
-        moved = base + torch.where(taken, step, -step)
-        return moved.clamp(c.c_min, c.c_max), new_record | tie
+        return self.moved(base, actions, step), new_record | tie
+
+    def moved(self, base: torch.Tensor, actions: torch.Tensor, step) -> torch.Tensor:
+        """Eqs. (14)-(15): degrees ``base`` (B, N, n, A) with each agent's ``actions``
+        (B, N, n) raised by ``step`` and every other action lowered by it, clipped."""
+        c = self.config
+        taken = nn.functional.one_hot(actions, base.shape[-1]).bool()
+        return (base + torch.where(taken, step, -step)).clamp(c.c_min, c.c_max)
 
     def learn(self, batch: dict[str, torch.Tensor]) -> float:
         """One Adam step on :meth:`loss` (by autograd, or the fused step of
@@ -122,6 +140,8 @@ class DegreeModel(StackedModel):
             return self.keyed_loss(batch)
         if self.config.update == "imitation":
             return self.imitation_loss(batch)
+        if self.config.update == "critic":
+            return self.critic_loss(batch)
         return self.replayed_loss(batch)
 
     def keyed_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -158,11 +178,7 @@ class DegreeModel(StackedModel):
         """The record network's expectile loss at τ = ``expectile`` on visits' returns
         (B, N): ``|τ - [G < R(s)]| (G - R(s))²``, averaged over the visits, summed over
         the seeds (its minimiser is the τ-expectile of the returns from ``s``)."""
-        estimate = self.record(state)
-        tau = self.config.expectile
-        below = (returns < estimate).to(estimate.dtype).detach()
-        expectile = (tau + (1 - 2 * tau) * below) * (returns - estimate) ** 2
-        return expectile.mean(dim=1).sum()
+        return self.expectile_loss(self.record(state), returns)
 
     def imitation_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
         """Self-imitation gated by the record (``update="imitation"``), the seeds' summed
@@ -189,16 +205,50 @@ class DegreeModel(StackedModel):
         outside = (((degrees - clipped) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
         return imitation + RANGE_WEIGHT * outside + self.record_loss(state, returns)
 
+    def critic_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """A centralised critic of joint actions as the record (``update="critic"``), the
+        seeds' summed losses on a batch of visits (:meth:`replayed_loss`'s keys). The
+        critic ``R(s, a)`` learns the expectile loss of :meth:`record_loss` at each visit's
+        taken joint action; the degrees learn the tie of eqs. (14)-(15) for the joint
+        action that reaches the record: at each visit's state, the best joint action
+        ``a* = argmax_a R'(s, a)`` of the critic's target copy (lowest index on ties)
+        raises each agent's degree of ``a*_i`` by ``delta`` and lowers its others by it
+        (from the present degrees, clipped), the squared distance to these targets over
+        each agent's real actions averaged over the visits. Whatever the visit's return,
+        the critic decides; acting stays decentralised, each agent from its degrees."""
+        state, actions, returns = batch["state"], batch["actions"], batch["reward"]
+        strides = self.strides
+        degrees = self.agents(state)  # (B, N, n, A)
+        with torch.no_grad():
+            best = self.target_record.values(state).argmax(dim=-1)  # (B, N)
+            best_actions = (best[..., None] // strides) % self.counts
+            target = self.moved(degrees.clamp(self.config.c_min, self.config.c_max),
+                                best_actions, self.config.delta)  # fmt: skip
+        valid = self.valid.to(degrees.dtype)
+        degree_loss = (((degrees - target) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
+        taken = (actions * strides).sum(dim=-1)  # (B, N) joint action index
+        estimate = self.record.values(state).gather(-1, taken[..., None])[..., 0]
+        return degree_loss + self.expectile_loss(estimate, returns)
+
+    def expectile_loss(self, estimate: torch.Tensor, returns: torch.Tensor) -> torch.Tensor:
+        """``|τ - [G < R]| (G - R)²`` at τ = ``expectile``, averaged over the visits,
+        summed over the seeds (its minimiser is the τ-expectile of the returns)."""
+        tau = self.config.expectile
+        below = (returns < estimate).to(estimate.dtype).detach()
+        expectile = (tau + (1 - 2 * tau) * below) * (returns - estimate) ** 2
+        return expectile.mean(dim=1).sum()
+
     @torch.no_grad()
     def record_table(self) -> torch.Tensor:
-        """The record network's estimate of every integer state, (B, S)."""
+        """The record network's estimate of every integer state, (B, S): the best of its
+        outputs."""
         record = self.record
-        return record.second(torch.relu(record.first.table()))[..., 0]
+        return record.second(torch.relu(record.first.table())).amax(dim=-1)
 
     def record_weights(self) -> tuple[torch.Tensor, ...]:
         """The record network's layers as the compiled loop reads them (one "agent" per
-        seed): (B, in, H), (B, H), (B, H, 1), (B, 1), and no middle layers (one hidden
-        layer: empty (B, 0, H, H), (B, 0, H))."""
+        seed): (B, in, H), (B, H), (B, H, K), (B, K) for its K outputs, and no middle
+        layers (one hidden layer: empty (B, 0, H, H), (B, 0, H))."""
         first, second = self.record.first, self.record.second
         groups, hidden = first.weight.shape[0], first.weight.shape[2]
         none = stacked_middle(nn.ModuleList(), groups, hidden, first.weight)

@@ -1,0 +1,209 @@
+"""Deep CMARL-CD with a centralised critic of joint actions as the record
+(``update="critic"``): its loss on a hand-computed case (the critic's expectile loss at
+the taken joint action, the tie of eqs. 14-15 for the critic's best joint action), the
+critic rather than the visit's return deciding which actions rise, an unseen state
+borrowing from its neighbour, the compiled loop bootstrapping from the critic's best,
+determinism, a one-state game solved and bad settings refused."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from cmarlcd import ConfigError
+from cmarlcd.learners.deep.coordination import (
+    CRITIC_DEEP_CMARLCD,
+    MAX_JOINT_ACTIONS,
+    DeepCMARLCDConfig,
+)
+
+torch = pytest.importorskip("torch")
+
+from cmarlcd.learners.deep.degree_model import DegreeModel  # noqa: E402
+
+#: Two agents of 2 and 3 actions: joint action (a_0, a_1) is output 3 a_0 + a_1.
+COUNTS = [2, 3]
+
+
+def constant_model(degree: float, critic: list[float], **settings) -> DegreeModel:
+    """One seed, agents of :data:`COUNTS`, one feature: every degree is ``degree`` and
+    the critic (and its target copy) is ``critic`` at every state (weights zero, biases
+    set)."""
+    config = DeepCMARLCDConfig(update="critic", **settings)
+    net = DegreeModel(COUNTS, 1, config, [np.random.SeedSequence(0)], device="cpu")
+    with torch.no_grad():
+        net.agents.first.weight.zero_(), net.agents.second.weight.zero_()
+        net.agents.first.bias.fill_(1.0)  # ReLU(1) = 1 reaches the second layer's bias only
+        net.agents.second.bias.fill_(degree)
+        for record in (net.record, net.target_record):
+            record.first.weight.zero_(), record.first.bias.zero_()
+            record.second.weight.zero_()
+            record.second.bias[0] = torch.tensor(critic)
+    return net
+
+
+def batch(returns: list[float], actions: list[list[int]]) -> dict[str, torch.Tensor]:
+    count = len(returns)
+    return {
+        "state": torch.ones((1, count, 1)),
+        "actions": torch.tensor(actions).reshape(1, count, len(COUNTS)),
+        "reward": torch.tensor([returns]),
+    }
+
+
+def test_the_loss_by_hand() -> None:
+    """Critic (0, 0.5, 0, 0, 0, 2): its best joint action is output 5, (1, 2). Visits:
+    (1, 2) with return 3 against its estimate 2, τ 0.9: 0.9 · 1² = 0.9; (0, 1) (output
+    1, estimate 0.5) with return 0: (1 − 0.9) · 0.5² = 0.025; mean 0.4625. Degrees all
+    3 (c_max): the tie for (1, 2) keeps a_0 = 1 and a_1 = 2 at 3 and lowers the others
+    to 2.95: 0.05² for agent 0's action 0, 2 · 0.05² for agent 1's: 0.0075 at every
+    visit. Total 0.47."""
+    net = constant_model(3.0, [0.0, 0.5, 0.0, 0.0, 0.0, 2.0], expectile=0.9, delta=0.05)
+    loss = net.critic_loss(batch([3.0, 0.0], [[1, 2], [0, 1]]))
+    assert float(loss.detach()) == pytest.approx(0.47, rel=1e-6)
+    assert net.loss(batch([3.0, 0.0], [[1, 2], [0, 1]])).item() == pytest.approx(0.47, rel=1e-6)
+
+
+def test_the_critic_not_the_return_decides_which_actions_rise() -> None:
+    """Degrees 1.5; the critic's best is (1, 2); every visit took (0, 0) and earned a
+    high return. A step raises (1, 2)'s degrees and lowers the taken ones; the critic's
+    estimate of (0, 0) (output 0) moves towards the return."""
+    net = constant_model(1.5, [0.0, 0.0, 0.0, 0.0, 0.0, 2.0], lr=0.01, record_lr=0.01)
+    net.learn(batch([5.0, 5.0], [[0, 0], [0, 0]]))
+    degrees = net.agents(torch.ones((1, 1, 1)))[0, 0].detach()
+    assert degrees[0, 1] > 1.5 > degrees[0, 0]
+    assert degrees[1, 2] > 1.5 > max(degrees[1, 0], degrees[1, 1])
+    values = net.record.values(torch.ones((1, 1, 1)))[0, 0].detach()
+    assert values[0] > 0.0
+    assert net.record(torch.ones((1, 1, 1))).item() == pytest.approx(float(values.max()))
+
+
+def test_an_unseen_state_borrows_from_its_neighbour() -> None:
+    """Trained only at feature 1.0, where the critic's best is (0, 1): the greedy joint
+    action at 1.1, never visited, becomes (0, 1) too."""
+    config = DeepCMARLCDConfig(update="critic", lr=0.01)
+    net = DegreeModel(COUNTS, 1, config, [np.random.SeedSequence(4)], device="cpu")
+    with torch.no_grad():
+        net.target_record.second.weight.zero_()
+        net.target_record.second.bias[0] = torch.tensor([0.0, 9.0, 0.0, 0.0, 0.0, 0.0])
+    data = batch([0.0, 0.0], [[1, 0], [1, 2]])
+    for _ in range(300):
+        net.learn(data)
+    unseen = net.agents(torch.full((1, 1, 1), 1.1))[0, 0].detach().clamp(0.5, 3.0)
+    assert int(unseen[0, :2].argmax()) == 0 and int(unseen[1].argmax()) == 1
+
+
+def test_the_compiled_loop_bootstraps_from_the_critics_best() -> None:
+    """The λ-returns of the λ-return tests' hand case (rewards 1, 2, 4, γ 0.5, λ 0.5,
+    estimates 10 and 20 at the next visits' features 1 and 2: 4, 8, 5.5), where the
+    estimate is the best of the critic's three outputs 10 x, 3 x and −x."""
+    from cmarlcd.training.deep_kernels import FeatureData, Weights
+    from cmarlcd.training.deep_replay import BOOTSTRAPPED
+    from cmarlcd.training.deep_side import new_greedy_cache
+    from cmarlcd.training.degree_kernels import features_lambda_store
+
+    spec = SimpleNamespace(n_states=0, own_dim=None, n_features=1, max_steps=3,
+                           action_counts=np.array([3]))  # fmt: skip
+    config = DeepCMARLCDConfig(update="critic", return_lambda=0.5, record_hidden=1)
+    ring = BOOTSTRAPPED.new(config, 1, np.array([3]), spec, 1)
+    w1, _, w2, b2 = ring.record_weights[:4]
+    assert w2.shape == (1, 1, 3) and b2.shape == (1, 3)
+    w1[0, 0, 0] = 1.0
+    w2[0, 0] = [3.0, 10.0, -1.0]
+    replay = BOOTSTRAPPED.view(ring, 0)
+    schedule = np.array(DeepCMARLCDConfig(gamma=0.5).schedule(100), np.float64)
+    obs = np.array([[0.0], [1.0], [2.0], [0.0], [0.0]], np.float32)
+    degrees = Weights(*(np.zeros((1, *shape), np.float32)
+                        for shape in ((1, 4), (4,), (4, 3), (3,), (0, 4, 4), (0, 4))))  # fmt: skip
+    side = FeatureData(
+        np.array([3]), degrees, np.zeros(8, np.float32), obs, np.ones((4, 1, 3), np.bool_),
+        np.array([[0], [2], [1]]), np.array([1.0, 2.0, 4.0]), replay, np.zeros(8, np.int64),
+        schedule, np.zeros((2, 3)),
+        new_greedy_cache(SimpleNamespace(state_determines_features=False, max_steps=3), 1),
+        np.zeros(1, np.int64),
+    )  # fmt: skip
+    features_lambda_store(side, 3)
+    assert replay.ring.reward[:3].tolist() == [4.0, 8.0, 5.5]
+
+
+def test_the_same_seed_learns_the_same_weights_on_lbf() -> None:
+    """End to end on LBF's features (the loop's ring of λ-returns, the critic's copy
+    refreshed after each step): two runs of one seed learn the same weights."""
+    from cmarlcd.experiments import games
+    from cmarlcd.training.deep import DeepBatch
+
+    spec = games.parse_game("foraging:5x5-2p-1f")[1].spec()
+    config = replace(CRITIC_DEEP_CMARLCD, batch_size=64, buffer_size=2000)
+
+    def weights() -> list:
+        run = DeepBatch(spec, config, [np.random.SeedSequence(3)], 60)
+        run.train([], lambda *args: None)
+        copy, critic = run.group.ring.record_weights, run.group.model.record_weights()
+        assert copy.w2.shape[-1] == 36  # 6 × 6 joint actions
+        assert np.array_equal(copy.w2, critic[2].detach().numpy())
+        return [p.detach().clone() for p in run.group.model.parameters()]
+
+    first, second = weights(), weights()
+    assert all((a == b).all() for a, b in zip(first, second, strict=True))
+
+
+def test_a_one_state_game_is_solved() -> None:
+    """The climbing game as a one-step stochastic game (optimum (0, 0), 11, beside −30
+    on either side of it), in 10,000 episodes: every seed's greedy joint action is the
+    optimum, where independent learners settle on a safer one."""
+    from cmarlcd.games.matrix import climbing_game
+    from cmarlcd.training.deep import DeepBatch
+
+    spec = climbing_game().spec()
+    config = DeepCMARLCDConfig(
+        update="critic", expectile=0.9, buffer_size=500, batch_size=50, train_every=10,
+        target_every=50,
+    )  # fmt: skip
+    final = {}
+    run = DeepBatch(spec, config, [np.random.SeedSequence(k) for k in range(5)], 10_000)
+    run.train([], lambda k, budget, policy: final.__setitem__(k, policy.table[0].tolist()))
+    assert list(final.values()) == [[0, 0]] * 5
+
+
+def test_too_many_joint_actions_are_refused() -> None:
+    config = DeepCMARLCDConfig(update="critic")
+    assert config.record_outputs([6, 6, 6]) == 216
+    assert DeepCMARLCDConfig().record_outputs([6, 6, 6]) == 1
+    with pytest.raises(ConfigError, match=f"10000 here, more than {MAX_JOINT_ACTIONS}"):
+        config.record_outputs([10, 10, 10, 10])
+    with pytest.raises(ConfigError, match="update='critic' set act_from=network"):
+        DeepCMARLCDConfig(update="critic", act_from="memory")
+
+
+@pytest.mark.slow
+def test_the_design_passes_every_learner_check() -> None:
+    from cmarlcd.testing import check_learner
+
+    check_learner(CRITIC_DEEP_CMARLCD)
+
+
+def test_the_command_line_runs_it_and_refuses_too_many_joint_actions(tmp_path) -> None:
+    """``field`` on LBF with the critic, end to end on a tiny budget; a game of 10,000
+    joint actions is one line and status 2."""
+    import subprocess
+    import sys
+
+    def run(game: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-m", "cmarlcd", "train", "--game", game, "--algorithms",
+             "deep-cmarl-cd", "--steps", "2k", "--runs", "1", "--curve-points", "2",
+             "--eval-episodes", "2", "--workers", "1", "--no-progress",
+             "--store", str(tmp_path / "s.sqlite"), "--figures", str(tmp_path / "f"),
+             "--set", "deep-cmarl-cd.update=critic,deep-cmarl-cd.batch_size=32"],
+            capture_output=True, text=True, check=False,
+        )  # fmt: skip
+
+    done = run("foraging:5x5-2p-1f")
+    assert done.returncode == 0, done.stderr
+    assert "1 run computed" in done.stdout or "1 runs computed" in done.stdout, done.stdout
+    done = run("foraging:10x10-5p-3f")
+    assert done.returncode == 2, done.stdout
+    assert "more than 4096" in done.stderr and done.stderr.strip().count("\n") == 0, done.stderr
