@@ -24,7 +24,8 @@ import torch
 
 from cmarlcd.games import sensor_network as dsn
 from cmarlcd.learners.deep.config import DeepConfig
-from cmarlcd.learners.deep.coordination import REPLAYED_DEEP_CMARLCD, DeepCMARLCDConfig
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.designs import REPLAYED_DEEP_CMARLCD
 from cmarlcd.training.deep import DeepBatch
 
 

@@ -60,8 +60,8 @@ from cmarlcd.experiments.sensor_network import optimal_episodes
 from cmarlcd.games.sensor_network import SensorNetworkEnv
 from cmarlcd.learners import CMARLCDStochastic, DeepCMARLCDConfig, StochasticConfig
 from cmarlcd.learners.deep.config import scheduled_work
-from cmarlcd.learners.deep.coordination import REPLAYED_DEEP_CMARLCD
 from cmarlcd.learners.deep.degree_agent import DegreeAgent
+from cmarlcd.learners.deep.designs import REPLAYED_DEEP_CMARLCD
 from cmarlcd.learners.max_return import RECORD, TIE, compare_return
 from cmarlcd.learners.tabular.coordination import coordination_rule
 from cmarlcd.testing.streams import Stream

@@ -24,9 +24,14 @@
 #   range-anneal  range with the anneal
 #   imitation-anneal  imitation-lambda with the anneal
 #   critic     a centralised critic of joint actions as the record (CRITIC_DEEP_CMARLCD):
-#              the degrees move towards its best joint action, λ-returns (0.9)
-#              bootstrapped from its best
+#              the mean of the returns, the degrees fitted to its best joint action by
+#              cross-entropy, λ-returns (0.9) bootstrapped from its value of the
+#              degrees' greedy joint action
 #   critic-anneal  critic with the anneal
+#   critic-best    the critic as first measured (BEST_CRITIC_DEEP_CMARLCD): a
+#              0.9-expectile, λ-returns bootstrapped from its best joint action, the
+#              degrees moved by the tie of eqs. 14-15
+#   critic-best-anneal  critic-best with the anneal
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -38,10 +43,11 @@ designs=("$@")
 for design in "${designs[@]}"; do
   case "$design" in
     keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | \
-      imitation-anneal | range | range-anneal | critic | critic-anneal) ;;
+      imitation-anneal | range | range-anneal | critic | critic-anneal | critic-best | \
+      critic-best-anneal) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
          "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
-         "critic-anneal)" >&2
+         "critic-anneal, critic-best, critic-best-anneal)" >&2
        exit 2 ;;
   esac
 done
@@ -51,7 +57,9 @@ d=deep-cmarl-cd
 anneal="$d.temperature_end=0.1,$d.temperature_steps=50000"
 range="$d.unseen_tolerance=0.1,$d.unseen_spread=range"
 imitation="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500"
-critic="$d.update=critic,$d.expectile=0.9,$d.return_lambda=0.9,$d.train_every=50,$d.target_every=500"
+critic="$d.update=critic,$d.expectile=0.5,$d.return_lambda=0.9,$d.train_every=50,$d.target_every=500"
+best="$d.update=critic,$d.expectile=0.9,$d.return_lambda=0.9,$d.train_every=50,$d.target_every=500"
+best="$best,$d.critic_bootstrap=best,$d.critic_fit=tie"
 for design in "${designs[@]}"; do
   case "$design" in
     keyed) settings="$d.gamma=0.99" ;;
@@ -66,6 +74,8 @@ for design in "${designs[@]}"; do
     imitation-anneal) settings="$imitation,$d.return_lambda=0.9,$anneal,$d.gamma=0.99" ;;
     critic) settings="$critic,$d.gamma=0.99" ;;
     critic-anneal) settings="$critic,$anneal,$d.gamma=0.99" ;;
+    critic-best) settings="$best,$d.gamma=0.99" ;;
+    critic-best-anneal) settings="$best,$anneal,$d.gamma=0.99" ;;
   esac
   echo "$(date +%T) $design" >&2
   python -m cmarlcd field --tasks "$tasks" --learners "$d" --set "$settings" \

@@ -31,7 +31,7 @@ def keeper(final: dict):
 
 def configs(design: str) -> list[tuple[str, object]]:
     """The lines of one design: a label and its settings."""
-    from cmarlcd.learners.deep.coordination import REPEATED_DEEP_CMARLCD as ONE_STEP
+    from cmarlcd.learners.deep.designs import REPEATED_DEEP_CMARLCD as ONE_STEP
 
     if design == "replayed":
         return [

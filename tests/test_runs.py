@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cmarlcd.learners.deep.coordination import BATTLEFIELD_DEEP_CMARLCD, DeepCMARLCDConfig
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.designs import BATTLEFIELD_DEEP_CMARLCD
 from cmarlcd.runs import RunSpec, Settings, added_setting, as_stored, identity
 
 

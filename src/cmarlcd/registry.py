@@ -35,11 +35,8 @@ from cmarlcd.games.matrix.stochastic import (
 )
 from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep.config import BATTLEFIELD_DEEP, DeepConfig, DeepLearnerConfig
-from cmarlcd.learners.deep.coordination import (
-    BATTLEFIELD_DEEP_CMARLCD,
-    REPEATED_DEEP_CMARLCD,
-    DeepCMARLCDConfig,
-)
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.designs import BATTLEFIELD_DEEP_CMARLCD, REPEATED_DEEP_CMARLCD
 from cmarlcd.learners.tabular.automata import AutomatonConfig
 from cmarlcd.learners.tabular.coordination import (
     BATTLEFIELD_CMARLCD,

@@ -74,6 +74,10 @@ class BootstrappedRing(NamedTuple):
     """(B, record_hidden) float32 scratch for its hidden layer."""
     lam: float
     """λ of the returns (``DeepCMARLCDConfig.return_lambda``)."""
+    greedy: bool
+    """Whether they bootstrap from the critic's output at the degrees' greedy joint
+    action (``critic_bootstrap="greedy"``; for feature inputs, where the compiled loop
+    estimates; the copy of every integer state's estimate holds it already)."""
 
 
 def record_copies(config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int) -> tuple:
@@ -206,10 +210,11 @@ class BootstrappedKind:
     def new(self, config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int):
         ring = RING.new(config, seeds, counts, spec, features)
         copies = record_copies(config, seeds, counts, spec, features)
-        return BootstrappedRing(ring, *copies, float(config.return_lambda))
+        return BootstrappedRing(ring, *copies, float(config.return_lambda), config.greedy_bootstrap)
 
     def view(self, replay: BootstrappedRing, b: int) -> BootstrappedRing:
-        return BootstrappedRing(seed_view(replay.ring, b), *record_view(replay, b), replay.lam)
+        view = seed_view(replay.ring, b)
+        return BootstrappedRing(view, *record_view(replay, b), replay.lam, replay.greedy)
 
     def stored(self, replay: BootstrappedRing, b: int) -> int:
         return int(replay.ring.size[b])

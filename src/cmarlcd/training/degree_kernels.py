@@ -166,7 +166,7 @@ def features_lambda_store(side, length: int) -> None:
     for t in range(length - 1, -1, -1):
         after = 0.0
         if t + 1 < length:
-            estimate = record_estimate(replay, side.obs[t + 1])
+            estimate = bootstrap_estimate(side, t + 1)
             after = (1.0 - replay.lam) * estimate + replay.lam * g
         g = side.rewards[t] + gamma * after
         push_visit_row(replay.ring, side.obs[t], side.joints[t], g)
@@ -250,6 +250,25 @@ def memory_index_greedy(side, env, team, offset, legal, rng, joint) -> None:
 
 
 # ------------------------------------------------- the keyed memory's stores
+
+
+@kernel
+def bootstrap_estimate(side, t: int) -> float:
+    """What the λ-return of the visit before turn ``t`` bootstraps from at the features
+    of turn ``t``: the record network's estimate (:func:`record_estimate`), or, for a
+    critic that bootstraps from the greedy joint action (``critic_bootstrap="greedy"``),
+    its output at the joint action the agents' degrees take greedily there (joint index
+    ``sum_i a_i * prod_{j > i} |A_j|``)."""
+    replay, x = side.replay, side.obs[t]
+    if not replay.greedy:
+        return record_estimate(replay, x)
+    raw, joint = side.scratch[1], 0
+    for i in range(side.counts.shape[0]):
+        count = side.counts[i]
+        agent_degrees(side.weights, i, x, side.starts[i], count, side.hidden, raw)
+        joint = joint * count + greedy_degrees(side, raw, side.legal[t, i], count)
+    hidden_layer(replay.record_weights, 0, x, replay.record_hidden)
+    return output_unit(replay.record_weights, 0, replay.record_hidden, joint)
 
 
 @kernel

@@ -7,6 +7,7 @@ determinism, a one-state game solved and bad settings refused."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -14,11 +15,8 @@ import numpy as np
 import pytest
 
 from cmarlcd import ConfigError
-from cmarlcd.learners.deep.coordination import (
-    CRITIC_DEEP_CMARLCD,
-    MAX_JOINT_ACTIONS,
-    DeepCMARLCDConfig,
-)
+from cmarlcd.learners.deep.coordination import MAX_JOINT_ACTIONS, DeepCMARLCDConfig
+from cmarlcd.learners.deep.designs import CRITIC_DEEP_CMARLCD
 
 torch = pytest.importorskip("torch")
 
@@ -61,10 +59,20 @@ def test_the_loss_by_hand() -> None:
     3 (c_max): the tie for (1, 2) keeps a_0 = 1 and a_1 = 2 at 3 and lowers the others
     to 2.95: 0.05² for agent 0's action 0, 2 · 0.05² for agent 1's: 0.0075 at every
     visit. Total 0.47."""
-    net = constant_model(3.0, [0.0, 0.5, 0.0, 0.0, 0.0, 2.0], expectile=0.9, delta=0.05)
+    critic = [0.0, 0.5, 0.0, 0.0, 0.0, 2.0]
+    net = constant_model(3.0, critic, expectile=0.9, delta=0.05, critic_fit="tie")
     loss = net.critic_loss(batch([3.0, 0.0], [[1, 2], [0, 1]]))
     assert float(loss.detach()) == pytest.approx(0.47, rel=1e-6)
     assert net.loss(batch([3.0, 0.0], [[1, 2], [0, 1]])).item() == pytest.approx(0.47, rel=1e-6)
+
+
+def test_the_cross_entropy_by_hand() -> None:
+    """``critic_fit="imitation"`` on the same visits: degrees all equal (3, inside the
+    bounds, no penalty), so each agent's strategy is uniform: −log(1/2) − log(1/3) =
+    log 6 at every visit, plus the critic's 0.4625."""
+    net = constant_model(3.0, [0.0, 0.5, 0.0, 0.0, 0.0, 2.0], expectile=0.9)
+    loss = net.critic_loss(batch([3.0, 0.0], [[1, 2], [0, 1]]))
+    assert float(loss.detach()) == pytest.approx(0.4625 + math.log(6), rel=1e-6)
 
 
 def test_the_critic_not_the_return_decides_which_actions_rise() -> None:
@@ -96,28 +104,31 @@ def test_an_unseen_state_borrows_from_its_neighbour() -> None:
     assert int(unseen[0, :2].argmax()) == 0 and int(unseen[1].argmax()) == 1
 
 
-def test_the_compiled_loop_bootstraps_from_the_critics_best() -> None:
-    """The λ-returns of the λ-return tests' hand case (rewards 1, 2, 4, γ 0.5, λ 0.5,
-    estimates 10 and 20 at the next visits' features 1 and 2: 4, 8, 5.5), where the
-    estimate is the best of the critic's three outputs 10 x, 3 x and −x."""
+def lambda_returns(bootstrap: str) -> list[float]:
+    """The compiled loop's stored λ-returns of the λ-return tests' hand case (rewards 1,
+    2, 4 at features 0, 1, 2; γ 0.5, λ 0.5) for one agent of 3 actions whose degrees
+    take action 1 greedily everywhere, the critic's three outputs 3x, 10x and 12x (one
+    hidden unit ReLU(x))."""
     from cmarlcd.training.deep_kernels import FeatureData, Weights
     from cmarlcd.training.deep_replay import BOOTSTRAPPED
     from cmarlcd.training.deep_side import new_greedy_cache
     from cmarlcd.training.degree_kernels import features_lambda_store
 
-    spec = SimpleNamespace(n_states=0, own_dim=None, n_features=1, max_steps=3,
-                           action_counts=np.array([3]))  # fmt: skip
-    config = DeepCMARLCDConfig(update="critic", return_lambda=0.5, record_hidden=1)
+    spec = SimpleNamespace(n_states=0, own_dim=None, n_features=1, max_steps=3)
+    config = DeepCMARLCDConfig(
+        update="critic", return_lambda=0.5, record_hidden=1, critic_bootstrap=bootstrap
+    )
     ring = BOOTSTRAPPED.new(config, 1, np.array([3]), spec, 1)
     w1, _, w2, b2 = ring.record_weights[:4]
     assert w2.shape == (1, 1, 3) and b2.shape == (1, 3)
     w1[0, 0, 0] = 1.0
-    w2[0, 0] = [3.0, 10.0, -1.0]
+    w2[0, 0] = [3.0, 10.0, 12.0]
     replay = BOOTSTRAPPED.view(ring, 0)
     schedule = np.array(DeepCMARLCDConfig(gamma=0.5).schedule(100), np.float64)
     obs = np.array([[0.0], [1.0], [2.0], [0.0], [0.0]], np.float32)
     degrees = Weights(*(np.zeros((1, *shape), np.float32)
                         for shape in ((1, 4), (4,), (4, 3), (3,), (0, 4, 4), (0, 4))))  # fmt: skip
+    degrees.b2[0] = [1.0, 2.0, 1.0]  # every state's degrees: action 1 greedy
     side = FeatureData(
         np.array([3]), degrees, np.zeros(8, np.float32), obs, np.ones((4, 1, 3), np.bool_),
         np.array([[0], [2], [1]]), np.array([1.0, 2.0, 4.0]), replay, np.zeros(8, np.int64),
@@ -126,7 +137,38 @@ def test_the_compiled_loop_bootstraps_from_the_critics_best() -> None:
         np.zeros(1, np.int64),
     )  # fmt: skip
     features_lambda_store(side, 3)
-    assert replay.ring.reward[:3].tolist() == [4.0, 8.0, 5.5]
+    return replay.ring.reward[:3].tolist()
+
+
+def test_the_compiled_loop_bootstraps_from_the_greedy_joint_action() -> None:
+    """The degrees' greedy action 1 reads the critic's 10x: estimates 10 and 20 at the
+    next visits' features 1 and 2, the λ-return tests' 4, 8, 5.5."""
+    assert lambda_returns("greedy") == [4.0, 8.0, 5.5]
+
+
+def test_the_compiled_loop_bootstraps_from_the_critics_best() -> None:
+    """The best output, 12x: estimates 12 and 24; G_2 = 4, G_1 = 2 + 0.5 (0.5 · 24 + 0.5
+    · 4) = 9, G_0 = 1 + 0.5 (0.5 · 12 + 0.5 · 9) = 6.25."""
+    assert lambda_returns("best") == [4.0, 9.0, 6.25]
+
+
+def test_the_estimate_of_integer_states_and_the_object_api() -> None:
+    """Integer states (the loop's copy of every state's estimate, and the object API's
+    estimate): the critic's value at the degrees' greedy joint action (1, 0), output 3,
+    or its best, output 5."""
+    for bootstrap, expected in (("greedy", 4.0), ("best", 7.0)):
+        config = DeepCMARLCDConfig(update="critic", critic_bootstrap=bootstrap)
+        net = DegreeModel(COUNTS, 2, config, [np.random.SeedSequence(0)], device="cpu")
+        with torch.no_grad():
+            net.agents.first.weight.zero_(), net.agents.second.weight.zero_()
+            net.agents.first.bias.fill_(1.0)
+            net.agents.second.bias[0] = torch.tensor([1.0, 2.0, 0.0])  # agent 0: action 1
+            net.agents.second.bias[1] = torch.tensor([2.0, 1.0, 1.0])  # agent 1: action 0
+            net.record.first.weight.zero_(), net.record.first.bias.zero_()
+            net.record.second.weight.zero_()
+            net.record.second.bias[0] = torch.tensor([0.0, 1.0, 2.0, 4.0, 5.0, 7.0])
+        assert net.record_table()[0].tolist() == [expected, expected]
+        assert net.estimate(torch.tensor([[0, 1]]))[0].tolist() == [expected, expected]
 
 
 def test_the_same_seed_learns_the_same_weights_on_lbf() -> None:
@@ -174,6 +216,10 @@ def test_too_many_joint_actions_are_refused() -> None:
     assert DeepCMARLCDConfig().record_outputs([6, 6, 6]) == 1
     with pytest.raises(ConfigError, match=f"10000 here, more than {MAX_JOINT_ACTIONS}"):
         config.record_outputs([10, 10, 10, 10])
+    with pytest.raises(ConfigError, match="critic_fit: must be one of imitation, tie"):
+        DeepCMARLCDConfig(update="critic", critic_fit="max")
+    with pytest.raises(ConfigError, match="critic_bootstrap: must be one of greedy, best"):
+        DeepCMARLCDConfig(update="critic", critic_bootstrap="mean")
     with pytest.raises(ConfigError, match="update='critic' set act_from=network"):
         DeepCMARLCDConfig(update="critic", act_from="memory")
 

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from cmarlcd import ConfigError
-from cmarlcd.learners.deep.coordination import IMITATION_DEEP_CMARLCD, DeepCMARLCDConfig
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.designs import IMITATION_DEEP_CMARLCD
 
 torch = pytest.importorskip("torch")
 

@@ -46,7 +46,7 @@ is the ``update`` [choice]:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
@@ -70,6 +70,10 @@ RANGE_WEIGHT = 1.0
 UNSEEN_RECORDS = ("first-visit", "estimate", "estimate-kept", "estimate-once-kept")
 #: Where the degrees it acts with come from (``act_from``).
 ACT_FROM = ("network", "memory")
+#: How the degrees learn the critic's best joint action (``critic_fit``).
+CRITIC_FITS = ("imitation", "tie")
+#: What the critic's λ-returns bootstrap from (``critic_bootstrap``).
+CRITIC_BOOTSTRAPS = ("greedy", "best")
 #: The spread of the returns that scales ``unseen_tolerance`` (``unseen_spread``).
 UNSEEN_SPREADS = ("std", "range")
 #: What the keyed memory's per-state record is (``record``).
@@ -195,7 +199,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     update folds every episode into the memory whatever the schedule, so the network
     only has to keep up with the memory: on the DSN at L = 100k, 50 runs, a step per 200
     gave 91.4 % success against 91.2 % at a step per 50, in 38 % of the time. The first
-    design needed more (:data:`REPLAYED_DEEP_CMARLCD`:
+    design needed more (:data:`~cmarlcd.learners.deep.designs.REPLAYED_DEEP_CMARLCD`:
     at 200, 6.7 % success against 21.8 % at 50; the deep CMARL-CD page of the
     documentation)."""
     target_every: int = 2_000
@@ -251,11 +255,30 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     """[choice] Within how much of the record a return counts as reaching it (eq. 16's
     equality). With ``update="imitation"`` it is in units of the spread (standard
     deviation) of the batch's returns, so that one setting serves returns of any scale
-    (:data:`IMITATION_DEEP_CMARLCD`: 0.1). The keyed memory's maximum is the table's
-    record, so the table's 1e-9;
+    (:data:`~cmarlcd.learners.deep.designs.IMITATION_DEEP_CMARLCD`: 0.1). The keyed
+    memory's maximum is the table's record, so the table's 1e-9;
     the ``replayed`` update's record and the keyed ``expectile`` are estimates that
-    waver, and were measured at 1.0 (:data:`REPLAYED_DEEP_CMARLCD`,
-    :data:`REPEATED_DEEP_CMARLCD`)."""
+    waver, and were measured at 1.0
+    (:data:`~cmarlcd.learners.deep.designs.REPLAYED_DEEP_CMARLCD`,
+    :data:`~cmarlcd.learners.deep.designs.REPEATED_DEEP_CMARLCD`)."""
+    critic_fit: str = added_setting("imitation", "0.7.0", before="tie")
+    """[choice] (``critic``) How the degrees learn the critic's best joint action ``a*``
+    at a replayed visit's state: ``"imitation"``, a cross-entropy of each agent's
+    strategy ``softmax(clip(c_i)/T)`` towards ``a*_i`` (with ``RANGE_WEIGHT``'s penalty,
+    as ``imitation``); ``"tie"``, eqs. (14)-(15) at a tie, ``a*_i`` raised by ``delta``
+    and every other action lowered by it. While the critic's outputs are near-equal its
+    ``a*`` changes from one step to the next; under ``"tie"`` every action is then
+    lowered more often than raised and all degrees sink to ``c_min`` (measured: the
+    largest degree 0.57-0.71 on average on 2s-8x8-2p-2f-coop after 100k steps), where
+    the cross-entropy keeps the most frequent ``a*`` the greedy one."""
+    critic_bootstrap: str = added_setting("greedy", "0.7.0", before="best")
+    """[choice] (``critic`` with ``return_lambda`` below 1) The critic's estimate that
+    λ-returns bootstrap from: ``"greedy"``, its value of the joint action the agents'
+    degrees take greedily there (the policy they execute); ``"best"``, its best value,
+    ``max_a R(s, a)``. The maximum over many near-equal noisy outputs bootstraps an
+    overestimate that compounds through the returns (measured: stored returns of 1.3 on
+    average on 2s-8x8-2p-2f-coop, where a greedy episode earns 0.2 at most; the deep
+    CMARL-CD page of the documentation)."""
 
     def __post_init__(self) -> None:
         require(
@@ -314,6 +337,16 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             "network's estimate (update='keyed', unseen_record other than 'first-visit')",
         )
         require(
+            self.critic_fit in CRITIC_FITS,
+            "critic_fit",
+            f"must be one of {', '.join(CRITIC_FITS)} (got {self.critic_fit!r})",
+        )
+        require(
+            self.critic_bootstrap in CRITIC_BOOTSTRAPS,
+            "critic_bootstrap",
+            f"must be one of {', '.join(CRITIC_BOOTSTRAPS)} (got {self.critic_bootstrap!r})",
+        )
+        require(
             self.unseen_spread in UNSEEN_SPREADS,
             "unseen_spread",
             f"must be one of {', '.join(UNSEEN_SPREADS)} (got {self.unseen_spread!r})",
@@ -368,6 +401,12 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
         return joint
 
     @property
+    def greedy_bootstrap(self) -> bool:
+        """Whether λ-returns bootstrap from the critic's value of the degrees' greedy
+        joint action."""
+        return self.update == "critic" and self.critic_bootstrap == "greedy"
+
+    @property
     def bootstraps(self) -> bool:
         """Whether the ring stores λ-returns bootstrapped from the record network."""
         return not self.keyed and self.return_lambda < 1
@@ -414,82 +453,3 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     def behaviour_temperature(self, steps: int) -> float:
         """The behaviour's T of eq. (17) after ``steps`` environment steps."""
         return annealed(self.temperature, self.temperature_end, self.temperature_steps, steps)
-
-
-#: The first design, kept to compare with: targets recomputed at every replay against
-#: an expectile record, with the tolerance and the schedule (a gradient step per 50
-#: environment steps) it was measured at (the deep CMARL-CD page of the documentation).
-REPLAYED_DEEP_CMARLCD = DeepCMARLCDConfig(
-    update="replayed", tolerance=1.0, train_every=50, target_every=500
-)
-#: Self-imitation gated by the record (``update="imitation"``), a design for states that
-#: do not recur: the record a high expectile (τ 0.9) of a state's returns rather than the
-#: DSN's near-maximum, a visit imitated from 0.1 spreads below it, the first design's
-#: schedule (a gradient step per 50 environment steps, the record's target copied every
-#: 500). Declared before its selection run (the deep CMARL-CD page of the documentation).
-IMITATION_DEEP_CMARLCD = DeepCMARLCDConfig(
-    update="imitation", expectile=0.9, tolerance=0.1, train_every=50, target_every=500
-)
-#: Self-imitation on λ-returns bootstrapped from the record network (λ 0.9, declared
-#: before its selection run): a reward reaches the visits before it through the record
-#: of the states between, where on sparse tasks few episodes earn one.
-IMITATION_LAMBDA_DEEP_CMARLCD = replace(IMITATION_DEEP_CMARLCD, return_lambda=0.9)
-
-#: A centralised critic of joint actions as the record (``update="critic"``; declared
-#: before its selection run): the ring on λ-returns (λ 0.9) bootstrapped from the critic's
-#: best joint action, a 0.9-expectile critic (optimistic, as the record is), the
-#: self-imitation designs' schedule.
-CRITIC_DEEP_CMARLCD = replace(IMITATION_LAMBDA_DEEP_CMARLCD, update="critic")
-
-#: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
-#: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
-#: take 25 gradient steps in compare's 5,000 games, while Algorithm 1 moves a degree by δ
-#: in every game. A batch of 50 (and, for the first design, a ring of 500), a step per 10
-#: games and a degree learning rate of 1e-2. Measured first on 10-20 seeds (docs: deep
-#: CMARL-CD): with lr 1e-3 the degrees are still near c_init after 500 steps (penalty
-#: k = 0: 7-10 of 20); lr 1e-2, or a step every 2 games at 1e-3 (5x the time), 9-10 of 10
-#: (those with the first design). The record is the memory's running 0.9-expectile of the
-#: returns, ties within 1 (``record="expectile"``): on the stochastic climbing games the
-#: maximum is set by one lucky draw, the expectile is not. Over compare's 50 runs, % optimal
-#: on the climbing game, k = 0, -10, -50, -100, the partially and the fully stochastic
-#: climbing game: 100, 100, 96, 98, 86, 94, 46 (with the maximum: 100 on the five
-#: deterministic games, 0 and 0 on the stochastic ones), but the greedy joint action
-#: keeps changing (median last change after 410-5,000 games; the maximum's 70-90).
-REPEATED_DEEP_CMARLCD = DeepCMARLCDConfig(
-    record="expectile",
-    expectile=0.9,
-    tolerance=1.0,
-    buffer_size=500,
-    batch_size=50,
-    train_every=10,
-    target_every=50,
-    lr=1e-2,
-)
-
-#: [choice] Its battlefield settings: the tabular learner's there (c_max = 2.5, T = 0.8),
-#: VDN's and QMIX's batch and schedule there (Section V-B), a memory of 200,000 slots in
-#: sets of 4 (a side of the table meets 110,000 states in a match against VDN: 100,000
-#: direct-mapped slots keep about 60 % of them), and the table's rule on
-#: every state it keeps: it acts from the memory where the memory holds the state, and
-#: a state's first visit is a record (``act_from="memory"``,
-#: ``unseen_record="first-visit"``). A side meets some 75,000 states there, again and
-#: again: on the deterministic battlefield (every hit lands), 10 rounds of 100k + 100k
-#: against the table, acting from the network lost every round (with 10x the memory,
-#: 5x the width or 4x the gradient steps too), acting from the memory but comparing
-#: first visits with the record network's estimate lost 8 of 10, and these settings
-#: with 100,000 direct-mapped slots won 3, tied 3 and lost 4, with these 6, 0 and 4
-#: (the deep CMARL-CD page of the documentation). In the
-#: 5-algorithm tournament (10 x 100k + 100k) a memory of 100,000 direct-mapped slots won
-#: 36.5 and 36.8 % against VDN and QMIX, 100,000 in sets of 4 38.5 and 39.5 %, in sets
-#: of 8 41.2 and 40.3 %, these 40.4 and 42.1 % (the table: 38.9 and 41.8 %).
-BATTLEFIELD_DEEP_CMARLCD = DeepCMARLCDConfig(
-    act_from="memory",
-    unseen_record="first-visit",
-    c_max=2.5,
-    temperature=0.8,
-    buffer_size=200_000,
-    ways=4,
-    batch_size=720,
-    train_every=240,
-    target_every=2_400,
-)

@@ -195,7 +195,7 @@ class DegreeAgent(StepAgent):
         if lam < 1 and visits:
             x = self._encode_many([state for state, _, _ in visits])
             with torch.no_grad():
-                estimates = self.model.record(x)[0].double().cpu().numpy()
+                estimates = self.model.estimate(x)[0].double().cpu().numpy()
         value = 0.0
         for t in range(len(visits) - 1, -1, -1):
             state, joint, reward = visits[t]

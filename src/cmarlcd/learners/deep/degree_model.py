@@ -209,25 +209,33 @@ class DegreeModel(StackedModel):
         """A centralised critic of joint actions as the record (``update="critic"``), the
         seeds' summed losses on a batch of visits (:meth:`replayed_loss`'s keys). The
         critic ``R(s, a)`` learns the expectile loss of :meth:`record_loss` at each visit's
-        taken joint action; the degrees learn the tie of eqs. (14)-(15) for the joint
-        action that reaches the record: at each visit's state, the best joint action
-        ``a* = argmax_a R'(s, a)`` of the critic's target copy (lowest index on ties)
-        raises each agent's degree of ``a*_i`` by ``delta`` and lowers its others by it
-        (from the present degrees, clipped), the squared distance to these targets over
-        each agent's real actions averaged over the visits. Whatever the visit's return,
-        the critic decides; acting stays decentralised, each agent from its degrees."""
+        taken joint action. The degrees learn the joint action that reaches the record:
+        at each visit's state, the best joint action ``a* = argmax_a R'(s, a)`` of the
+        critic's target copy (lowest index on ties), whatever the visit's return, by
+        ``critic_fit``: a cross-entropy ``Σ_i -log π_i(a*_i | s)`` of the strategies
+        ``π_i = softmax(clip(c_i)/T)`` plus :data:`RANGE_WEIGHT` times each degree's squared
+        distance to ``[c_min, c_max]`` (``"imitation"``), or the tie of eqs. (14)-(15),
+        ``a*_i`` raised by ``delta`` and the others lowered, from the present degrees,
+        clipped, by squared error (``"tie"``); averaged over the visits. Acting stays
+        decentralised, each agent from its degrees."""
+        c = self.config
         state, actions, returns = batch["state"], batch["actions"], batch["reward"]
-        strides = self.strides
         degrees = self.agents(state)  # (B, N, n, A)
         with torch.no_grad():
             best = self.target_record.values(state).argmax(dim=-1)  # (B, N)
-            best_actions = (best[..., None] // strides) % self.counts
-            target = self.moved(degrees.clamp(self.config.c_min, self.config.c_max),
-                                best_actions, self.config.delta)  # fmt: skip
+            best_actions = (best[..., None] // self.strides) % self.counts
         valid = self.valid.to(degrees.dtype)
-        degree_loss = (((degrees - target) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
-        taken = (actions * strides).sum(dim=-1)  # (B, N) joint action index
-        estimate = self.record.values(state).gather(-1, taken[..., None])[..., 0]
+        if c.critic_fit == "tie":
+            with torch.no_grad():
+                target = self.moved(degrees.clamp(c.c_min, c.c_max), best_actions, c.delta)
+            degree_loss = (((degrees - target) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
+        else:
+            clipped = degrees.clamp(c.c_min, c.c_max)
+            logits = (clipped / c.temperature).masked_fill(~self.valid, float("-inf"))
+            chosen = logits.log_softmax(dim=-1).gather(-1, best_actions[..., None])[..., 0]
+            outside = (((degrees - clipped) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
+            degree_loss = -chosen.sum(dim=2).mean(dim=1).sum() + RANGE_WEIGHT * outside
+        estimate = self.critic_at(self.record.values(state), actions)
         return degree_loss + self.expectile_loss(estimate, returns)
 
     def expectile_loss(self, estimate: torch.Tensor, returns: torch.Tensor) -> torch.Tensor:
@@ -239,11 +247,31 @@ class DegreeModel(StackedModel):
         return expectile.mean(dim=1).sum()
 
     @torch.no_grad()
+    def estimate(self, state: torch.Tensor) -> torch.Tensor:
+        """What λ-returns bootstrap from at ``state`` (B, N[, in]) -> (B, N): the record
+        network's estimate, or (``critic_bootstrap="greedy"``) the critic's value of the
+        joint action the degrees take greedily there (over each agent's real actions)."""
+        if not self.config.greedy_bootstrap:
+            return self.record(state)
+        c = self.config
+        degrees = self._masked(self.agents(state).clamp(c.c_min, c.c_max), None)
+        return self.critic_at(self.record.values(state), degrees.argmax(dim=-1))
+
+    def critic_at(self, values: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """The critic's ``values`` (B, N, K) at the joint actions of ``actions`` (B, N, n)."""
+        joint = (actions * self.strides).sum(dim=-1)
+        return values.gather(-1, joint[..., None])[..., 0]
+
+    @torch.no_grad()
     def record_table(self) -> torch.Tensor:
         """The record network's estimate of every integer state, (B, S): the best of its
-        outputs."""
+        outputs, or the critic's value of the degrees' greedy joint action there
+        (``critic_bootstrap="greedy"``, :meth:`greedy_table`)."""
         record = self.record
-        return record.second(torch.relu(record.first.table())).amax(dim=-1)
+        values = record.second(torch.relu(record.first.table()))
+        if self.config.greedy_bootstrap:
+            return self.critic_at(values, self.greedy_table())
+        return values.amax(dim=-1)
 
     def record_weights(self) -> tuple[torch.Tensor, ...]:
         """The record network's layers as the compiled loop reads them (one "agent" per

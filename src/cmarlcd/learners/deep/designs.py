@@ -1,0 +1,99 @@
+"""Deep CMARL-CD's settings beside its default (:mod:`cmarlcd.learners.deep.coordination`):
+its settings on one-step games and on the battlefield, the first design, and the designs
+for states that do not recur that the declared selection run compares
+(``benchmarks/deep_cmarlcd_selection.sh``), each at the settings declared before it was
+measured (the deep CMARL-CD page of the documentation holds their numbers)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+
+#: The first design, kept to compare with: targets recomputed at every replay against
+#: an expectile record, with the tolerance and the schedule (a gradient step per 50
+#: environment steps) it was measured at (the deep CMARL-CD page of the documentation).
+REPLAYED_DEEP_CMARLCD = DeepCMARLCDConfig(
+    update="replayed", tolerance=1.0, train_every=50, target_every=500
+)
+#: Self-imitation gated by the record (``update="imitation"``), a design for states that
+#: do not recur: the record a high expectile (τ 0.9) of a state's returns rather than the
+#: DSN's near-maximum, a visit imitated from 0.1 spreads below it, the first design's
+#: schedule (a gradient step per 50 environment steps, the record's target copied every
+#: 500). Declared before its selection run (the deep CMARL-CD page of the documentation).
+IMITATION_DEEP_CMARLCD = DeepCMARLCDConfig(
+    update="imitation", expectile=0.9, tolerance=0.1, train_every=50, target_every=500
+)
+#: Self-imitation on λ-returns bootstrapped from the record network (λ 0.9, declared
+#: before its selection run): a reward reaches the visits before it through the record
+#: of the states between, where on sparse tasks few episodes earn one.
+IMITATION_LAMBDA_DEEP_CMARLCD = replace(IMITATION_DEEP_CMARLCD, return_lambda=0.9)
+
+#: A centralised critic of joint actions as the record (``update="critic"``; declared
+#: before its selection run): the ring on λ-returns (λ 0.9) bootstrapped from the
+#: critic's value of the degrees' greedy joint action, the degrees fitted to its best
+#: joint action by cross-entropy (the defaults of ``critic_bootstrap`` and
+#: ``critic_fit``), the self-imitation designs' schedule, and the critic the mean of the
+#: returns (τ 0.5): a τ-expectile above the mean on λ-returns bootstraps its own excess,
+#: which compounds (measured: stored returns of 0.25 on average at τ 0.9 against 0.02
+#: at τ 0.5 on 2s-8x8-2p-2f-coop after 100k steps; the deep CMARL-CD page of the
+#: documentation).
+CRITIC_DEEP_CMARLCD = replace(IMITATION_LAMBDA_DEEP_CMARLCD, update="critic", expectile=0.5)
+#: The critic as measured first: 0.9-expectile, λ-returns bootstrapped from its best
+#: joint action, ``max_a R(s, a)``, the degrees moved by the tie of eqs. (14)-(15).
+BEST_CRITIC_DEEP_CMARLCD = replace(
+    CRITIC_DEEP_CMARLCD, expectile=0.9, critic_bootstrap="best", critic_fit="tie"
+)
+
+#: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
+#: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
+#: take 25 gradient steps in compare's 5,000 games, while Algorithm 1 moves a degree by δ
+#: in every game. A batch of 50 (and, for the first design, a ring of 500), a step per 10
+#: games and a degree learning rate of 1e-2. Measured first on 10-20 seeds (docs: deep
+#: CMARL-CD): with lr 1e-3 the degrees are still near c_init after 500 steps (penalty
+#: k = 0: 7-10 of 20); lr 1e-2, or a step every 2 games at 1e-3 (5x the time), 9-10 of 10
+#: (those with the first design). The record is the memory's running 0.9-expectile of the
+#: returns, ties within 1 (``record="expectile"``): on the stochastic climbing games the
+#: maximum is set by one lucky draw, the expectile is not. Over compare's 50 runs, % optimal
+#: on the climbing game, k = 0, -10, -50, -100, the partially and the fully stochastic
+#: climbing game: 100, 100, 96, 98, 86, 94, 46 (with the maximum: 100 on the five
+#: deterministic games, 0 and 0 on the stochastic ones), but the greedy joint action
+#: keeps changing (median last change after 410-5,000 games; the maximum's 70-90).
+REPEATED_DEEP_CMARLCD = DeepCMARLCDConfig(
+    record="expectile",
+    expectile=0.9,
+    tolerance=1.0,
+    buffer_size=500,
+    batch_size=50,
+    train_every=10,
+    target_every=50,
+    lr=1e-2,
+)
+
+#: [choice] Its battlefield settings: the tabular learner's there (c_max = 2.5, T = 0.8),
+#: VDN's and QMIX's batch and schedule there (Section V-B), a memory of 200,000 slots in
+#: sets of 4 (a side of the table meets 110,000 states in a match against VDN: 100,000
+#: direct-mapped slots keep about 60 % of them), and the table's rule on
+#: every state it keeps: it acts from the memory where the memory holds the state, and
+#: a state's first visit is a record (``act_from="memory"``,
+#: ``unseen_record="first-visit"``). A side meets some 75,000 states there, again and
+#: again: on the deterministic battlefield (every hit lands), 10 rounds of 100k + 100k
+#: against the table, acting from the network lost every round (with 10x the memory,
+#: 5x the width or 4x the gradient steps too), acting from the memory but comparing
+#: first visits with the record network's estimate lost 8 of 10, and these settings
+#: with 100,000 direct-mapped slots won 3, tied 3 and lost 4, with these 6, 0 and 4
+#: (the deep CMARL-CD page of the documentation). In the
+#: 5-algorithm tournament (10 x 100k + 100k) a memory of 100,000 direct-mapped slots won
+#: 36.5 and 36.8 % against VDN and QMIX, 100,000 in sets of 4 38.5 and 39.5 %, in sets
+#: of 8 41.2 and 40.3 %, these 40.4 and 42.1 % (the table: 38.9 and 41.8 %).
+BATTLEFIELD_DEEP_CMARLCD = DeepCMARLCDConfig(
+    act_from="memory",
+    unseen_record="first-visit",
+    c_max=2.5,
+    temperature=0.8,
+    buffer_size=200_000,
+    ways=4,
+    batch_size=720,
+    train_every=240,
+    target_every=2_400,
+)
