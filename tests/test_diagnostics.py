@@ -46,3 +46,36 @@ def test_the_memory_diagnostic_refuses_bad_input_in_one_line(args, says) -> None
     done = run(*args)
     assert done.returncode == 2
     assert says in done.stderr and done.stderr.count("\n") == 1, done.stderr
+
+
+CRITIC = Path(__file__).parents[1] / "benchmarks/deep_cmarlcd_critic.py"
+
+
+def critic(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(CRITIC), *args], capture_output=True, text=True, check=False
+    )
+
+
+def test_the_critic_diagnostic_reads_the_ring_the_critic_and_the_degrees() -> None:
+    done = critic("foraging:5x5-2p-1f", "--steps", "3k", "--set", "batch_size=64")
+    assert done.returncode == 0, done.stderr
+    lines = dict(line.split(": ", 1) for line in done.stdout.strip().splitlines())
+    assert lines["visits read"].startswith("3,0")  # every visit of 3k steps, at most 4,000
+    assert "of 36" in lines["a*"]  # 6 × 6 joint actions
+    share = float(lines["degrees' greedy joint action = a*"].rstrip("%"))
+    assert 0 <= share <= 100
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["foraging:5x5-2p-1f", "--set", "update=replayed"], "reads the critic"),
+        (["foraging:10x10-5p-3f"], "more than 4096"),
+        (["foraging:5x5-2p-1f", "--set", "critic_fit=max"], "critic_fit"),
+    ],
+)
+def test_the_critic_diagnostic_refuses_bad_input_in_one_line(args, says) -> None:
+    done = critic(*args)
+    assert done.returncode == 2
+    assert says in done.stderr and done.stderr.count("\n") == 1, done.stderr

@@ -1,0 +1,106 @@
+"""Diagnostic: what deep CMARL-CD's critic of joint actions (``update="critic"``) and its
+degrees hold after one seed has learned a field task.
+
+Where the selection run finds the critic design learning nothing, this locates the loss.
+After ``--steps`` of learning it reads up to 4,000 visits of the seed's ring and prints:
+the mean and largest return stored there (λ-returns: an overestimate that compounds shows
+here first, against what a greedy episode earns), the critic's best value and its value
+at the taken joint actions, the spread of its outputs over the joint actions (the
+standard deviation, averaged over the visits), the share of visits whose taken joint
+action is the critic's best ``a*``, how many distinct ``a*`` there are, the share of
+visits where the degrees' greedy joint action is ``a*`` (the agents following the
+critic), and the degrees' largest and smallest value (clipped; ``c_min`` 0.5 when they
+have sunk).
+
+    python benchmarks/deep_cmarlcd_critic.py foraging:2s-8x8-2p-2f-coop --steps 100k
+    python benchmarks/deep_cmarlcd_critic.py foraging:2s-8x8-2p-2f-coop --steps 100k \\
+        --set expectile=0.9,critic_bootstrap=best,critic_fit=tie
+
+It starts from ``CRITIC_DEEP_CMARLCD`` at the field's discount (0.99); ``--set`` changes
+any deep CMARL-CD setting. Needs the ``[deep]`` extra.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+#: The most ring visits read.
+VISITS = 4_000
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("task", help="a field task, e.g. foraging:2s-8x8-2p-2f-coop")
+    p.add_argument("--steps", default="100k", help="environment steps of learning")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--set", default="", help="deep CMARL-CD settings, key=value,...")
+    args = p.parse_args(argv)
+    from cmarlcd.cli.options import apply_settings, parse_count
+    from cmarlcd.errors import ConfigError, require
+    from cmarlcd.experiments import games
+    from cmarlcd.learners.deep.designs import CRITIC_DEEP_CMARLCD
+
+    try:
+        steps = parse_count(args.steps, "steps")
+        _, rules = games.parse_game(args.task)
+        settings = ",".join(f"deep-cmarl-cd.{kv.strip()}" for kv in args.set.split(",") if kv)
+        (config,) = apply_settings(settings, (replace(CRITIC_DEEP_CMARLCD, gamma=0.99),))
+        require(config.update == "critic", "update", "this diagnostic reads the critic (critic)")
+        spec = rules.spec()
+        config.record_outputs(spec.action_counts)
+    except ConfigError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    for name, value in report(spec, config, steps, args.seed).items():
+        print(f"{name}: {value}")
+    return 0
+
+
+def report(spec, config, steps: int, seed: int) -> dict[str, str]:
+    """Learn ``steps`` with one seed, then read the ring, the critic and the degrees."""
+    import torch
+
+    from cmarlcd.training.deep import DeepBatch
+
+    run = DeepBatch(spec, config, [np.random.SeedSequence(seed)], steps, unit="steps")
+    run.train([], lambda *args: None)
+    model, replay = run.group.model, run.group.ring
+    ring = getattr(replay, "ring", replay)
+    stored = int(ring.size[0])
+    if stored == 0:
+        return {"visits stored": "0 (nothing to read: learn longer)"}
+    rows = np.random.default_rng(seed).choice(stored, min(stored, VISITS), replace=False)
+    state = torch.as_tensor(ring.state[0, rows])[None]
+    actions = torch.as_tensor(ring.actions[0, rows].astype(np.int64))[None]
+    returns = torch.as_tensor(ring.reward[0, rows])
+    c = config
+    with torch.no_grad():
+        values = model.record.values(state)[0]
+        best = values.argmax(dim=-1)
+        taken = (actions[0] * model.strides).sum(dim=-1)
+        degrees = model.agents(state)[0].clamp(c.c_min, c.c_max)
+        greedy = model._masked(degrees[None], None)[0].argmax(dim=-1)
+        follows = (greedy * model.strides).sum(dim=-1) == best
+        lowest = degrees.masked_fill(~model.valid[0], np.inf).amin(dim=-1)
+        highest = degrees.masked_fill(~model.valid[0], -np.inf).amax(dim=-1)
+    return {
+        "visits read": f"{len(rows):,} of {stored:,}",
+        "stored returns": f"mean {returns.mean():.4f}, largest {returns.max():.4f}, "
+        f"above 0 {(returns > 0).float().mean():.1%}",
+        "critic": f"best {values.amax(dim=-1).mean():.4f}, at the taken joint action "
+        f"{values.gather(-1, taken[:, None]).mean():.4f}, spread over joint actions "
+        f"{values.std(dim=-1).mean():.4f}",
+        "a*": f"the taken joint action {(best == taken).float().mean():.1%}, "
+        f"{len(set(best.tolist()))} distinct of {values.shape[-1]}",
+        "degrees' greedy joint action = a*": f"{follows.float().mean():.1%}",
+        "degrees": f"largest {highest.mean():.3f}, smallest {lowest.mean():.3f}",
+    }
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
