@@ -5,8 +5,9 @@ Where the selection run finds the critic design learning nothing, this locates t
 After ``--steps`` of learning it reads up to 4,000 visits of the seed's ring and prints:
 the mean and largest return stored there (λ-returns: an overestimate that compounds shows
 here first, against what a greedy episode earns), the critic's best value and its value
-at the taken joint actions, the spread of its outputs over the joint actions (the
-standard deviation, averaged over the visits), the share of visits whose taken joint
+at the taken joint actions, the spread of its outputs (their standard deviation at a
+visit, over the joint actions or, for ``critic_form="sum"``, the agents' actions,
+averaged over the visits), the share of visits whose taken joint
 action is the critic's best ``a*``, how many distinct ``a*`` there are, the share of
 visits where the degrees' greedy joint action is ``a*`` (the agents following the
 critic), and the degrees' largest and smallest value (clipped; ``c_min`` 0.5 when they
@@ -80,23 +81,24 @@ def report(spec, config, steps: int, seed: int) -> dict[str, str]:
     returns = torch.as_tensor(ring.reward[0, rows])
     c = config
     with torch.no_grad():
-        values = model.record.values(state)[0]
-        best = values.argmax(dim=-1)
-        taken = (actions[0] * model.strides).sum(dim=-1)
+        values = model.record.values(state)  # (1, N, K)
+        best = model.critic_best(values)[0]  # (N, n)
+        best_value = model.critic_at(values, best[None])[0]
+        taken_value = model.critic_at(values, actions)[0]
         degrees = model.agents(state)[0].clamp(c.c_min, c.c_max)
         greedy = model._masked(degrees[None], None)[0].argmax(dim=-1)
-        follows = (greedy * model.strides).sum(dim=-1) == best
+        follows = (greedy == best).all(dim=-1)
         lowest = degrees.masked_fill(~model.valid[0], np.inf).amin(dim=-1)
         highest = degrees.masked_fill(~model.valid[0], -np.inf).amax(dim=-1)
+    joint = int(np.prod(spec.action_counts))
     return {
         "visits read": f"{len(rows):,} of {stored:,}",
         "stored returns": f"mean {returns.mean():.4f}, largest {returns.max():.4f}, "
         f"above 0 {(returns > 0).float().mean():.1%}",
-        "critic": f"best {values.amax(dim=-1).mean():.4f}, at the taken joint action "
-        f"{values.gather(-1, taken[:, None]).mean():.4f}, spread over joint actions "
-        f"{values.std(dim=-1).mean():.4f}",
-        "a*": f"the taken joint action {(best == taken).float().mean():.1%}, "
-        f"{len(set(best.tolist()))} distinct of {values.shape[-1]}",
+        "critic": f"best {best_value.mean():.4f}, at the taken joint action "
+        f"{taken_value.mean():.4f}, spread over its outputs {values[0].std(dim=-1).mean():.4f}",
+        "a*": f"the taken joint action {(best == actions[0]).all(dim=-1).float().mean():.1%}, "
+        f"{len({tuple(row) for row in best.tolist()})} distinct of {joint}",
         "degrees' greedy joint action = a*": f"{follows.float().mean():.1%}",
         "degrees": f"largest {highest.mean():.3f}, smallest {lowest.mean():.3f}",
     }

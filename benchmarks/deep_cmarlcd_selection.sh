@@ -28,6 +28,7 @@
 #              cross-entropy, λ-returns (0.9) bootstrapped from its value of the
 #              degrees' greedy joint action
 #   critic-anneal  critic with the anneal
+#   critic-sum     critic in VDN's form, a sum of the agents' outputs (critic_form=sum)
 #   critic-best    the critic as first measured (BEST_CRITIC_DEEP_CMARLCD): a
 #              0.9-expectile, λ-returns bootstrapped from its best joint action, the
 #              degrees moved by the tie of eqs. 14-15
@@ -43,11 +44,11 @@ designs=("$@")
 for design in "${designs[@]}"; do
   case "$design" in
     keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | \
-      imitation-anneal | range | range-anneal | critic | critic-anneal | critic-best | \
+      imitation-anneal | range | range-anneal | critic | critic-anneal | critic-sum | critic-best | \
       critic-best-anneal) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
          "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
-         "critic-anneal, critic-best, critic-best-anneal)" >&2
+         "critic-anneal, critic-sum, critic-best, critic-best-anneal)" >&2
        exit 2 ;;
   esac
 done
@@ -74,6 +75,7 @@ for design in "${designs[@]}"; do
     imitation-anneal) settings="$imitation,$d.return_lambda=0.9,$anneal,$d.gamma=0.99" ;;
     critic) settings="$critic,$d.gamma=0.99" ;;
     critic-anneal) settings="$critic,$anneal,$d.gamma=0.99" ;;
+    critic-sum) settings="$critic,$d.critic_form=sum,$d.gamma=0.99" ;;
     critic-best) settings="$best,$d.gamma=0.99" ;;
     critic-best-anneal) settings="$best,$anneal,$d.gamma=0.99" ;;
   esac

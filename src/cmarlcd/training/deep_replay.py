@@ -78,6 +78,8 @@ class BootstrappedRing(NamedTuple):
     """Whether they bootstrap from the critic's output at the degrees' greedy joint
     action (``critic_bootstrap="greedy"``; for feature inputs, where the compiled loop
     estimates; the copy of every integer state's estimate holds it already)."""
+    summed: bool
+    """Whether the critic is a sum of the agents' outputs (``critic_form="sum"``)."""
 
 
 def record_copies(config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int) -> tuple:
@@ -210,11 +212,14 @@ class BootstrappedKind:
     def new(self, config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int):
         ring = RING.new(config, seeds, counts, spec, features)
         copies = record_copies(config, seeds, counts, spec, features)
-        return BootstrappedRing(ring, *copies, float(config.return_lambda), config.greedy_bootstrap)
+        summed = config.update == "critic" and config.critic_form == "sum"
+        lam = float(config.return_lambda)
+        return BootstrappedRing(ring, *copies, lam, config.greedy_bootstrap, summed)
 
     def view(self, replay: BootstrappedRing, b: int) -> BootstrappedRing:
         view = seed_view(replay.ring, b)
-        return BootstrappedRing(view, *record_view(replay, b), replay.lam, replay.greedy)
+        copies = record_view(replay, b)
+        return BootstrappedRing(view, *copies, replay.lam, replay.greedy, replay.summed)
 
     def stored(self, replay: BootstrappedRing, b: int) -> int:
         return int(replay.ring.size[b])

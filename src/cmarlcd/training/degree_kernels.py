@@ -258,17 +258,24 @@ def bootstrap_estimate(side, t: int) -> float:
     of turn ``t``: the record network's estimate (:func:`record_estimate`), or, for a
     critic that bootstraps from the greedy joint action (``critic_bootstrap="greedy"``),
     its output at the joint action the agents' degrees take greedily there (joint index
-    ``sum_i a_i * prod_{j > i} |A_j|``)."""
+    ``sum_i a_i * prod_{j > i} |A_j|``), or the sum of each agent's output at its greedy
+    action (``critic_form="sum"``)."""
     replay, x = side.replay, side.obs[t]
     if not replay.greedy:
         return record_estimate(replay, x)
-    raw, joint = side.scratch[1], 0
+    weights, hidden = replay.record_weights, replay.record_hidden
+    hidden_layer(weights, 0, x, hidden)
+    raw, joint, offset, total = side.scratch[1], 0, 0, 0.0
     for i in range(side.counts.shape[0]):
         count = side.counts[i]
         agent_degrees(side.weights, i, x, side.starts[i], count, side.hidden, raw)
-        joint = joint * count + greedy_degrees(side, raw, side.legal[t, i], count)
-    hidden_layer(replay.record_weights, 0, x, replay.record_hidden)
-    return output_unit(replay.record_weights, 0, replay.record_hidden, joint)
+        a = greedy_degrees(side, raw, side.legal[t, i], count)
+        if replay.summed:  # critic_form="sum": agent i's output offset + a
+            total += output_unit(weights, 0, hidden, offset + a)
+            offset += count
+        else:
+            joint = joint * count + a
+    return total if replay.summed else output_unit(weights, 0, hidden, joint)
 
 
 @kernel

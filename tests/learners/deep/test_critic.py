@@ -253,3 +253,54 @@ def test_the_command_line_runs_it_and_refuses_too_many_joint_actions(tmp_path) -
     done = run("foraging:10x10-5p-3f")
     assert done.returncode == 2, done.stdout
     assert "more than 4096" in done.stderr and done.stderr.strip().count("\n") == 0, done.stderr
+
+
+def test_the_summed_critic_by_hand() -> None:
+    """``critic_form="sum"`` over agents of 2 and 3 actions: outputs (1, 2 | 10, 20, 30);
+    joint action (1, 2) is worth 2 + 30 = 32, (0, 0) 11; its best joint action is each
+    agent's best, (1, 2); it has 5 outputs, not 6."""
+    config = DeepCMARLCDConfig(update="critic", critic_form="sum")
+    assert config.record_outputs(COUNTS) == 5
+    net = DegreeModel(COUNTS, 1, config, [np.random.SeedSequence(0)], device="cpu")
+    values = torch.tensor([1.0, 2.0, 10.0, 20.0, 30.0]).expand(1, 2, 5)
+    actions = torch.tensor([[[1, 2], [0, 0]]])
+    assert net.critic_at(values, actions).tolist() == [[32.0, 11.0]]
+    assert net.critic_best(values).tolist() == [[[1, 2], [1, 2]]]
+    with pytest.raises(ConfigError, match="'sum' bootstraps from the degrees' greedy"):
+        DeepCMARLCDConfig(update="critic", critic_form="sum", critic_bootstrap="best")
+
+
+def test_the_compiled_loop_bootstraps_a_summed_critic_by_hand() -> None:
+    """Two agents of 2 actions, one feature x, the summed critic's outputs (3x, 10x | x,
+    −x) and the degrees' greedy actions (1, 0): estimates 10x + x = 11 and 22 at the next
+    visits' features 1 and 2; rewards 1, 2, 4, γ 0.5, λ 0.5: G_2 = 4, G_1 = 2 + 0.5 (0.5
+    · 22 + 0.5 · 4) = 8.5, G_0 = 1 + 0.5 (0.5 · 11 + 0.5 · 8.5) = 5.875."""
+    from cmarlcd.training.deep_kernels import FeatureData, Weights
+    from cmarlcd.training.deep_replay import BOOTSTRAPPED
+    from cmarlcd.training.deep_side import new_greedy_cache
+    from cmarlcd.training.degree_kernels import features_lambda_store
+
+    counts = np.array([2, 2])
+    spec = SimpleNamespace(n_states=0, own_dim=None, n_features=1, max_steps=3)
+    config = DeepCMARLCDConfig(
+        update="critic", return_lambda=0.5, record_hidden=1, critic_form="sum"
+    )
+    ring = BOOTSTRAPPED.new(config, 1, counts, spec, 1)
+    w1, _, w2, _ = ring.record_weights[:4]
+    w1[0, 0, 0] = 1.0
+    w2[0, 0] = [3.0, 10.0, 1.0, -1.0]
+    replay = BOOTSTRAPPED.view(ring, 0)
+    schedule = np.array(DeepCMARLCDConfig(gamma=0.5).schedule(100), np.float64)
+    obs = np.array([[0.0], [1.0], [2.0], [0.0], [0.0]], np.float32)
+    degrees = Weights(*(np.zeros((2, *shape), np.float32)
+                        for shape in ((1, 4), (4,), (4, 2), (2,), (0, 4, 4), (0, 4))))  # fmt: skip
+    degrees.b2[0], degrees.b2[1] = [1.0, 2.0], [2.0, 1.0]  # greedy actions (1, 0)
+    side = FeatureData(
+        counts, degrees, np.zeros(8, np.float32), obs, np.ones((4, 2, 2), np.bool_),
+        np.array([[0, 0], [1, 1], [1, 0]]), np.array([1.0, 2.0, 4.0]), replay,
+        np.zeros(8, np.int64), schedule, np.zeros((2, 2)),
+        new_greedy_cache(SimpleNamespace(state_determines_features=False, max_steps=3), 1),
+        np.zeros(2, np.int64),
+    )  # fmt: skip
+    features_lambda_store(side, 3)
+    assert replay.ring.reward[:3].tolist() == [4.0, 8.5, 5.875]

@@ -70,6 +70,8 @@ RANGE_WEIGHT = 1.0
 UNSEEN_RECORDS = ("first-visit", "estimate", "estimate-kept", "estimate-once-kept")
 #: Where the degrees it acts with come from (``act_from``).
 ACT_FROM = ("network", "memory")
+#: The critic's form (``critic_form``).
+CRITIC_FORMS = ("joint", "sum")
 #: How the degrees learn the critic's best joint action (``critic_fit``).
 CRITIC_FITS = ("imitation", "tie")
 #: What the critic's λ-returns bootstrap from (``critic_bootstrap``).
@@ -271,6 +273,13 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     lowered more often than raised and all degrees sink to ``c_min`` (measured: the
     largest degree 0.57-0.71 on average on 2s-8x8-2p-2f-coop after 100k steps), where
     the cross-entropy keeps the most frequent ``a*`` the greedy one."""
+    critic_form: str = added_setting("joint", "0.7.0")
+    """[choice] (``critic``) The critic's form: ``"joint"``, an output per joint action,
+    ``R(s, a)``; ``"sum"``, VDN's decomposition, an output per agent and action, ``R(s,
+    a) = Σ_i R_i(s, a_i)`` (``Σ_i |A_i|`` outputs), whose best joint action is each
+    agent's best and whose outputs each learn from every visit where the agent took that
+    action, where a joint output learns only from visits of its joint action (with
+    ``critic_bootstrap="greedy"`` only)."""
     critic_bootstrap: str = added_setting("greedy", "0.7.0", before="best")
     """[choice] (``critic`` with ``return_lambda`` below 1) The critic's estimate that
     λ-returns bootstrap from: ``"greedy"``, its value of the joint action the agents'
@@ -337,6 +346,16 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             "network's estimate (update='keyed', unseen_record other than 'first-visit')",
         )
         require(
+            self.critic_form in CRITIC_FORMS,
+            "critic_form",
+            f"must be one of {', '.join(CRITIC_FORMS)} (got {self.critic_form!r})",
+        )
+        require(
+            self.critic_form == "joint" or self.critic_bootstrap == "greedy",
+            "critic_form",
+            "'sum' bootstraps from the degrees' greedy joint action (critic_bootstrap=greedy)",
+        )
+        require(
             self.critic_fit in CRITIC_FITS,
             "critic_fit",
             f"must be one of {', '.join(CRITIC_FITS)} (got {self.critic_fit!r})",
@@ -388,9 +407,12 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
 
     def record_outputs(self, action_counts) -> int:
         """The record network's outputs: one per joint action of agents with
-        ``action_counts`` (``critic``), else 1 (the state's record)."""
+        ``action_counts`` (``critic``; one per agent and action with ``critic_form="sum"``),
+        else 1 (the state's record)."""
         if self.update != "critic":
             return 1
+        if self.critic_form == "sum":
+            return int(np.sum(np.asarray(action_counts, np.int64)))
         joint = int(np.prod(np.asarray(action_counts, np.int64)))
         require(
             joint <= MAX_JOINT_ACTIONS,

@@ -92,6 +92,9 @@ class DegreeModel(StackedModel):
         counts = torch.as_tensor(np.asarray(action_counts, np.int64), device=self.device)
         self.strides = torch.cat([counts.flip(0).cumprod(0).flip(0)[1:], counts.new_ones(1)])
         self.counts = counts
+        # critic_form="sum": agent i's action a is output offsets[i] + a
+        self.offsets = torch.cat([counts.new_zeros(1), counts.cumsum(0)[:-1]])
+        self.summed = config.update == "critic" and config.critic_form == "sum"
         self.target_record = copy.deepcopy(self.record).requires_grad_(False)
         self.place()
         self.optimizer = torch.optim.Adam(
@@ -222,8 +225,7 @@ class DegreeModel(StackedModel):
         state, actions, returns = batch["state"], batch["actions"], batch["reward"]
         degrees = self.agents(state)  # (B, N, n, A)
         with torch.no_grad():
-            best = self.target_record.values(state).argmax(dim=-1)  # (B, N)
-            best_actions = (best[..., None] // self.strides) % self.counts
+            best_actions = self.critic_best(self.target_record.values(state))
         valid = self.valid.to(degrees.dtype)
         if c.critic_fit == "tie":
             with torch.no_grad():
@@ -258,9 +260,24 @@ class DegreeModel(StackedModel):
         return self.critic_at(self.record.values(state), degrees.argmax(dim=-1))
 
     def critic_at(self, values: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-        """The critic's ``values`` (B, N, K) at the joint actions of ``actions`` (B, N, n)."""
+        """The critic's ``values`` (B, N, K) at the joint actions of ``actions`` (B, N, n):
+        the joint action's output, or the sum of each agent's (``critic_form="sum"``)."""
+        if self.summed:
+            return values.gather(-1, actions + self.offsets).sum(dim=-1)
         joint = (actions * self.strides).sum(dim=-1)
         return values.gather(-1, joint[..., None])[..., 0]
+
+    def critic_best(self, values: torch.Tensor) -> torch.Tensor:
+        """The critic's best joint action (B, N, n) at its ``values`` (B, N, K), lowest
+        index on ties: the argmax joint output decoded, or each agent's best action
+        (``critic_form="sum"``)."""
+        if not self.summed:
+            best = values.argmax(dim=-1)
+            return (best[..., None] // self.strides) % self.counts
+        actions = torch.arange(self.width, device=values.device)
+        index = (self.offsets[:, None] + actions).clamp(max=values.shape[-1] - 1)  # (n, A)
+        per_agent = values[..., index]  # (B, N, n, A)
+        return self._masked(per_agent, None).argmax(dim=-1)
 
     @torch.no_grad()
     def record_table(self) -> torch.Tensor:
