@@ -23,36 +23,24 @@ any deep CMARL-CD setting. Needs the ``[deep]`` extra.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
+from deep_cmarlcd_memory import arguments, task_and_settings  # the diagnostics' arguments
 
 #: The most ring visits read.
 VISITS = 4_000
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("task", help="a field task, e.g. foraging:2s-8x8-2p-2f-coop")
-    p.add_argument("--steps", default="100k", help="environment steps of learning")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--set", default="", help="deep CMARL-CD settings, key=value,...")
-    args = p.parse_args(argv)
-    from cmarlcd.cli.options import apply_settings, parse_count
+    args = arguments(__doc__, "foraging:2s-8x8-2p-2f-coop").parse_args(argv)
     from cmarlcd.errors import ConfigError, require
-    from cmarlcd.experiments import games
     from cmarlcd.learners.deep.designs import CRITIC_DEEP_CMARLCD
 
     try:
-        steps = parse_count(args.steps, "steps")
-        _, rules = games.parse_game(args.task)
-        settings = ",".join(f"deep-cmarl-cd.{kv.strip()}" for kv in args.set.split(",") if kv)
-        (config,) = apply_settings(settings, (replace(CRITIC_DEEP_CMARLCD, gamma=0.99),))
+        spec, config, steps = task_and_settings(args, CRITIC_DEEP_CMARLCD)
         require(config.update == "critic", "update", "this diagnostic reads the critic (critic)")
-        spec = rules.spec()
         config.record_outputs(spec.action_counts)
     except ConfigError as error:
         print(f"error: {error}", file=sys.stderr)

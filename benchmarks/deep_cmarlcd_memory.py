@@ -27,31 +27,46 @@ from dataclasses import replace
 import numpy as np
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("task", help="a field task, e.g. foraging:8x8-2p-2f-coop")
+def arguments(doc: str, example: str) -> argparse.ArgumentParser:
+    """The deep CMARL-CD diagnostics' common arguments: a field task, the steps of
+    learning, the seed and ``--set``."""
+    p = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    p.add_argument("task", help=f"a field task, e.g. {example}")
     p.add_argument("--steps", default="100k", help="environment steps of learning")
-    p.add_argument("--checkpoints", type=int, default=5, help="reports along the way")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--set", default="", help="deep CMARL-CD settings, key=value,...")
-    args = p.parse_args(argv)
+    return p
+
+
+def task_and_settings(args: argparse.Namespace, base) -> tuple:
+    """The task's game spec, ``base`` at the field's discount (0.99) with ``--set``
+    applied, and the steps; a bad value raises :class:`cmarlcd.errors.ConfigError`."""
     from cmarlcd.cli.options import apply_settings, parse_count
-    from cmarlcd.errors import ConfigError
     from cmarlcd.experiments import games
+
+    steps = parse_count(args.steps, "steps")
+    _, rules = games.parse_game(args.task)
+    settings = ",".join(f"deep-cmarl-cd.{kv.strip()}" for kv in args.set.split(",") if kv)
+    (config,) = apply_settings(settings, (replace(base, gamma=0.99),))
+    return rules.spec(), config, steps
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = arguments(__doc__, "foraging:8x8-2p-2f-coop")
+    p.add_argument("--checkpoints", type=int, default=5, help="reports along the way")
+    args = p.parse_args(argv)
+    from cmarlcd.errors import ConfigError
     from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 
     try:
-        steps = parse_count(args.steps, "steps")
-        _, rules = games.parse_game(args.task)
-        settings = ",".join(f"deep-cmarl-cd.{kv.strip()}" for kv in args.set.split(",") if kv)
-        (config,) = apply_settings(settings, (replace(DeepCMARLCDConfig(), gamma=0.99),))
+        spec, config, steps = task_and_settings(args, DeepCMARLCDConfig())
     except ConfigError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     if args.checkpoints < 1 or steps < args.checkpoints:
         print("error: --checkpoints: must be between 1 and --steps", file=sys.stderr)
         return 2
-    report(rules.spec(), config, steps, args.checkpoints, args.seed)
+    report(spec, config, steps, args.checkpoints, args.seed)
     return 0
 
 
