@@ -59,8 +59,8 @@ anneal="$d.temperature_end=0.1,$d.temperature_steps=50000"
 range="$d.unseen_tolerance=0.1,$d.unseen_spread=range"
 imitation="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500"
 critic="$d.update=critic,$d.expectile=0.5,$d.return_lambda=0.9,$d.train_every=50,$d.target_every=500"
+critic="$critic,$d.critic_bootstrap=greedy,$d.critic_fit=imitation"
 best="$d.update=critic,$d.expectile=0.9,$d.return_lambda=0.9,$d.train_every=50,$d.target_every=500"
-best="$best,$d.critic_bootstrap=best,$d.critic_fit=tie"
 for design in "${designs[@]}"; do
   case "$design" in
     keyed) settings="$d.gamma=0.99" ;;

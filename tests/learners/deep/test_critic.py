@@ -70,7 +70,8 @@ def test_the_cross_entropy_by_hand() -> None:
     """``critic_fit="imitation"`` on the same visits: degrees all equal (3, inside the
     bounds, no penalty), so each agent's strategy is uniform: −log(1/2) − log(1/3) =
     log 6 at every visit, plus the critic's 0.4625."""
-    net = constant_model(3.0, [0.0, 0.5, 0.0, 0.0, 0.0, 2.0], expectile=0.9)
+    critic = [0.0, 0.5, 0.0, 0.0, 0.0, 2.0]
+    net = constant_model(3.0, critic, expectile=0.9, critic_fit="imitation")
     loss = net.critic_loss(batch([3.0, 0.0], [[1, 2], [0, 1]]))
     assert float(loss.detach()) == pytest.approx(0.4625 + math.log(6), rel=1e-6)
 
@@ -210,6 +211,19 @@ def test_a_one_state_game_is_solved() -> None:
     assert list(final.values()) == [[0, 0]] * 5
 
 
+def test_the_critic_settings_stay_out_of_other_runs_identities() -> None:
+    """Their defaults are the design as first run, so a run of any other update (or of
+    the first critic) keeps the identity it had before they existed; the mended critic
+    carries them."""
+    from cmarlcd.learners.deep.designs import BEST_CRITIC_DEEP_CMARLCD
+    from cmarlcd.runs import identity
+
+    names = {"critic_bootstrap", "critic_fit", "critic_form"}
+    for config in (DeepCMARLCDConfig(), BEST_CRITIC_DEEP_CMARLCD):
+        assert not names & set(identity(config))
+    assert {"critic_bootstrap", "critic_fit"} <= set(identity(CRITIC_DEEP_CMARLCD))
+
+
 def test_too_many_joint_actions_are_refused() -> None:
     config = DeepCMARLCDConfig(update="critic")
     assert config.record_outputs([6, 6, 6]) == 216
@@ -259,7 +273,7 @@ def test_the_summed_critic_by_hand() -> None:
     """``critic_form="sum"`` over agents of 2 and 3 actions: outputs (1, 2 | 10, 20, 30);
     joint action (1, 2) is worth 2 + 30 = 32, (0, 0) 11; its best joint action is each
     agent's best, (1, 2); it has 5 outputs, not 6."""
-    config = DeepCMARLCDConfig(update="critic", critic_form="sum")
+    config = DeepCMARLCDConfig(update="critic", critic_form="sum", critic_bootstrap="greedy")
     assert config.record_outputs(COUNTS) == 5
     net = DegreeModel(COUNTS, 1, config, [np.random.SeedSequence(0)], device="cpu")
     values = torch.tensor([1.0, 2.0, 10.0, 20.0, 30.0]).expand(1, 2, 5)
@@ -283,8 +297,9 @@ def test_the_compiled_loop_bootstraps_a_summed_critic_by_hand() -> None:
     counts = np.array([2, 2])
     spec = SimpleNamespace(n_states=0, own_dim=None, n_features=1, max_steps=3)
     config = DeepCMARLCDConfig(
-        update="critic", return_lambda=0.5, record_hidden=1, critic_form="sum"
-    )
+        update="critic", return_lambda=0.5, record_hidden=1, critic_form="sum",
+        critic_bootstrap="greedy",
+    )  # fmt: skip
     ring = BOOTSTRAPPED.new(config, 1, counts, spec, 1)
     w1, _, w2, _ = ring.record_weights[:4]
     w1[0, 0, 0] = 1.0

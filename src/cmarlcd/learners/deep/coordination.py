@@ -263,16 +263,19 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     waver, and were measured at 1.0
     (:data:`~cmarlcd.learners.deep.designs.REPLAYED_DEEP_CMARLCD`,
     :data:`~cmarlcd.learners.deep.designs.REPEATED_DEEP_CMARLCD`)."""
-    critic_fit: str = added_setting("imitation", "0.7.0", before="tie")
+    critic_fit: str = added_setting("tie", "0.7.0")
     """[choice] (``critic``) How the degrees learn the critic's best joint action ``a*``
-    at a replayed visit's state: ``"imitation"``, a cross-entropy of each agent's
-    strategy ``softmax(clip(c_i)/T)`` towards ``a*_i`` (with ``RANGE_WEIGHT``'s penalty,
-    as ``imitation``); ``"tie"``, eqs. (14)-(15) at a tie, ``a*_i`` raised by ``delta``
-    and every other action lowered by it. While the critic's outputs are near-equal its
-    ``a*`` changes from one step to the next; under ``"tie"`` every action is then
-    lowered more often than raised and all degrees sink to ``c_min`` (measured: the
-    largest degree 0.57-0.71 on average on 2s-8x8-2p-2f-coop after 100k steps), where
-    the cross-entropy keeps the most frequent ``a*`` the greedy one."""
+    at a replayed visit's state: ``"tie"`` (the design as first run), eqs. (14)-(15) at a
+    tie, ``a*_i`` raised by ``delta`` and every other action lowered by it;
+    ``"imitation"`` (:data:`~cmarlcd.learners.deep.designs.CRITIC_DEEP_CMARLCD`), a
+    cross-entropy of each agent's strategy ``softmax(clip(c_i)/T)`` towards ``a*_i``
+    (with ``RANGE_WEIGHT``'s penalty, as ``imitation``). While the critic's outputs are
+    near-equal its ``a*`` changes from one step to the next; under ``"tie"`` every action
+    is then lowered more often than raised and all degrees sink to ``c_min`` (measured:
+    the largest degree 0.57-0.71 on average on 2s-8x8-2p-2f-coop after 100k steps),
+    where the cross-entropy keeps the most frequent ``a*`` the greedy one. The critic's
+    settings default to the first run's, so that they stay out of every other run's
+    identity."""
     critic_form: str = added_setting("joint", "0.7.0")
     """[choice] (``critic``) The critic's form: ``"joint"``, an output per joint action,
     ``R(s, a)``; ``"sum"``, VDN's decomposition, an output per agent and action, ``R(s,
@@ -280,11 +283,12 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     agent's best and whose outputs each learn from every visit where the agent took that
     action, where a joint output learns only from visits of its joint action (with
     ``critic_bootstrap="greedy"`` only)."""
-    critic_bootstrap: str = added_setting("greedy", "0.7.0", before="best")
+    critic_bootstrap: str = added_setting("best", "0.7.0")
     """[choice] (``critic`` with ``return_lambda`` below 1) The critic's estimate that
-    λ-returns bootstrap from: ``"greedy"``, its value of the joint action the agents'
-    degrees take greedily there (the policy they execute); ``"best"``, its best value,
-    ``max_a R(s, a)``. The maximum over many near-equal noisy outputs bootstraps an
+    λ-returns bootstrap from: ``"best"`` (as first run), its best value, ``max_a R(s,
+    a)``; ``"greedy"`` (:data:`~cmarlcd.learners.deep.designs.CRITIC_DEEP_CMARLCD`), its
+    value of the joint action the agents' degrees take greedily there (the policy they
+    execute). The maximum over many near-equal noisy outputs bootstraps an
     overestimate that compounds through the returns (measured: stored returns of 1.3 on
     average on 2s-8x8-2p-2f-coop, where a greedy episode earns 0.2 at most; the deep
     CMARL-CD page of the documentation)."""
