@@ -200,13 +200,26 @@ class DegreeModel(StackedModel):
         with torch.no_grad():
             spread = returns.std(dim=1, correction=0, keepdim=True).clamp(min=1e-6)
             weight = ((returns - self.target_record(state)) / spread + c.tolerance).clamp(min=0)
+        return self.imitated(degrees, actions, weight) + self.record_loss(state, returns)
+
+    def imitated(
+        self, degrees: torch.Tensor, actions: torch.Tensor, weight: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """The seeds' summed cross-entropy ``Σ_i -w log π_i(a_i | s)`` of the strategies
+        ``π_i = softmax(clip(c_i)/T)`` over each agent's real actions (eq. 17) towards
+        ``actions`` (B, N, n), each visit weighted by ``weight`` (B, N; 1 where None),
+        averaged over the visits; plus :data:`RANGE_WEIGHT` times each degree's squared
+        distance to ``[c_min, c_max]``, which keeps a degree pushed past a bound within
+        reach of the clipped strategy's gradient."""
+        c = self.config
         clipped = degrees.clamp(c.c_min, c.c_max)
         logits = (clipped / c.temperature).masked_fill(~self.valid, float("-inf"))
         taken = logits.log_softmax(dim=-1).gather(-1, actions[..., None])[..., 0]  # (B, N, n)
-        imitation = -(weight[..., None] * taken).sum(dim=2).mean(dim=1).sum()
+        if weight is not None:
+            taken = weight[..., None] * taken
         valid = self.valid.to(degrees.dtype)
         outside = (((degrees - clipped) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
-        return imitation + RANGE_WEIGHT * outside + self.record_loss(state, returns)
+        return -taken.sum(dim=2).mean(dim=1).sum() + RANGE_WEIGHT * outside
 
     def critic_loss(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
         """A centralised critic of joint actions as the record (``update="critic"``), the
@@ -226,17 +239,13 @@ class DegreeModel(StackedModel):
         degrees = self.agents(state)  # (B, N, n, A)
         with torch.no_grad():
             best_actions = self.critic_best(self.target_record.values(state))
-        valid = self.valid.to(degrees.dtype)
         if c.critic_fit == "tie":
             with torch.no_grad():
                 target = self.moved(degrees.clamp(c.c_min, c.c_max), best_actions, c.delta)
+            valid = self.valid.to(degrees.dtype)
             degree_loss = (((degrees - target) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
         else:
-            clipped = degrees.clamp(c.c_min, c.c_max)
-            logits = (clipped / c.temperature).masked_fill(~self.valid, float("-inf"))
-            chosen = logits.log_softmax(dim=-1).gather(-1, best_actions[..., None])[..., 0]
-            outside = (((degrees - clipped) ** 2) * valid).sum(dim=(2, 3)).mean(dim=1).sum()
-            degree_loss = -chosen.sum(dim=2).mean(dim=1).sum() + RANGE_WEIGHT * outside
+            degree_loss = self.imitated(degrees, best_actions)
         estimate = self.critic_at(self.record.values(state), actions)
         return degree_loss + self.expectile_loss(estimate, returns)
 
