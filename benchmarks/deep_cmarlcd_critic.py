@@ -6,12 +6,13 @@ After ``--steps`` of learning it reads up to 4,000 visits of the seed's ring and
 the mean and largest return stored there (λ-returns: an overestimate that compounds shows
 here first, against what a greedy episode earns), the critic's best value and its value
 at the taken joint actions, the spread of its outputs (their standard deviation at a
-visit, over the joint actions or, for ``critic_form="sum"``, the agents' actions,
-averaged over the visits), the share of visits whose taken joint
+visit, over the joint actions or, for ``critic_form="sum"`` and ``"degrees"``, the
+agents' actions, averaged over the visits), the share of visits whose taken joint
 action is the critic's best ``a*``, how many distinct ``a*`` there are, the share of
 visits where the degrees' greedy joint action is ``a*`` (the agents following the
-critic), and the degrees' largest and smallest value (clipped; ``c_min`` 0.5 when they
-have sunk).
+critic; with ``critic_form="degrees"`` the degrees are the critic, so always), and the
+degrees' largest and smallest value (clipped; ``c_min`` 0.5 when they have sunk; the
+shares of ``"degrees"`` unclipped).
 
     python benchmarks/deep_cmarlcd_critic.py foraging:2s-8x8-2p-2f-coop --steps 100k
     python benchmarks/deep_cmarlcd_critic.py foraging:2s-8x8-2p-2f-coop --steps 100k \\
@@ -67,14 +68,19 @@ def report(spec, config, steps: int, seed: int) -> dict[str, str]:
     state = torch.as_tensor(ring.state[0, rows])[None]
     actions = torch.as_tensor(ring.actions[0, rows].astype(np.int64))[None]
     returns = torch.as_tensor(ring.reward[0, rows])
-    c = config
     with torch.no_grad():
-        values = model.record.values(state)  # (1, N, K)
-        best = model.critic_best(values)[0]  # (N, n)
-        best_value = model.critic_at(values, best[None])[0]
-        taken_value = model.critic_at(values, actions)[0]
-        degrees = model.agents(state)[0].clamp(c.c_min, c.c_max)
+        degrees = model.agents(state)[0].clamp(*config.degree_bounds)
         greedy = model._masked(degrees[None], None)[0].argmax(dim=-1)
+        if config.shares:  # the degrees are the critic: their sum at a joint action
+            values = model._masked(degrees, None).flatten(1)[None]  # (1, N, n * A)
+            best = greedy
+            best_value = model.shares_at(degrees[None], best[None])[0]
+            taken_value = model.shares_at(degrees[None], actions)[0]
+        else:
+            values = model.record.values(state)  # (1, N, K)
+            best = model.critic_best(values)[0]  # (N, n)
+            best_value = model.critic_at(values, best[None])[0]
+            taken_value = model.critic_at(values, actions)[0]
         follows = (greedy == best).all(dim=-1)
         lowest = degrees.masked_fill(~model.valid[0], np.inf).amin(dim=-1)
         highest = degrees.masked_fill(~model.valid[0], -np.inf).amax(dim=-1)
@@ -84,12 +90,22 @@ def report(spec, config, steps: int, seed: int) -> dict[str, str]:
         "stored returns": f"mean {returns.mean():.4f}, largest {returns.max():.4f}, "
         f"above 0 {(returns > 0).float().mean():.1%}",
         "critic": f"best {best_value.mean():.4f}, at the taken joint action "
-        f"{taken_value.mean():.4f}, spread over its outputs {values[0].std(dim=-1).mean():.4f}",
+        f"{taken_value.mean():.4f}, spread over its outputs {spread(values[0]):.4f}",
         "a*": f"the taken joint action {(best == actions[0]).all(dim=-1).float().mean():.1%}, "
         f"{len({tuple(row) for row in best.tolist()})} distinct of {joint}",
         "degrees' greedy joint action = a*": f"{follows.float().mean():.1%}",
         "degrees": f"largest {highest.mean():.3f}, smallest {lowest.mean():.3f}",
     }
+
+
+def spread(values) -> float:
+    """The outputs' standard deviation at each visit (over its finite ones: an agent's
+    real actions where the degrees are the critic), averaged over the visits."""
+    finite = values.isfinite()
+    count = finite.sum(dim=-1)
+    mean = values.where(finite, 0).sum(dim=-1) / count
+    square = ((values - mean[:, None]) ** 2).where(finite, 0).sum(dim=-1) / count
+    return float(square.sqrt().mean())
 
 
 if __name__ == "__main__":

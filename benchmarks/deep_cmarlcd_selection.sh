@@ -33,6 +33,12 @@
 #              0.9-expectile, λ-returns bootstrapped from its best joint action, the
 #              degrees moved by the tie of eqs. 14-15
 #   critic-best-anneal  critic-best with the anneal
+#   shares     the agents' degrees as their shares of the record (SHARES_DEEP_CMARLCD):
+#              critic's settings with critic_form=degrees, the record Σ_i c_i(o_i, a_i)
+#              fitted to the λ-returns, bootstrapped from the degrees' target copy at
+#              their greedy joint action, and acted on directly, the anneal (T 1 to 0.1)
+#   shares-cold  shares with T annealed to 0.01 (a share is in the returns' units: on
+#              LBF the shares of one state differ by a few hundredths)
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -45,10 +51,10 @@ for design in "${designs[@]}"; do
   case "$design" in
     keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | \
       imitation-anneal | range | range-anneal | critic | critic-anneal | critic-sum | critic-best | \
-      critic-best-anneal) ;;
+      critic-best-anneal | shares | shares-cold) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
          "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
-         "critic-anneal, critic-sum, critic-best, critic-best-anneal)" >&2
+         "critic-anneal, critic-sum, critic-best, critic-best-anneal, shares, shares-cold)" >&2
        exit 2 ;;
   esac
 done
@@ -78,6 +84,8 @@ for design in "${designs[@]}"; do
     critic-sum) settings="$critic,$d.critic_form=sum,$d.gamma=0.99" ;;
     critic-best) settings="$best,$d.gamma=0.99" ;;
     critic-best-anneal) settings="$best,$anneal,$d.gamma=0.99" ;;
+    shares) settings="$critic,$d.critic_form=degrees,$anneal,$d.gamma=0.99" ;;
+    shares-cold) settings="$critic,$d.critic_form=degrees,$d.temperature_end=0.01,$d.temperature_steps=50000,$d.gamma=0.99" ;;
   esac
   echo "$(date +%T) $design" >&2
   python -m cmarlcd field --tasks "$tasks" --learners "$d" --set "$settings" \

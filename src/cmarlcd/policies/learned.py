@@ -81,7 +81,8 @@ def seed_network(
     arrays["counts"] = np.asarray(counts, np.int64)
     meta = {"n_states": None, "own_dim": None, **metadata, "clip": None}
     if hasattr(config, "c_min"):  # deep CMARL-CD: degrees clipped as it acts
-        meta["clip"] = [float(config.c_min), float(config.c_max)]
+        if not config.shares:  # shares of the record act unclipped
+            meta["clip"] = [float(config.c_min), float(config.c_max)]
         if config.acts_from_memory and memory is not None:
             filled = np.asarray(memory.filled, bool)
             arrays["memory_keys"] = np.asarray(memory.key)[filled].astype(np.uint64)

@@ -80,6 +80,9 @@ class BootstrappedRing(NamedTuple):
     estimates; the copy of every integer state's estimate holds it already)."""
     summed: bool
     """Whether the critic is a sum of the agents' outputs (``critic_form="sum"``)."""
+    shares: bool
+    """Whether the critic is the sum of the agents' degrees (``critic_form="degrees"``):
+    no record network to read."""
 
 
 def record_copies(config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int) -> tuple:
@@ -103,8 +106,12 @@ def record_copies(config, seeds: int, counts: np.ndarray, spec: GameSpec, featur
 
 
 def record_view(replay: Any, b: int) -> tuple:
-    """Seed ``b``'s part of a replay's record copy (:func:`record_copies`' three)."""
-    weights = Weights(*(array[b : b + 1] for array in replay.record_weights))
+    """Seed ``b``'s part of a replay's record copy (:func:`record_copies`' three): its
+    record network, or its agents' rows where the copy is of the degree networks
+    (``critic_form="degrees"``)."""
+    per_seed = replay.record_weights[0].shape[0] // replay.record_table.shape[0]
+    rows = slice(b * per_seed, (b + 1) * per_seed)
+    weights = Weights(*(array[rows] for array in replay.record_weights))
     return replay.record_table[b], weights, replay.record_hidden[b]
 
 
@@ -214,12 +221,14 @@ class BootstrappedKind:
         copies = record_copies(config, seeds, counts, spec, features)
         summed = config.update == "critic" and config.critic_form == "sum"
         lam = float(config.return_lambda)
-        return BootstrappedRing(ring, *copies, lam, config.greedy_bootstrap, summed)
+        return BootstrappedRing(ring, *copies, lam, config.greedy_bootstrap, summed, config.shares)
 
     def view(self, replay: BootstrappedRing, b: int) -> BootstrappedRing:
         view = seed_view(replay.ring, b)
         copies = record_view(replay, b)
-        return BootstrappedRing(view, *copies, replay.lam, replay.greedy, replay.summed)
+        return BootstrappedRing(
+            view, *copies, replay.lam, replay.greedy, replay.summed, replay.shares
+        )
 
     def stored(self, replay: BootstrappedRing, b: int) -> int:
         return int(replay.ring.size[b])

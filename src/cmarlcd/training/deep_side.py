@@ -188,6 +188,9 @@ class DeepGroup(Group):
             self.weights = Weights(
                 *(np.zeros(tuple(w.shape), np.float32) for w in self.model.agents.feature_weights())
             )
+            if getattr(config, "shares", False):  # bootstrapped from the degrees' target copy
+                copy = Weights(*(np.zeros_like(w) for w in self.weights))
+                self.ring = self.ring._replace(record_weights=copy)
         else:
             self.values = np.zeros((seeds, spec.n_states, n, width), np.float32)
             every = full_legal(counts)
@@ -222,9 +225,10 @@ class DeepGroup(Group):
             if step:
                 self.last_loss = self.model.learn(self.sample())
                 self._copy_weights()
-                self.replay_kind.refresh(self.ring, self.model, self.inputs)
             if copy:
                 self.model.sync_target()
+            if step or copy:  # after the target copy, which the shares bootstrap from
+                self.replay_kind.refresh(self.ring, self.model, self.inputs)
 
     def masks_changed(self) -> None:
         """Tell the model when a side has read the masks of a new state (index inputs:

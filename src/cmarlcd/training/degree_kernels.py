@@ -259,23 +259,31 @@ def bootstrap_estimate(side, t: int) -> float:
     critic that bootstraps from the greedy joint action (``critic_bootstrap="greedy"``),
     its output at the joint action the agents' degrees take greedily there (joint index
     ``sum_i a_i * prod_{j > i} |A_j|``), or the sum of each agent's output at its greedy
-    action (``critic_form="sum"``)."""
+    action (``critic_form="sum"``), or of the degree networks' target copy at it
+    (``critic_form="degrees"``: ``weights`` are that copy)."""
     replay, x = side.replay, side.obs[t]
     if not replay.greedy:
         return record_estimate(replay, x)
     weights, hidden = replay.record_weights, replay.record_hidden
-    hidden_layer(weights, 0, x, hidden)
+    if not replay.shares:
+        hidden_layer(weights, 0, x, hidden)
     raw, joint, offset, total = side.scratch[1], 0, 0, 0.0
     for i in range(side.counts.shape[0]):
         count = side.counts[i]
         agent_degrees(side.weights, i, x, side.starts[i], count, side.hidden, raw)
         a = greedy_degrees(side, raw, side.legal[t, i], count)
-        if replay.summed:  # critic_form="sum": agent i's output offset + a
+        if replay.shares:  # critic_form="degrees": the target copy's degree at a
+            target = side.scratch[0]
+            agent_degrees(weights, i, x, side.starts[i], count, side.hidden, target)
+            total += target[a]
+        elif replay.summed:  # critic_form="sum": agent i's output offset + a
             total += output_unit(weights, 0, hidden, offset + a)
             offset += count
         else:
             joint = joint * count + a
-    return total if replay.summed else output_unit(weights, 0, hidden, joint)
+    if replay.shares or replay.summed:
+        return total
+    return output_unit(weights, 0, hidden, joint)
 
 
 @kernel

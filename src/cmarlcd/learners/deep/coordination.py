@@ -41,7 +41,8 @@ is the ``update`` [choice]:
   The joint action that reaches the record ties it: each replayed visit moves every
   agent's degrees by ``±delta`` towards the critic's best joint action at the visit's
   state (eqs. 14-15 at a tie), so the agents act decentralised, each from its own
-  degrees, on what the critic learned centrally.
+  degrees, on what the critic learned centrally; or (``critic_form="degrees"``) the
+  critic is the sum of the agents' degrees at the joint action, nothing distilled.
 """
 
 from __future__ import annotations
@@ -71,7 +72,7 @@ UNSEEN_RECORDS = ("first-visit", "estimate", "estimate-kept", "estimate-once-kep
 #: Where the degrees it acts with come from (``act_from``).
 ACT_FROM = ("network", "memory")
 #: The critic's form (``critic_form``).
-CRITIC_FORMS = ("joint", "sum")
+CRITIC_FORMS = ("joint", "sum", "degrees")
 #: How the degrees learn the critic's best joint action (``critic_fit``).
 CRITIC_FITS = ("imitation", "tie")
 #: What the critic's λ-returns bootstrap from (``critic_bootstrap``).
@@ -281,8 +282,11 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     ``R(s, a)``; ``"sum"``, VDN's decomposition, an output per agent and action, ``R(s,
     a) = Σ_i R_i(s, a_i)`` (``Σ_i |A_i|`` outputs), whose best joint action is each
     agent's best and whose outputs each learn from every visit where the agent took that
-    action, where a joint output learns only from visits of its joint action (with
-    ``critic_bootstrap="greedy"`` only)."""
+    action, where a joint output learns only from visits of its joint action;
+    ``"degrees"`` (``SHARES_DEEP_CMARLCD``), the agents' degrees as the terms, ``R(s, a)
+    = Σ_i c_i(o_i, a_i)``: each its agent's share of the record, acted on directly by
+    eq. (17), unclipped (in the returns' units; the softmax reads only differences).
+    Both take ``critic_bootstrap="greedy"``."""
     critic_bootstrap: str = added_setting("best", "0.7.0")
     """[choice] (``critic`` with ``return_lambda`` below 1) The critic's estimate that
     λ-returns bootstrap from: ``"best"`` (as first run), its best value, ``max_a R(s,
@@ -357,7 +361,8 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
         require(
             self.critic_form == "joint" or self.critic_bootstrap == "greedy",
             "critic_form",
-            "'sum' bootstraps from the degrees' greedy joint action (critic_bootstrap=greedy)",
+            f"'{self.critic_form}' bootstraps from the degrees' greedy joint action "
+            "(critic_bootstrap=greedy)",
         )
         require(
             self.critic_fit in CRITIC_FITS,
@@ -413,7 +418,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
         """The record network's outputs: one per joint action of agents with
         ``action_counts`` (``critic``; one per agent and action with ``critic_form="sum"``),
         else 1 (the state's record)."""
-        if self.update != "critic":
+        if self.update != "critic" or self.critic_form == "degrees":
             return 1
         if self.critic_form == "sum":
             return int(np.sum(np.asarray(action_counts, np.int64)))
@@ -425,6 +430,18 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             f"{MAX_JOINT_ACTIONS}; take another update for this game",
         )
         return joint
+
+    @property
+    def shares(self) -> bool:
+        """Whether the degrees are the agents' shares of the record
+        (``critic_form="degrees"``), unclipped."""
+        return self.update == "critic" and self.critic_form == "degrees"
+
+    @property
+    def degree_bounds(self) -> tuple[float, float]:
+        """What the degrees are clipped to as it acts: ``[c_min, c_max]``, or no bound
+        where they are the record's shares (:attr:`shares`)."""
+        return (-np.inf, np.inf) if self.shares else (self.c_min, self.c_max)
 
     @property
     def greedy_bootstrap(self) -> bool:
@@ -464,11 +481,13 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
         return False
 
     def schedule(self, learn_episodes: int) -> list[float]:
-        """T, c_min, c_max, γ, L, ``train_every``, the end of T's anneal and its steps."""
+        """T, the clip (:attr:`degree_bounds`), γ, L, ``train_every``, the end of T's
+        anneal and its steps."""
+        lo, hi = self.degree_bounds
         return [
             self.temperature,
-            self.c_min,
-            self.c_max,
+            lo,
+            hi,
             self.gamma,
             learn_episodes,
             self.train_every,

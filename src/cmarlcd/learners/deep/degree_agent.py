@@ -94,7 +94,7 @@ class DegreeAgent(StepAgent):
         c = self.config
         x = self._encode_many(states)
         with torch.no_grad():
-            degrees = list(self.model.agents(x)[0].clamp(c.c_min, c.c_max).cpu().numpy())
+            degrees = list(self.model.agents(x)[0].clamp(*c.degree_bounds).cpu().numpy())
         if c.acts_from_memory:
             for k, state in enumerate(states):
                 key = (

@@ -95,7 +95,12 @@ class DegreeModel(StackedModel):
         # critic_form="sum": agent i's action a is output offsets[i] + a
         self.offsets = torch.cat([counts.new_zeros(1), counts.cumsum(0)[:-1]])
         self.summed = config.update == "critic" and config.critic_form == "sum"
+        self.shares = config.shares
         self.target_record = copy.deepcopy(self.record).requires_grad_(False)
+        # critic_form="degrees": the shares' target copy, which values the greedy action
+        self.target_agents = (
+            copy.deepcopy(self.agents).requires_grad_(False) if self.shares else None
+        )
         self.place()
         self.optimizer = torch.optim.Adam(
             [
@@ -233,10 +238,14 @@ class DegreeModel(StackedModel):
         distance to ``[c_min, c_max]`` (``"imitation"``), or the tie of eqs. (14)-(15),
         ``a*_i`` raised by ``delta`` and the others lowered, from the present degrees,
         clipped, by squared error (``"tie"``); averaged over the visits. Acting stays
-        decentralised, each agent from its degrees."""
+        decentralised, each agent from its degrees. With ``critic_form="degrees"`` the
+        critic is the degrees themselves (:meth:`shares_at`), fitted by the expectile loss
+        alone."""
         c = self.config
         state, actions, returns = batch["state"], batch["actions"], batch["reward"]
         degrees = self.agents(state)  # (B, N, n, A)
+        if self.shares:
+            return self.expectile_loss(self.shares_at(degrees, actions), returns)
         with torch.no_grad():
             best_actions = self.critic_best(self.target_record.values(state))
         if c.critic_fit == "tie":
@@ -264,9 +273,20 @@ class DegreeModel(StackedModel):
         joint action the degrees take greedily there (over each agent's real actions)."""
         if not self.config.greedy_bootstrap:
             return self.record(state)
-        c = self.config
-        degrees = self._masked(self.agents(state).clamp(c.c_min, c.c_max), None)
+        degrees = self._masked(self.agents(state).clamp(*self.config.degree_bounds), None)
+        if self.shares:
+            return self.shares_at(self.target_agents(state), degrees.argmax(dim=-1))
         return self.critic_at(self.record.values(state), degrees.argmax(dim=-1))
+
+    @staticmethod
+    def shares_at(degrees: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """The record as the agents' shares (``critic_form="degrees"``): ``Σ_i c_i(s,
+        a_i)`` of ``degrees`` (B, N, n, A) at the joint actions ``actions`` (B, N, n),
+        (B, N). λ-returns bootstrap from it with the target copy's degrees at the live
+        degrees' greedy joint action (a double estimator, after van Hasselt et al., 2016:
+        the largest of noisy shares valued by the shares that chose it compounds through
+        the returns)."""
+        return degrees.gather(-1, actions[..., None])[..., 0].sum(dim=-1)
 
     def critic_at(self, values: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """The critic's ``values`` (B, N, K) at the joint actions of ``actions`` (B, N, n):
@@ -293,6 +313,8 @@ class DegreeModel(StackedModel):
         """The record network's estimate of every integer state, (B, S): the best of its
         outputs, or the critic's value of the degrees' greedy joint action there
         (``critic_bootstrap="greedy"``, :meth:`greedy_table`)."""
+        if self.shares:
+            return self.shares_at(self.target_agents.tables(), self.greedy_table())
         record = self.record
         values = record.second(torch.relu(record.first.table()))
         if self.config.greedy_bootstrap:
@@ -302,20 +324,26 @@ class DegreeModel(StackedModel):
     def record_weights(self) -> tuple[torch.Tensor, ...]:
         """The record network's layers as the compiled loop reads them (one "agent" per
         seed): (B, in, H), (B, H), (B, H, K), (B, K) for its K outputs, and no middle
-        layers (one hidden layer: empty (B, 0, H, H), (B, 0, H))."""
+        layers (one hidden layer: empty (B, 0, H, H), (B, 0, H)); with
+        ``critic_form="degrees"``, the degree networks' target copy as the loop reads the
+        degree networks (B * n agents)."""
+        if self.target_agents is not None:
+            return self.target_agents.feature_weights()
         first, second = self.record.first, self.record.second
         groups, hidden = first.weight.shape[0], first.weight.shape[2]
         none = stacked_middle(nn.ModuleList(), groups, hidden, first.weight)
         return first.weight, first.bias, second.weight, second.bias, *none
 
     def sync_target(self) -> None:
-        """Clone the record network into its target copy."""
+        """Clone the record network into its target copy (and, with
+        ``critic_form="degrees"``, the degree networks into theirs)."""
         self.target_record.load_state_dict(self.record.state_dict())
+        if self.target_agents is not None:
+            self.target_agents.load_state_dict(self.agents.state_dict())
 
     @torch.no_grad()
     def greedy_table(self) -> torch.Tensor:
         """Greedy joint action (B, S, n) in every integer state: each agent's legal action
         of largest clipped degree (lowest index on ties, as the tabular learner)."""
-        c = self.config
-        degrees = self.agents.tables().clamp(c.c_min, c.c_max)
+        degrees = self.agents.tables().clamp(*self.config.degree_bounds)
         return self._masked(degrees, self.state_legal).argmax(dim=-1)

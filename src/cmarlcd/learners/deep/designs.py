@@ -45,6 +45,16 @@ CRITIC_DEEP_CMARLCD = replace(
     critic_bootstrap="greedy",
     critic_fit="imitation",
 )
+#: The agents' degrees as their shares of the record (``critic_form="degrees"``; declared
+#: before its selection run): the critic's λ-returns (λ 0.9) and mean (τ 0.5) fitted by
+#: the sum ``Σ_i c_i(o_i, a_i)`` of the degrees at the taken joint action, bootstrapped
+#: from the sum of each agent's largest degree, so that the degrees the agents act with
+#: are what was learned, with nothing distilled; eq. (17)'s T annealed from 1 to 0.1
+#: over the first 50k steps (the selection run's anneal), as a share is in the returns'
+#: units, where the clip of ``[c_min, c_max]`` does not apply.
+SHARES_DEEP_CMARLCD = replace(
+    CRITIC_DEEP_CMARLCD, critic_form="degrees", temperature_end=0.1, temperature_steps=50_000
+)
 #: The critic as measured first (the critic settings' defaults): 0.9-expectile, λ-returns
 #: bootstrapped from its best joint action, ``max_a R(s, a)``, the degrees moved by the
 #: tie of eqs. (14)-(15).
