@@ -899,6 +899,19 @@ def test_compare_end_to_end_json_then_resume(paths) -> None:
     assert "% of runs ending on an optimal joint action" in again.stdout
 
 
+def test_compare_set_changes_a_learners_settings(paths) -> None:
+    """``--set`` gives the learner other settings: its runs are new ones (not the
+    default's, already stored), labelled with the change."""
+    where = paths[2]
+    args = ["compare", "--learners", "cmarl-cd", "--games", "climbing", "--runs", "2"]
+    assert invoke(*args, "--no-progress", *where).exit_code == 0
+    changed = invoke(*args, "--set", "cmarl-cd.delta=0.2", "--json", "--no-progress", *where)
+    assert changed.exit_code == 0, changed.stderr
+    doc = json.loads(changed.stdout)
+    assert doc["runs_computed"] == 2 and doc["runs_reused"] == 0
+    assert "delta=0.2" in json.dumps(doc["cells"])
+
+
 @pytest.mark.parametrize(
     ("args", "option"),
     [
@@ -906,6 +919,8 @@ def test_compare_end_to_end_json_then_resume(paths) -> None:
         (["--games", "chess"], "--games"),
         (["--runs", "0"], "--runs"),
         (["--learners", ""], "--learners"),
+        (["--set", "cmarl-cd.nonsense=1"], "--set"),
+        (["--set", "cmarl-cd.delta=-1"], "--set"),
     ],
 )
 def test_compare_rejects_bad_input(paths, args, option) -> None:

@@ -168,3 +168,17 @@ def test_deep_cmarlcd_plays_the_comparison_with_its_one_step_settings() -> None:
 def test_an_unknown_learner_lists_the_deep_ones_too() -> None:
     with pytest.raises(ConfigError, match="deep-cmarl-cd"):
         registry.comparable_learner("nope")
+
+
+def test_settings_changed_for_compare_reach_the_dsn_too() -> None:
+    """A learner changed from compare's default (``--set``) plays the DSN with the same
+    change on top of its DSN settings; an unchanged one plays the DSN's own."""
+    changed = dataclasses.replace(registry.comparable_learner("cmarl-cd"), delta=0.123)
+    sweep = compare.Comparison(
+        learners=(changed, registry.comparable_learner("iql")), games=("climbing", "dsn"),
+        runs=1,
+    )  # fmt: skip
+    assert compare.changed_settings(changed) == {"delta": 0.123}
+    dsn = {c.name: c for c in sweep.dsn_learners()}
+    assert dsn["cmarl-cd"] == dataclasses.replace(registry.LEARNERS["cmarl-cd"], delta=0.123)
+    assert dsn["iql"] == registry.LEARNERS["iql"]

@@ -12,6 +12,8 @@ from cmarlcd import registry
 from cmarlcd.cli.app import app
 from cmarlcd.cli.options import (
     SeedOption,
+    SetOption,
+    apply_settings,
     fails_cleanly,
     parse_names,
 )
@@ -32,13 +34,16 @@ from cmarlcd.reports.compare import compare_section
 GAMES = (*cmp.GAMES, cmp.DSN)
 
 
-def comparison(learners: str, games: str, runs: int, seed: int) -> cmp.Comparison:
-    """The comparison the options ask for (each learner with its paper's defaults)."""
+def comparison(
+    learners: str, games: str, runs: int, seed: int, settings: str = ""
+) -> cmp.Comparison:
+    """The comparison the options ask for (each learner with its paper's defaults, or
+    its one-step games' settings, changed by ``settings``: ``--set``)."""
     names = parse_names(learners, "learners")
-    configs = tuple(registry.comparable_learner(n) for n in names)
     require_torch_for(names, "learners")
+    configs = tuple(registry.comparable_learner(n) for n in names)
     return cmp.Comparison(
-        learners=configs,
+        learners=apply_settings(settings, configs),
         games=parse_names(games, "games"),
         runs=runs,
         seed=seed,
@@ -83,11 +88,13 @@ def compare(
         int, typer.Option(help="Runs per learner and game (random games: per size).")
     ] = cmp.DEFAULT_RUNS,
     seed: SeedOption = 0,
+    settings: SetOption = "",
     *,
     run: Execution,
 ) -> None:
     """Every learner on every game, many seeds: % of runs ending on an optimal joint
     action and the games until the greedy joint action settled, a table and a heatmap
-    (stored and resumable like every experiment)."""
-    sweep = comparison(learners, games, runs, seed)
+    (stored and resumable like every experiment). ``--set`` changes a learner's settings
+    on every game, the DSN's included."""
+    sweep = comparison(learners, games, runs, seed, settings)
     print_results(run, lambda console: run_comparison(sweep, run, console))

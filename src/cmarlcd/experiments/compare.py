@@ -24,7 +24,7 @@ from __future__ import annotations
 import statistics
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Any, Self
 
 import numpy as np
@@ -120,6 +120,23 @@ def plays(learner: str, joint_actions: int) -> bool:
     return not small_only or joint_actions <= joint_action.MAX_JOINT_ACTIONS
 
 
+def changed_settings(learner: Any) -> dict[str, Any]:
+    """The settings where ``learner`` differs from the way ``compare`` plays it by
+    default (what ``--set`` changed)."""
+    default = registry.comparable_learners()[learner.name]
+    return {
+        f.name: getattr(learner, f.name)
+        for f in fields(learner)
+        if getattr(learner, f.name) != getattr(default, f.name)
+    }
+
+
+def with_changes(learner: Any, changes: dict[str, Any]) -> Any:
+    """``learner`` with those of ``changes`` that are its settings."""
+    own = {f.name for f in fields(learner)}
+    return replace(learner, **{k: v for k, v in changes.items() if k in own})
+
+
 @dataclass(frozen=True)
 class Comparison:
     """Learners × games × runs (random games: runs per size)."""
@@ -179,9 +196,12 @@ class Comparison:
         return repeated + (sweep.specs() if sweep is not None else [])
 
     def dsn_learners(self) -> tuple[Any, ...]:
-        """The chosen learners that have a stochastic form, with their DSN settings."""
+        """The chosen learners that have a stochastic form, with their DSN settings and
+        the settings where the chosen ones differ from compare's defaults (``--set``)."""
         return tuple(
-            registry.LEARNERS[c.name] for c in self.learners if c.name in registry.LEARNERS
+            with_changes(registry.LEARNERS[c.name], changed_settings(c))
+            for c in self.learners
+            if c.name in registry.LEARNERS
         )
 
     def dsn_sweep(self) -> DsnSweep | None:
