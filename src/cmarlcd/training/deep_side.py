@@ -188,7 +188,7 @@ class DeepGroup(Group):
             self.weights = Weights(
                 *(np.zeros(tuple(w.shape), np.float32) for w in self.model.agents.feature_weights())
             )
-            if getattr(config, "shares", False):  # bootstrapped from the degrees' target copy
+            if getattr(config, "shares", False) and config.bootstraps:  # from their copy
                 copy = Weights(*(np.zeros_like(w) for w in self.weights))
                 self.ring = self.ring._replace(record_weights=copy)
         else:

@@ -165,6 +165,22 @@ def test_the_same_seed_learns_the_same_weights_on_lbf() -> None:
     assert all((a == b).all() for a, b in zip(first, second, strict=True))
 
 
+def test_monte_carlo_returns_need_no_copy() -> None:
+    """With λ 1 the ring stores Monte-Carlo returns (no bootstrap, no copy of the
+    degrees): it learns on LBF's features all the same."""
+    from cmarlcd.experiments import games
+    from cmarlcd.training.deep import DeepBatch
+
+    spec = games.parse_game("foraging:5x5-2p-1f")[1].spec()
+    config = replace(SHARES_DEEP_CMARLCD, return_lambda=1.0, batch_size=64, buffer_size=2000)
+    run = DeepBatch(spec, config, [np.random.SeedSequence(3)], 60)
+    before = [p.detach().clone() for p in run.group.model.agents.parameters()]
+    run.train([], lambda *args: None)
+    after = list(run.group.model.agents.parameters())
+    assert not hasattr(run.group.ring, "record_weights")
+    assert any((a != b).any() for a, b in zip(before, after, strict=True))
+
+
 def test_bad_settings_are_refused() -> None:
     assert shares().record_outputs(COUNTS) == 1
     with pytest.raises(ConfigError, match="'degrees' bootstraps from the degrees' greedy"):
