@@ -270,7 +270,10 @@ class DegreeModel(StackedModel):
     def estimate(self, state: torch.Tensor) -> torch.Tensor:
         """What λ-returns bootstrap from at ``state`` (B, N[, in]) -> (B, N): the record
         network's estimate, or (``critic_bootstrap="greedy"``) the critic's value of the
-        joint action the degrees take greedily there (over each agent's real actions)."""
+        joint action the degrees take greedily there (over each agent's real actions);
+        with ``critic_form="degrees"`` the critic is the degrees' target copy (a double
+        estimator, after van Hasselt et al., 2016: the largest of noisy shares valued by
+        the shares that chose it would compound through the returns)."""
         if not self.config.greedy_bootstrap:
             return self.record(state)
         degrees = self._masked(self.agents(state).clamp(*self.config.degree_bounds), None)
@@ -282,10 +285,7 @@ class DegreeModel(StackedModel):
     def shares_at(degrees: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """The record as the agents' shares (``critic_form="degrees"``): ``Σ_i c_i(s,
         a_i)`` of ``degrees`` (B, N, n, A) at the joint actions ``actions`` (B, N, n),
-        (B, N). λ-returns bootstrap from it with the target copy's degrees at the live
-        degrees' greedy joint action (a double estimator, after van Hasselt et al., 2016:
-        the largest of noisy shares valued by the shares that chose it compounds through
-        the returns)."""
+        (B, N)."""
         return degrees.gather(-1, actions[..., None])[..., 0].sum(dim=-1)
 
     def critic_at(self, values: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:

@@ -48,8 +48,8 @@ CRITIC_DEEP_CMARLCD = replace(
 #: The agents' degrees as their shares of the record (``critic_form="degrees"``; declared
 #: before its selection run): the critic's λ-returns (λ 0.9) and mean (τ 0.5) fitted by
 #: the sum ``Σ_i c_i(o_i, a_i)`` of the degrees at the taken joint action, bootstrapped
-#: from the sum of each agent's largest degree, so that the degrees the agents act with
-#: are what was learned, with nothing distilled; eq. (17)'s T annealed from 1 to 0.1
+#: from their target copy at the degrees' greedy joint action, so that the degrees the
+#: agents act with are what was learned, nothing distilled; eq. (17)'s T annealed from 1 to 0.1
 #: over the first 50k steps (the selection run's anneal), as a share is in the returns'
 #: units, where the clip of ``[c_min, c_max]`` does not apply.
 SHARES_DEEP_CMARLCD = replace(
