@@ -206,3 +206,10 @@ def test_the_command_line_runs_it(tmp_path) -> None:
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "1 runs computed" in done.stdout or "1 run computed" in done.stdout, done.stdout
+
+
+@pytest.mark.slow
+def test_the_design_passes_every_learner_check() -> None:
+    from cmarlcd.testing import check_learner
+
+    check_learner(SHARES_DEEP_CMARLCD)
