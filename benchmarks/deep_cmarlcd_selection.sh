@@ -39,6 +39,10 @@
 #              their greedy joint action, and acted on directly, the anneal (T 1 to 0.1)
 #   shares-cold  shares with T annealed to 0.01 (a share is in the returns' units: on
 #              LBF the shares of one state differ by a few hundredths)
+#   shares-refresh  shares-cold with every stored λ-return recomputed at each target
+#              copy (refresh_returns): one seed located the rest of the loss in returns
+#              bootstrapped once, at their episode's end
+#   shares-refresh-05  shares-refresh with λ 0.5 (more of each return bootstrapped)
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -51,10 +55,11 @@ for design in "${designs[@]}"; do
   case "$design" in
     keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | \
       imitation-anneal | range | range-anneal | critic | critic-anneal | critic-sum | critic-best | \
-      critic-best-anneal | shares | shares-cold) ;;
+      critic-best-anneal | shares | shares-cold | shares-refresh | shares-refresh-05) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
          "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
-         "critic-anneal, critic-sum, critic-best, critic-best-anneal, shares, shares-cold)" >&2
+         "critic-anneal, critic-sum, critic-best, critic-best-anneal, shares, shares-cold," \
+         "shares-refresh, shares-refresh-05)" >&2
        exit 2 ;;
   esac
 done
@@ -62,6 +67,7 @@ mkdir -p "$out"
 tasks="foraging:8x8-2p-2f-coop,foraging:2s-8x8-2p-2f-coop,foraging:10x10-3p-3f,simple_spread"
 d=deep-cmarl-cd
 anneal="$d.temperature_end=0.1,$d.temperature_steps=50000"
+cold="$d.temperature_end=0.01,$d.temperature_steps=50000"
 range="$d.unseen_tolerance=0.1,$d.unseen_spread=range"
 imitation="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500"
 critic="$d.update=critic,$d.expectile=0.5,$d.return_lambda=0.9,$d.train_every=50,$d.target_every=500"
@@ -85,7 +91,9 @@ for design in "${designs[@]}"; do
     critic-best) settings="$best,$d.gamma=0.99" ;;
     critic-best-anneal) settings="$best,$anneal,$d.gamma=0.99" ;;
     shares) settings="$critic,$d.critic_form=degrees,$anneal,$d.gamma=0.99" ;;
-    shares-cold) settings="$critic,$d.critic_form=degrees,$d.temperature_end=0.01,$d.temperature_steps=50000,$d.gamma=0.99" ;;
+    shares-cold) settings="$critic,$d.critic_form=degrees,$cold,$d.gamma=0.99" ;;
+    shares-refresh) settings="$critic,$d.critic_form=degrees,$cold,$d.refresh_returns=true,$d.gamma=0.99" ;;
+    shares-refresh-05) settings="$critic,$d.critic_form=degrees,$cold,$d.refresh_returns=true,$d.return_lambda=0.5,$d.gamma=0.99" ;;
   esac
   echo "$(date +%T) $design" >&2
   python -m cmarlcd field --tasks "$tasks" --learners "$d" --set "$settings" \

@@ -12,8 +12,8 @@ the part of :class:`cmarlcd.training.deep_side.DeepGroup` that differs with it.
   network to estimate with.
 
 A kind makes B seeds' replay, gives each seed's view to its side's kernels, says how much
-a seed has kept, draws a batch per seed with the seed's own stream, and refreshes what
-its kernels read of the model after a gradient step.
+a seed has kept, draws a batch per seed with the seed's own stream, refreshes what
+its kernels read of the model after a gradient step, and what it keeps after a target copy.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from cmarlcd.learners.deep.degree_memory import (
     new_memory,
     sample_memory,
 )
-from cmarlcd.learners.deep.replay import new_ring, sample, seed_view
+from cmarlcd.learners.deep.replay import new_ring, recompute_lambda_returns, sample, seed_view
 from cmarlcd.training.deep_kernels import Weights
 
 
@@ -83,6 +83,11 @@ class BootstrappedRing(NamedTuple):
     shares: bool
     """Whether the critic is the sum of the agents' degrees (``critic_form="degrees"``):
     no record network to read."""
+    step_reward: np.ndarray
+    """(B, buffer_size) float32: each stored visit's own reward (the ring's ``terminal``
+    marks an episode's last visit), from which its λ-return is recomputed ..."""
+    refreshes: bool
+    """... at each target copy (``refresh_returns``)."""
 
 
 def record_copies(config, seeds: int, counts: np.ndarray, spec: GameSpec, features: int) -> tuple:
@@ -145,6 +150,9 @@ class RingKind:
     def refresh(self, replay, model: Any, inputs: str) -> None:
         """Nothing of the model is read from the ring."""
 
+    def target_copied(self, replay, model: Any, inputs: str) -> None:
+        """Nothing kept depends on the target copy."""
+
     def greedy_table(self, replay, table: np.ndarray, legal: np.ndarray, config) -> np.ndarray:
         """The greedy table of the networks, ``table``: a ring holds no degrees."""
         return table
@@ -184,6 +192,9 @@ class KeyedKind:
     def draw(self, replay: KeyedReplay, rngs: Sequence[np.random.Generator], batch_size: int):
         return sample_memory(replay.memory, rngs, batch_size)
 
+    def target_copied(self, replay: KeyedReplay, model: Any, inputs: str) -> None:
+        """Nothing kept depends on the target copy."""
+
     def refresh(self, replay: KeyedReplay, model: Any, inputs: str) -> None:
         """Copy the record network's estimates (integer states: every state's; features:
         its layers) for the fold, where unseen states are compared with them."""
@@ -221,14 +232,19 @@ class BootstrappedKind:
         copies = record_copies(config, seeds, counts, spec, features)
         summed = config.update == "critic" and config.critic_form == "sum"
         lam = float(config.return_lambda)
-        return BootstrappedRing(ring, *copies, lam, config.greedy_bootstrap, summed, config.shares)
+        rewards = np.zeros((seeds, config.buffer_size), np.float32)
+        return BootstrappedRing(
+            ring, *copies, lam, config.greedy_bootstrap, summed, config.shares, rewards,
+            config.refresh_returns,
+        )  # fmt: skip
 
     def view(self, replay: BootstrappedRing, b: int) -> BootstrappedRing:
         view = seed_view(replay.ring, b)
         copies = record_view(replay, b)
         return BootstrappedRing(
-            view, *copies, replay.lam, replay.greedy, replay.summed, replay.shares
-        )
+            view, *copies, replay.lam, replay.greedy, replay.summed, replay.shares,
+            replay.step_reward[b], replay.refreshes,
+        )  # fmt: skip
 
     def stored(self, replay: BootstrappedRing, b: int) -> int:
         return int(replay.ring.size[b])
@@ -240,11 +256,30 @@ class BootstrappedKind:
         """Copy the record network, which the next episodes' returns bootstrap from."""
         copy_record(model, inputs, replay.record_table, replay.record_weights)
 
+    def target_copied(self, replay: BootstrappedRing, model: Any, inputs: str) -> None:
+        """Recompute every stored λ-return from the model's estimates now
+        (``refresh_returns``; :func:`~cmarlcd.learners.deep.replay.recompute_lambda_returns`)."""
+        if not replay.refreshes:
+            return
+        ring, config = replay.ring, model.config
+        with torch.no_grad():
+            if inputs == "index":
+                table = model.record_table()
+                states = torch.from_numpy(ring.state.astype(np.int64)).to(table.device)
+                values = torch.gather(table, 1, states)
+            else:
+                values = model.estimate(torch.from_numpy(ring.state).to(model.device))
+        values = values.cpu().numpy().astype(np.float64)
+        for b in range(values.shape[0]):
+            recompute_lambda_returns(
+                seed_view(ring, b), replay.step_reward[b], values[b], config.gamma, replay.lam
+            )
+
     def greedy_table(self, replay, table: np.ndarray, legal: np.ndarray, config) -> np.ndarray:
         return table
 
     def nbytes(self, view: BootstrappedRing) -> int:
-        return RING.nbytes(view.ring) + view.record_table.nbytes
+        return RING.nbytes(view.ring) + view.record_table.nbytes + view.step_reward.nbytes
 
 
 RING, KEYED, BOOTSTRAPPED = RingKind(), KeyedKind(), BootstrappedKind()

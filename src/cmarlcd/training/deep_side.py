@@ -227,6 +227,7 @@ class DeepGroup(Group):
                 self._copy_weights()
             if copy:
                 self.model.sync_target()
+                self.replay_kind.target_copied(self.ring, self.model, self.inputs)
             if step or copy:  # after the target copy, which the shares bootstrap from
                 self.replay_kind.refresh(self.ring, self.model, self.inputs)
 

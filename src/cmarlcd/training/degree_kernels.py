@@ -153,7 +153,9 @@ def index_lambda_store(side, length: int) -> None:
             estimate = replay.record_table[side.obs[t + 1]]
             after = (1.0 - replay.lam) * estimate + replay.lam * g
         g = side.rewards[t] + gamma * after
+        p = replay.ring.position[0]
         push_visit(replay.ring, side.obs[t], side.joints[t], g)
+        replay.ring.terminal[p], replay.step_reward[p] = t == length - 1, side.rewards[t]
     side.counters[EPISODES] += 1
 
 
@@ -169,7 +171,9 @@ def features_lambda_store(side, length: int) -> None:
             estimate = bootstrap_estimate(side, t + 1)
             after = (1.0 - replay.lam) * estimate + replay.lam * g
         g = side.rewards[t] + gamma * after
+        p = replay.ring.position[0]
         push_visit_row(replay.ring, side.obs[t], side.joints[t], g)
+        replay.ring.terminal[p], replay.step_reward[p] = t == length - 1, side.rewards[t]
     side.counters[EPISODES] += 1
 
 

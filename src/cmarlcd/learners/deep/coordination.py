@@ -166,6 +166,12 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     through the record of the states between, not only within its own episode: for
     sparse rewards, where few episodes earn one. (The keyed memory folds the table's
     Monte-Carlo returns: 1 there.)"""
+    refresh_returns: bool = added_setting(False, "0.7.0")
+    """[choice] (``return_lambda`` below 1) Recompute every λ-return the ring holds at each
+    target copy, from the estimates of that moment (:meth:`~cmarlcd.learners.deep.
+    degree_model.DegreeModel.estimate`), so that a return bootstraps from estimates at
+    most ``target_every`` steps old, not from those of its episode's end, kept for as
+    long as the ring keeps the visit (measured: the deep CMARL-CD page)."""
     record_step: float = added_setting(0.02, "0.6.0")
     """(``record="expectile"``) How far a visit moves its state's record towards its
     return, in (0, 1]."""
@@ -340,6 +346,11 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             "return_lambda",
             "the keyed memory folds the table's Monte-Carlo returns (1); λ-returns are for "
             "a ring of visits (update='replayed', 'imitation' or 'critic')",
+        )
+        require(
+            self.bootstraps or not self.refresh_returns,
+            "refresh_returns",
+            "recomputes λ-returns: a ring of visits with return_lambda below 1",
         )
         spread = self.unseen_tolerance
         require(

@@ -210,3 +210,26 @@ def sample(ring: Replay, rngs: Sequence[np.random.Generator], batch_size: int) -
     if not ring.next_legal.shape[1]:
         del batch["next_legal"]
     return batch
+
+
+@kernel
+def recompute_lambda_returns(ring, step_reward, values, gamma: float, lam: float) -> None:
+    """Recompute the λ-returns of a seed's ring of visits (``ring.reward``) from the
+    estimates ``values`` of each stored visit's state, oldest visit first: an episode's
+    visits are pushed together, last step first, so a visit's successor is the visit
+    pushed just before it, ``ring.terminal`` marks an episode's last step (its return is
+    its reward, ``step_reward``) and ``G_t = r_t + γ ((1 - λ) V(s_{t+1}) + λ G_{t+1})``.
+    The oldest visit, whose successor the ring has overwritten, keeps its return."""
+    capacity, size = ring.reward.shape[0], ring.size[0]
+    start = (ring.position[0] - size) % capacity
+    g, successor_value = 0.0, 0.0
+    for k in range(size):
+        q = (start + k) % capacity
+        if ring.terminal[q]:
+            g = step_reward[q]
+        elif k > 0:
+            g = step_reward[q] + gamma * ((1.0 - lam) * successor_value + lam * g)
+        else:
+            g = ring.reward[q]
+        ring.reward[q] = g
+        successor_value = values[q]
