@@ -81,6 +81,17 @@ CRITIC_BOOTSTRAPS = ("greedy", "best")
 UNSEEN_SPREADS = ("std", "range")
 #: What the keyed memory's per-state record is (``record``).
 RECORDS = ("maximum", "expectile")
+#: The settings that take one of a few names, and those names.
+CHOICES = {
+    "update": UPDATES,
+    "unseen_record": UNSEEN_RECORDS,
+    "act_from": ACT_FROM,
+    "record": RECORDS,
+    "critic_form": CRITIC_FORMS,
+    "critic_fit": CRITIC_FITS,
+    "critic_bootstrap": CRITIC_BOOTSTRAPS,
+    "unseen_spread": UNSEEN_SPREADS,
+}
 
 
 @dataclass(frozen=True)
@@ -304,27 +315,9 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     CMARL-CD page of the documentation)."""
 
     def __post_init__(self) -> None:
-        require(
-            self.update in UPDATES,
-            "update",
-            f"must be one of {', '.join(UPDATES)} (got {self.update!r})",
-        )
-        unseen = self.unseen_record
-        require(
-            unseen in UNSEEN_RECORDS,
-            "unseen_record",
-            f"must be one of {', '.join(UNSEEN_RECORDS)} (got {unseen!r})",
-        )
-        require(
-            self.act_from in ACT_FROM,
-            "act_from",
-            f"must be one of {', '.join(ACT_FROM)} (got {self.act_from!r})",
-        )
-        require(
-            self.record in RECORDS,
-            "record",
-            f"must be one of {', '.join(RECORDS)} (got {self.record!r})",
-        )
+        for name, choices in CHOICES.items():
+            value = getattr(self, name)
+            require(value in choices, name, f"must be one of {', '.join(choices)} (got {value!r})")
         require(
             self.keyed or self.record == "maximum",
             "record",
@@ -365,30 +358,10 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             "network's estimate (update='keyed', unseen_record other than 'first-visit')",
         )
         require(
-            self.critic_form in CRITIC_FORMS,
-            "critic_form",
-            f"must be one of {', '.join(CRITIC_FORMS)} (got {self.critic_form!r})",
-        )
-        require(
             self.critic_form == "joint" or self.critic_bootstrap == "greedy",
             "critic_form",
             f"'{self.critic_form}' bootstraps from the degrees' greedy joint action "
             "(critic_bootstrap=greedy)",
-        )
-        require(
-            self.critic_fit in CRITIC_FITS,
-            "critic_fit",
-            f"must be one of {', '.join(CRITIC_FITS)} (got {self.critic_fit!r})",
-        )
-        require(
-            self.critic_bootstrap in CRITIC_BOOTSTRAPS,
-            "critic_bootstrap",
-            f"must be one of {', '.join(CRITIC_BOOTSTRAPS)} (got {self.critic_bootstrap!r})",
-        )
-        require(
-            self.unseen_spread in UNSEEN_SPREADS,
-            "unseen_spread",
-            f"must be one of {', '.join(UNSEEN_SPREADS)} (got {self.unseen_spread!r})",
         )
         step = self.record_step
         in_range = bool(np.isfinite(step)) and 0 < step <= 1
