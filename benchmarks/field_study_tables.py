@@ -1,0 +1,180 @@
+"""The field study's tables and curves (benchmarks/field_study.sh), from its store.
+
+Reads what ``cmarl-cd report --store STORE --format json`` gives (the study's numbers are
+exactly the report's) and prints, per figure of the field (the maximum return and the
+average return over the curve, each with its 95 % interval over the seeds, EPyMARL's
+figures), one Markdown table with the tasks as rows and the learners as columns, the best
+of each row in bold, the random policy's mean return as the floor; then which tasks and
+learners the store does not hold yet. ``--figure`` draws every task's mean curves, one
+panel a task.
+
+    python benchmarks/field_study_tables.py --store results/field/study/store.sqlite \
+        --figure docs/field-study.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+#: The study's tasks, in its order (benchmarks/field_study.sh).
+TASKS = (
+    "foraging:8x8-2p-2f-coop",
+    "foraging:2s-8x8-2p-2f-coop",
+    "foraging:10x10-3p-3f",
+    "foraging:2s-10x10-3p-3f",
+    "foraging:15x15-3p-5f",
+    "foraging:15x15-4p-3f",
+    "foraging:15x15-4p-5f",
+    "simple_spread",
+)
+#: The study's learners: the column's name and how its label in the store begins.
+LEARNERS = (
+    ("IQL", "Deep IQL (EPyMARL"),
+    ("hysteretic DQN", "Hysteretic DQN (EPyMARL"),
+    ("VDN", "VDN (EPyMARL"),
+    ("QMIX", "QMIX (EPyMARL"),
+    ("deep CMARL-CD", "Deep CMARL-CD (gamma=0.99)"),
+    ("deep CMARL-CD (shares)", "Deep CMARL-CD (critic_bootstrap='greedy'"),
+)
+RANDOM = "random policy"
+#: The two figures of a curve (field_metrics): the best point, the mean of every point.
+FIGURES = (("max_return", "maximum return"), ("average_return", "average return"))
+
+
+def column(label: str) -> str | None:
+    """The study's column of a learner's label in the store (None: not the study's)."""
+    return next((name for name, start in LEARNERS if label.startswith(start)), None)
+
+
+def study(report: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """Per task of the study: its learners' field figures by column, the random floor,
+    and the mean curves ``{column: [(step, mean return), ...]}``."""
+    tasks: dict[str, dict[str, Any]] = {}
+    for doc in report.get("train", []):
+        if doc["game"] not in TASKS:
+            continue
+        task = tasks.setdefault(doc["game"], {"field": {}, "floor": None, "curves": {}})
+        for row in doc["rows"]:
+            if row["algorithm"] == "random":
+                task["floor"] = row["mean_return"]
+        for label, figures in doc["field"].items():
+            if (name := column(label)) is not None:
+                task["field"][name] = figures
+        for label, runs in doc["curves"].items():
+            name = RANDOM if label == RANDOM else column(label)
+            if name is not None and runs:
+                points = zip(*runs, strict=True)
+                task["curves"][name] = [(p[0][0], sum(x[1] for x in p) / len(p)) for p in points]
+    return tasks
+
+
+def cell(figures: dict[str, Any], key: str, best: bool) -> str:
+    value = f"{figures[key]:.3f}"
+    low, high = figures.get(f"{key}_low"), figures.get(f"{key}_high")
+    interval = "" if low is None or math.isnan(low) else f" [{low:.3f}, {high:.3f}]"
+    return (f"**{value}**" if best else value) + interval
+
+
+def table(tasks: dict[str, dict[str, Any]], key: str) -> list[str]:
+    """One Markdown table of ``key`` (a field figure): tasks as rows, learners as
+    columns, the best of each row in bold (every learner at the row's best: ties)."""
+    names = [name for name, _ in LEARNERS]
+    lines = [
+        "| task | " + " | ".join(names) + " | random |",
+        "|---|" + "---|" * (len(names) + 1),
+    ]
+    for game in TASKS:
+        if game not in tasks:
+            continue
+        found = tasks[game]["field"]
+        top = max((found[n][key] for n in names if n in found), default=None)
+        cells = [cell(found[n], key, found[n][key] == top) if n in found else "–" for n in names]
+        floor = tasks[game]["floor"]
+        cells.append("–" if floor is None else f"{floor:.3f}")
+        lines.append(f"| {game.removeprefix('foraging:')} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def missing(tasks: dict[str, dict[str, Any]]) -> list[str]:
+    """``task: learner, ...`` for every pair the store does not hold yet."""
+    lines = []
+    for game in TASKS:
+        held = tasks.get(game, {}).get("field", {})
+        absent = [name for name, _ in LEARNERS if name not in held]
+        if absent:
+            lines.append(f"{game}: " + ", ".join(absent))
+    return lines
+
+
+def draw(tasks: dict[str, dict[str, Any]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    games = [g for g in TASKS if g in tasks]
+    cols = min(4, len(games))
+    rows = math.ceil(len(games) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3 * rows), squeeze=False)
+    for ax, game in zip(axes.flat, games, strict=False):
+        for name, curve in tasks[game]["curves"].items():
+            steps, returns = zip(*curve, strict=True)
+            style = {"color": "grey", "linestyle": ":"} if name == RANDOM else {}
+            ax.plot([s / 1e6 for s in steps], returns, label=name, **style)
+        ax.set_title(game.removeprefix("foraging:"), fontsize=10)
+        ax.set_xlabel("environment steps (millions)")
+        ax.set_ylabel("greedy return")
+    for ax in list(axes.flat)[len(games) :]:
+        ax.axis("off")
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--store", type=Path, help="the study's store (runs cmarl-cd report)")
+    p.add_argument("--report", type=Path, help="or a report already written (JSON)")
+    p.add_argument("--figure", type=Path, help="draw the curves into this PNG")
+    args = p.parse_args(argv)
+    if (args.store is None) == (args.report is None):
+        print("error: give one of --store and --report", file=sys.stderr)
+        return 2
+    source = args.store if args.store is not None else args.report
+    if not source.is_file():
+        print(f"error: no such file: {source}", file=sys.stderr)
+        return 2
+    if args.store is not None:
+        done = subprocess.run(
+            [sys.executable, "-m", "cmarlcd", "report", "--store", str(args.store),
+             "--format", "json"], capture_output=True, text=True, check=False,
+        )  # fmt: skip
+        if done.returncode != 0:
+            print(done.stderr.strip().splitlines()[-1], file=sys.stderr)
+            return 2
+        report = json.loads(done.stdout)
+    else:
+        report = json.loads(args.report.read_text())
+    tasks = study(report)
+    for key, title in FIGURES:
+        print(f"\n{title} (95 % interval over the seeds; bold: the row's best)\n")
+        print("\n".join(table(tasks, key)))
+    absent = missing(tasks)
+    print("\nnot in the store yet:" if absent else "\nevery task and learner is in the store")
+    print("\n".join(absent))
+    if args.figure is not None:
+        draw(tasks, args.figure)
+        print(f"figure: {args.figure}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,96 @@
+"""The field study's script and its tables (benchmarks/field_study.sh,
+benchmarks/field_study_tables.py): a hand-built report's figures land in their cells, the
+row's best in bold, what the store lacks listed; bad input is one line and status 2."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).parents[1]
+SCRIPT = ROOT / "benchmarks/field_study_tables.py"
+spec = importlib.util.spec_from_file_location("field_study_tables", SCRIPT)
+assert spec is not None and spec.loader is not None
+tables = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(tables)
+
+
+def figures(best: float, average: float) -> dict[str, float]:
+    return {
+        "max_return": best, "max_return_low": best - 0.1, "max_return_high": best + 0.1,
+        "average_return": average, "average_return_low": float("nan"),
+        "average_return_high": float("nan"),
+    }  # fmt: skip
+
+
+REPORT = {
+    "train": [
+        {
+            "game": "foraging:8x8-2p-2f-coop",
+            "rows": [{"algorithm": "random", "mean_return": 0.005}],
+            "field": {
+                "VDN (EPyMARL, share=True)": figures(0.4, 0.2),
+                "QMIX (EPyMARL, share=True)": figures(0.4, 0.1),
+                "Deep CMARL-CD (gamma=0.99)": figures(0.1, 0.3),
+                "VDN (some other setting)": figures(0.9, 0.9),
+            },
+            "curves": {
+                "VDN (EPyMARL, share=True)": [[[0, 0.0], [50, 0.2]], [[0, 0.2], [50, 0.6]]],
+                "random policy": [[[0, 0.005], [50, 0.005]]],
+            },
+        },
+        {"game": "foraging:5x5-2p-1f", "rows": [], "field": {}, "curves": {}},
+    ]
+}
+
+
+def test_cells_best_and_floor() -> None:
+    tasks = tables.study(REPORT)
+    assert list(tasks) == ["foraging:8x8-2p-2f-coop"]  # a task outside the study is left out
+    best = tables.table(tasks, "max_return")
+    row = best[2].split(" | ")
+    # IQL, hysteretic DQN: absent; VDN and QMIX tie at the best; a label outside the
+    # study's columns (0.9) is not a column
+    assert row[1:3] == ["–", "–"]
+    assert row[3] == "**0.400** [0.300, 0.500]" and row[4] == "**0.400** [0.300, 0.500]"
+    assert row[5] == "0.100 [0.000, 0.200]" and row[7] == "0.005 |"
+    average = tables.table(tasks, "average_return")[2].split(" | ")
+    assert average[5] == "**0.300**" and average[3] == "0.200"  # no interval where NaN
+    assert tasks["foraging:8x8-2p-2f-coop"]["curves"]["VDN"] == [(0, 0.1), (50, 0.4)]
+
+
+def test_missing_pairs_are_listed() -> None:
+    absent = tables.missing(tables.study(REPORT))
+    assert absent[0] == ("foraging:8x8-2p-2f-coop: IQL, hysteretic DQN, deep CMARL-CD (shares)")
+    assert len(absent) == len(tables.TASKS)
+
+
+def run(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, str(SCRIPT), *args], capture_output=True, text=True, check=False
+    )
+
+
+def test_the_script_prints_the_tables_and_draws(tmp_path: Path) -> None:
+    report = tmp_path / "report.json"
+    report.write_text(json.dumps(REPORT))
+    done = run("--report", str(report), "--figure", str(tmp_path / "curves.png"))
+    assert done.returncode == 0, done.stderr
+    assert "| 8x8-2p-2f-coop | – | – | **0.400**" in done.stdout
+    assert (tmp_path / "curves.png").stat().st_size > 0
+
+
+def test_bad_input_is_one_line(tmp_path: Path) -> None:
+    done = run("--report", str(tmp_path / "absent.json"))
+    assert done.returncode == 2 and done.stderr.strip().startswith("error: no such file")
+    done = run()
+    assert done.returncode == 2 and done.stderr.strip() == "error: give one of --store and --report"
+    shell = subprocess.run(
+        ["bash", str(ROOT / "benchmarks/field_study.sh"), "fast", str(tmp_path)],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert shell.returncode == 2
+    assert shell.stderr.strip() == "error: unknown form 'fast' (full or quick)"
