@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -17,6 +16,7 @@ import pytest
 from cmarlcd import ConfigError
 from cmarlcd.learners.deep.coordination import MAX_JOINT_ACTIONS, DeepCMARLCDConfig
 from cmarlcd.learners.deep.designs import CRITIC_DEEP_CMARLCD
+from tests.learners.deep.lambda_case import SPEC, degree_layers, store_hand_episode
 
 torch = pytest.importorskip("torch")
 
@@ -110,34 +110,20 @@ def lambda_returns(bootstrap: str) -> list[float]:
     2, 4 at features 0, 1, 2; γ 0.5, λ 0.5) for one agent of 3 actions whose degrees
     take action 1 greedily everywhere, the critic's three outputs 3x, 10x and 12x (one
     hidden unit ReLU(x))."""
-    from cmarlcd.training.deep_kernels import FeatureData, Weights
     from cmarlcd.training.deep_replay import BOOTSTRAPPED
-    from cmarlcd.training.deep_side import new_greedy_cache
-    from cmarlcd.training.degree_kernels import features_lambda_store
 
-    spec = SimpleNamespace(n_states=0, own_dim=None, n_features=1, max_steps=3)
     config = DeepCMARLCDConfig(
         update="critic", return_lambda=0.5, record_hidden=1, critic_bootstrap=bootstrap
     )
-    ring = BOOTSTRAPPED.new(config, 1, np.array([3]), spec, 1)
+    ring = BOOTSTRAPPED.new(config, 1, np.array([3]), SPEC, 1)
     w1, _, w2, b2 = ring.record_weights[:4]
     assert w2.shape == (1, 1, 3) and b2.shape == (1, 3)
     w1[0, 0, 0] = 1.0
     w2[0, 0] = [3.0, 10.0, 12.0]
     replay = BOOTSTRAPPED.view(ring, 0)
-    schedule = np.array(DeepCMARLCDConfig(gamma=0.5).schedule(100), np.float64)
-    obs = np.array([[0.0], [1.0], [2.0], [0.0], [0.0]], np.float32)
-    degrees = Weights(*(np.zeros((1, *shape), np.float32)
-                        for shape in ((1, 4), (4,), (4, 3), (3,), (0, 4, 4), (0, 4))))  # fmt: skip
+    degrees = degree_layers(1, 3)
     degrees.b2[0] = [1.0, 2.0, 1.0]  # every state's degrees: action 1 greedy
-    side = FeatureData(
-        np.array([3]), degrees, np.zeros(8, np.float32), obs, np.ones((4, 1, 3), np.bool_),
-        np.array([[0], [2], [1]]), np.array([1.0, 2.0, 4.0]), replay, np.zeros(8, np.int64),
-        schedule, np.zeros((2, 3)),
-        new_greedy_cache(SimpleNamespace(state_determines_features=False, max_steps=3), 1),
-        np.zeros(1, np.int64),
-    )  # fmt: skip
-    features_lambda_store(side, 3)
+    store_hand_episode(replay, np.array([3]), degrees, [[0], [2], [1]])
     return replay.ring.reward[:3].tolist()
 
 
@@ -289,33 +275,19 @@ def test_the_compiled_loop_bootstraps_a_summed_critic_by_hand() -> None:
     −x) and the degrees' greedy actions (1, 0): estimates 10x + x = 11 and 22 at the next
     visits' features 1 and 2; rewards 1, 2, 4, γ 0.5, λ 0.5: G_2 = 4, G_1 = 2 + 0.5 (0.5
     · 22 + 0.5 · 4) = 8.5, G_0 = 1 + 0.5 (0.5 · 11 + 0.5 · 8.5) = 5.875."""
-    from cmarlcd.training.deep_kernels import FeatureData, Weights
     from cmarlcd.training.deep_replay import BOOTSTRAPPED
-    from cmarlcd.training.deep_side import new_greedy_cache
-    from cmarlcd.training.degree_kernels import features_lambda_store
 
     counts = np.array([2, 2])
-    spec = SimpleNamespace(n_states=0, own_dim=None, n_features=1, max_steps=3)
     config = DeepCMARLCDConfig(
         update="critic", return_lambda=0.5, record_hidden=1, critic_form="sum",
         critic_bootstrap="greedy",
     )  # fmt: skip
-    ring = BOOTSTRAPPED.new(config, 1, counts, spec, 1)
+    ring = BOOTSTRAPPED.new(config, 1, counts, SPEC, 1)
     w1, _, w2, _ = ring.record_weights[:4]
     w1[0, 0, 0] = 1.0
     w2[0, 0] = [3.0, 10.0, 1.0, -1.0]
     replay = BOOTSTRAPPED.view(ring, 0)
-    schedule = np.array(DeepCMARLCDConfig(gamma=0.5).schedule(100), np.float64)
-    obs = np.array([[0.0], [1.0], [2.0], [0.0], [0.0]], np.float32)
-    degrees = Weights(*(np.zeros((2, *shape), np.float32)
-                        for shape in ((1, 4), (4,), (4, 2), (2,), (0, 4, 4), (0, 4))))  # fmt: skip
+    degrees = degree_layers(2, 2)
     degrees.b2[0], degrees.b2[1] = [1.0, 2.0], [2.0, 1.0]  # greedy actions (1, 0)
-    side = FeatureData(
-        counts, degrees, np.zeros(8, np.float32), obs, np.ones((4, 2, 2), np.bool_),
-        np.array([[0, 0], [1, 1], [1, 0]]), np.array([1.0, 2.0, 4.0]), replay,
-        np.zeros(8, np.int64), schedule, np.zeros((2, 2)),
-        new_greedy_cache(SimpleNamespace(state_determines_features=False, max_steps=3), 1),
-        np.zeros(2, np.int64),
-    )  # fmt: skip
-    features_lambda_store(side, 3)
+    store_hand_episode(replay, counts, degrees, [[0, 0], [1, 1], [1, 0]])
     assert replay.ring.reward[:3].tolist() == [4.0, 8.5, 5.875]

@@ -6,7 +6,6 @@ target copy, determinism, and the setting refused where no λ-return is stored."
 from __future__ import annotations
 
 from dataclasses import replace
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -20,6 +19,7 @@ from cmarlcd.learners.deep.replay import (
     recompute_lambda_returns,
     seed_view,
 )
+from tests.learners.deep.lambda_case import SPEC, degree_layers, store_hand_episode
 
 pytest.importorskip("torch")
 
@@ -65,28 +65,13 @@ def test_the_stores_returns_are_found_again_from_the_same_estimates() -> None:
     """The compiled store's λ-returns (the record network's 11x at the next visit's
     feature x, γ 0.5, λ 0.5; rewards 1, 2, 4: 4, 8.5, 5.875 as by hand above), then
     recomputed from the record's estimate of each stored visit: the same returns."""
-    from cmarlcd.training.deep_kernels import FeatureData, Weights
     from cmarlcd.training.deep_replay import BOOTSTRAPPED
-    from cmarlcd.training.deep_side import new_greedy_cache
-    from cmarlcd.training.degree_kernels import features_lambda_store
 
-    spec = SimpleNamespace(n_states=0, own_dim=None, n_features=1, max_steps=3)
     config = DeepCMARLCDConfig(update="imitation", return_lambda=0.5, record_hidden=1)
-    ring = BOOTSTRAPPED.new(config, 1, np.array([2]), spec, 1)
+    ring = BOOTSTRAPPED.new(config, 1, np.array([2]), SPEC, 1)
     ring.record_weights.w1[0, 0, 0], ring.record_weights.w2[0, 0, 0] = 1.0, 11.0
     replay = BOOTSTRAPPED.view(ring, 0)
-    schedule = np.array(DeepCMARLCDConfig(gamma=0.5).schedule(100), np.float64)
-    obs = np.array([[0.0], [1.0], [2.0], [0.0], [0.0]], np.float32)
-    degrees = Weights(*(np.zeros((1, *shape), np.float32)
-                        for shape in ((1, 4), (4,), (4, 2), (2,), (0, 4, 4), (0, 4))))  # fmt: skip
-    side = FeatureData(
-        np.array([2]), degrees, np.zeros(8, np.float32), obs, np.ones((4, 1, 2), np.bool_),
-        np.array([[0], [1], [1]]), np.array([1.0, 2.0, 4.0]), replay, np.zeros(8, np.int64),
-        schedule, np.zeros((2, 2)),
-        new_greedy_cache(SimpleNamespace(state_determines_features=False, max_steps=3), 1),
-        np.zeros(1, np.int64),
-    )  # fmt: skip
-    features_lambda_store(side, 3)
+    store_hand_episode(replay, np.array([2]), degree_layers(1, 2), [[0], [1], [1]])
     stored = replay.ring.reward[:3].copy()
     assert stored.tolist() == [4.0, 8.5, 5.875]
     values = 11.0 * replay.ring.state[:, 0].astype(np.float64)

@@ -8,7 +8,6 @@ following at ``sync_target``, determinism, the command line and bad settings ref
 from __future__ import annotations
 
 from dataclasses import replace
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,6 +15,7 @@ import pytest
 from cmarlcd import ConfigError
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.learners.deep.designs import SHARES_DEEP_CMARLCD
+from tests.learners.deep.lambda_case import SPEC, degree_layers, store_hand_episode
 
 torch = pytest.importorskip("torch")
 
@@ -108,35 +108,17 @@ def test_the_compiled_loop_bootstraps_from_the_target_copy_by_hand() -> None:
     target copy's (3x, 10x | x, −x): estimates 10x + x = 11 and 22 at the next visits'
     features 1 and 2; rewards 1, 2, 4, γ 0.5, λ 0.5: G_2 = 4, G_1 = 2 + 0.5 (0.5 · 22 +
     0.5 · 4) = 8.5, G_0 = 1 + 0.5 (0.5 · 11 + 0.5 · 8.5) = 5.875."""
-    from cmarlcd.training.deep_kernels import FeatureData, Weights
     from cmarlcd.training.deep_replay import BOOTSTRAPPED
-    from cmarlcd.training.deep_side import new_greedy_cache
-    from cmarlcd.training.degree_kernels import features_lambda_store
 
     counts = np.array([2, 2])
-    spec = SimpleNamespace(n_states=0, own_dim=None, n_features=1, max_steps=3)
-    ring = BOOTSTRAPPED.new(shares(return_lambda=0.5), 1, counts, spec, 1)
-
-    def layers() -> Weights:  # two agents, one feature, one hidden unit of 4 used
-        shapes = ((1, 4), (4,), (4, 2), (2,), (0, 4, 4), (0, 4))
-        return Weights(*(np.zeros((2, *shape), np.float32) for shape in shapes))
-
-    target = layers()
+    ring = BOOTSTRAPPED.new(shares(return_lambda=0.5), 1, counts, SPEC, 1)
+    target = degree_layers(2, 2)
     target.w1[:, 0, 0] = 1.0  # hidden unit 0 = ReLU(x)
     target.w2[0, 0], target.w2[1, 0] = [3.0, 10.0], [1.0, -1.0]
     replay = BOOTSTRAPPED.view(ring._replace(record_weights=target), 0)
-    schedule = np.array(shares(gamma=0.5).schedule(100), np.float64)
-    obs = np.array([[0.0], [1.0], [2.0], [0.0], [0.0]], np.float32)
-    live = layers()
+    live = degree_layers(2, 2)
     live.b2[0], live.b2[1] = [1.0, 2.0], [2.0, 1.0]  # greedy actions (1, 0)
-    side = FeatureData(
-        counts, live, np.zeros(8, np.float32), obs, np.ones((4, 2, 2), np.bool_),
-        np.array([[0, 0], [1, 1], [1, 0]]), np.array([1.0, 2.0, 4.0]), replay,
-        np.zeros(8, np.int64), schedule, np.zeros((2, 2)),
-        new_greedy_cache(SimpleNamespace(state_determines_features=False, max_steps=3), 1),
-        np.zeros(2, np.int64),
-    )  # fmt: skip
-    features_lambda_store(side, 3)
+    store_hand_episode(replay, counts, live, [[0, 0], [1, 1], [1, 0]], shares())
     assert replay.ring.reward[:3].tolist() == [4.0, 8.5, 5.875]
 
 
