@@ -11,6 +11,10 @@ import numpy as np
 
 from cmarlcd.experiments.repeated import CellSummary
 
+#: Characters of a legend line: a learner's label lists the settings changed from its
+#: default, which can run to hundreds of characters (``--set``).
+LEGEND_WIDTH = 60
+
 
 def _pyplot():
     import matplotlib
@@ -128,6 +132,7 @@ def environment_curves(
         x, values = data[0, :, 0], data[:, :, 1]
         style = {"linestyle": "--", "color": "grey"} if name == baseline else {}
         label = name if name == baseline and len(data) == 1 else f"{name} ({len(data)} runs)"
+        label = "\n".join(textwrap.wrap(label, LEGEND_WIDTH))  # a label with many settings
         (line,) = ax.plot(x, values.mean(axis=0), label=label, **style)
         lo, hi = np.percentile(values, [10, 90], axis=0)
         ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.15)
