@@ -42,29 +42,31 @@ tasks=("$@")
   foraging:15x15-4p-5f simple_spread)
 mkdir -p "$out"
 
-baselines=(deep-iql hysteretic-dqn vdn qmix)
-model=()
-for learner in "${baselines[@]}"; do
-  model+=("$learner.share=true" "$learner.hidden_layers=2" "$learner.step=fused")
-done
-model+=(qmix.hypernet_layers=2)
 d=deep-cmarl-cd
 shares="$d.update=critic,$d.expectile=0.5,$d.return_lambda=0.9,$d.train_every=50"
 shares="$shares,$d.target_every=500,$d.critic_bootstrap=greedy,$d.critic_fit=imitation"
 shares="$shares,$d.critic_form=degrees,$d.temperature_end=0.01,$d.temperature_steps=50000"
-
-field() {  # field PART TASK LEARNERS [ARGS ...]
-  local part="$1" task="$2" learners="$3"
-  shift 3
-  echo "$(date +%T) $task $part" >&2
-  python -m cmarlcd field --tasks "$task" --learners "$learners" "${protocol[@]}" \
-    --inputs own-observations --workers 1 --no-progress --json "$@" \
-    --store "$out/store.sqlite" --figures "$out/figures" >"$out/$part-${task//[:\/]/-}.json"
+model() {  # model LEARNER: the anchor's model class at EPyMARL's settings
+  local m="$1.share=true,$1.hidden_layers=2,$1.step=fused"
+  [ "$1" = qmix ] && m="$m,qmix.hypernet_layers=2"
+  echo "$m"
 }
-for task in "${tasks[@]}"; do
-  field baselines "$task" "$(IFS=,; echo "${baselines[*]}")" --preset epymarl \
-    --set "$(IFS=,; echo "${model[*]}")"
-  field deep-cmarl-cd "$task" "$d" --set "$d.gamma=0.99"
-  field deep-cmarl-cd-shares "$task" "$d" --set "$shares,$d.gamma=0.99"
+
+field() {  # field PART LEARNER [ARGS ...]: one learner on every task
+  local part="$1" learner="$2"
+  shift 2
+  echo "$(date +%T) $part" >&2
+  python -m cmarlcd field --tasks "$(IFS=,; echo "${tasks[*]}")" --learners "$learner" \
+    "${protocol[@]}" --inputs own-observations --workers 1 --no-progress --json "$@" \
+    --store "$out/store.sqlite" --figures "$out/figures" >"$out/$part.json"
+}
+# learner by learner, so that a partial store holds whole columns: deep CMARL-CD's best
+# measured design and VDN (the selection run's pair) first, the costliest gradient steps
+# (IQL's and hysteretic DQN's 128 hidden units) last
+field deep-cmarl-cd-shares "$d" --set "$shares,$d.gamma=0.99"
+field vdn vdn --preset epymarl --set "$(model vdn)"
+field deep-cmarl-cd "$d" --set "$d.gamma=0.99"
+for learner in qmix deep-iql hysteretic-dqn; do
+  field "$learner" "$learner" --preset epymarl --set "$(model "$learner")"
 done
 echo "$(date +%T) done" >&2
