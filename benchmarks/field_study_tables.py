@@ -6,10 +6,12 @@ average return over the curve, each with its 95 % interval over the seeds, EPyMA
 figures), one Markdown table with the tasks as rows and the learners as columns, the best
 of each row in bold, the random policy's mean return as the floor; then which tasks and
 learners the store does not hold yet. ``--figure`` draws every task's mean curves, one
-panel a task.
+panel a task; ``--page`` writes the tables and the list into the documentation page's
+marked blocks (``<!-- study-max -->`` ... ``<!-- /study-max -->``, ``study-average``,
+``study-missing``).
 
     python benchmarks/field_study_tables.py --store results/field/study/store.sqlite \
-        --figure docs/field-study.png
+        --figure docs/field-study.png --page docs/field.md
 """
 
 from __future__ import annotations
@@ -112,6 +114,17 @@ def missing(tasks: dict[str, dict[str, Any]]) -> list[str]:
     return lines
 
 
+def fill(page: str, block: str, lines: list[str]) -> str:
+    """``page`` with the text between ``<!-- block -->`` and ``<!-- /block -->``
+    replaced by ``lines``."""
+    start, end = f"<!-- {block} -->", f"<!-- /{block} -->"
+    if start not in page or end not in page:
+        raise ValueError(f"the page has no block {start} ... {end}")
+    head, rest = page.split(start, 1)
+    _, tail = rest.split(end, 1)
+    return head + start + "\n" + "\n".join(lines) + ("\n" if lines else "") + end + tail
+
+
 def draw(tasks: dict[str, dict[str, Any]], path: Path) -> None:
     import matplotlib
 
@@ -144,14 +157,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--store", type=Path, help="the study's store (runs cmarl-cd report)")
     p.add_argument("--report", type=Path, help="or a report already written (JSON)")
     p.add_argument("--figure", type=Path, help="draw the curves into this PNG")
+    p.add_argument("--page", type=Path, help="write the tables into this page's blocks")
     args = p.parse_args(argv)
     if (args.store is None) == (args.report is None):
         print("error: give one of --store and --report", file=sys.stderr)
         return 2
     source = args.store if args.store is not None else args.report
-    if not source.is_file():
-        print(f"error: no such file: {source}", file=sys.stderr)
-        return 2
+    for path in (source, args.page):
+        if path is not None and not path.is_file():
+            print(f"error: no such file: {path}", file=sys.stderr)
+            return 2
     if args.store is not None:
         done = subprocess.run(
             [sys.executable, "-m", "cmarlcd", "report", "--store", str(args.store),
@@ -173,6 +188,17 @@ def main(argv: list[str] | None = None) -> int:
     if args.figure is not None:
         draw(tasks, args.figure)
         print(f"figure: {args.figure}")
+    if args.page is not None:
+        page = args.page.read_text()
+        try:
+            for key, _ in FIGURES:
+                page = fill(page, "study-" + key.split("_")[0], table(tasks, key))
+            page = fill(page, "study-missing", [f"- {line}" for line in absent] or ["none"])
+        except ValueError as error:
+            print(f"error: {args.page}: {error}", file=sys.stderr)
+            return 2
+        args.page.write_text(page)
+        print(f"page: {args.page}")
     return 0
 
 

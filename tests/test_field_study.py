@@ -83,6 +83,28 @@ def test_the_script_prints_the_tables_and_draws(tmp_path: Path) -> None:
     assert (tmp_path / "curves.png").stat().st_size > 0
 
 
+def test_the_page_blocks_are_filled(tmp_path: Path) -> None:
+    page = "intro\n<!-- study-max -->\nold\n<!-- /study-max -->\nafter\n"
+    assert tables.fill(page, "study-max", ["| a |", "| b |"]) == (
+        "intro\n<!-- study-max -->\n| a |\n| b |\n<!-- /study-max -->\nafter\n"
+    )
+    report, doc = tmp_path / "report.json", tmp_path / "field.md"
+    report.write_text(json.dumps(REPORT))
+    blocks = ("study-max", "study-average", "study-missing")
+    doc.write_text("".join(f"<!-- {b} -->\n<!-- /{b} -->\n" for b in blocks))
+    assert run("--report", str(report), "--page", str(doc)).returncode == 0
+    text = doc.read_text()
+    assert "| 8x8-2p-2f-coop | – | – | **0.400** [0.300, 0.500]" in text
+    assert "| 8x8-2p-2f-coop | – | – | 0.200 | 0.100 | **0.300** | – | 0.005 |" in text
+    assert "- simple_spread: IQL, hysteretic DQN, VDN" in text
+    doc.write_text("no blocks here\n")
+    done = run("--report", str(report), "--page", str(doc))
+    assert done.returncode == 2
+    assert done.stderr.strip() == (
+        f"error: {doc}: the page has no block <!-- study-max --> ... <!-- /study-max -->"
+    )
+
+
 def test_bad_input_is_one_line(tmp_path: Path) -> None:
     done = run("--report", str(tmp_path / "absent.json"))
     assert done.returncode == 2 and done.stderr.strip().startswith("error: no such file")

@@ -233,7 +233,7 @@ def test_every_difference_from_epymarl_is_on_the_field_page() -> None:
 
     from cmarlcd.learners.deep.epymarl import DIFFERENCES, EPYMARL_COMMIT
 
-    page = (Path(__file__).resolve().parents[3] / "docs" / "field.md").read_text()
+    page = (Path(__file__).resolve().parents[3] / "docs" / "anchors.md").read_text()
     assert f"commit {EPYMARL_COMMIT}" in page
     for what, _, _ in DIFFERENCES:
         assert f"| {what} |" in page, what

@@ -44,7 +44,7 @@ BY_ALGORITHM = {
 GAMMA, EPS_START, EPS_END, GRAD_CLIP, MIXING_EMBED = 0.99, 1.0, 0.05, 10.0, 32
 BATCH_EPISODES, BUFFER_EPISODES, TARGET_EPISODES = 32, 5_000, 200
 
-#: What the preset does not reproduce, and why (the docs list them: docs/field.md).
+#: What the preset does not reproduce, and why (the docs list them: docs/anchors.md).
 DIFFERENCES = (
     (
         "replay, batches, training and target copies",
