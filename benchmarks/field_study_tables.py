@@ -35,6 +35,9 @@ TASKS = (
     "foraging:15x15-4p-5f",
     "simple_spread",
 )
+#: How the store names a task given by its short name (simple_spread's defaults spelled
+#: out).
+STORED = {"simple_spread": "simple_spread:N=3,local_ratio=0.5,max_cycles=25"}
 #: The study's learners: the column's name and how its label in the store begins.
 LEARNERS = (
     ("IQL", "Deep IQL (EPyMARL"),
@@ -58,10 +61,11 @@ def study(report: dict[str, Any]) -> dict[str, dict[str, Any]]:
     """Per task of the study: its learners' field figures by column, the random floor,
     and the mean curves ``{column: [(step, mean return), ...]}``."""
     tasks: dict[str, dict[str, Any]] = {}
+    short = {STORED.get(task, task): task for task in TASKS}
     for doc in report.get("train", []):
-        if doc["game"] not in TASKS:
+        if doc["game"] not in short:
             continue
-        task = tasks.setdefault(doc["game"], {"field": {}, "floor": None, "curves": {}})
+        task = tasks.setdefault(short[doc["game"]], {"field": {}, "floor": None, "curves": {}})
         for row in doc["rows"]:
             if row["algorithm"] == "random":
                 task["floor"] = row["mean_return"]

@@ -43,13 +43,20 @@ REPORT = {
             },
         },
         {"game": "foraging:5x5-2p-1f", "rows": [], "field": {}, "curves": {}},
+        {
+            "game": "simple_spread:N=3,local_ratio=0.5,max_cycles=25",
+            "rows": [{"algorithm": "random", "mean_return": -79.3}],
+            "field": {"VDN (EPyMARL, share=True)": figures(-50.0, -60.0)},
+            "curves": {},
+        },
     ]
 }
 
 
 def test_cells_best_and_floor() -> None:
     tasks = tables.study(REPORT)
-    assert list(tasks) == ["foraging:8x8-2p-2f-coop"]  # a task outside the study is left out
+    # a task outside the study is left out; simple_spread is found by its stored name
+    assert list(tasks) == ["foraging:8x8-2p-2f-coop", "simple_spread"]
     best = tables.table(tasks, "max_return")
     row = best[2].split(" | ")
     # IQL, hysteretic DQN: absent; VDN and QMIX tie at the best; a label outside the
@@ -66,6 +73,9 @@ def test_missing_pairs_are_listed() -> None:
     absent = tables.missing(tables.study(REPORT))
     assert absent[0] == ("foraging:8x8-2p-2f-coop: IQL, hysteretic DQN, deep CMARL-CD (shares)")
     assert len(absent) == len(tables.TASKS)
+    assert absent[-1] == (
+        "simple_spread: IQL, hysteretic DQN, QMIX, deep CMARL-CD, deep CMARL-CD (shares)"
+    )
 
 
 def run(*args: str) -> subprocess.CompletedProcess[str]:
@@ -96,7 +106,8 @@ def test_the_page_blocks_are_filled(tmp_path: Path) -> None:
     text = doc.read_text()
     assert "| 8x8-2p-2f-coop | – | – | **0.400** [0.300, 0.500]" in text
     assert "| 8x8-2p-2f-coop | – | – | 0.200 | 0.100 | **0.300** | – | 0.005 |" in text
-    assert "- simple_spread: IQL, hysteretic DQN, VDN" in text
+    assert "- simple_spread: IQL, hysteretic DQN, QMIX" in text
+    assert "| simple_spread | – | – | **-50.000** [-50.100, -49.900]" in text
     doc.write_text("no blocks here\n")
     done = run("--report", str(report), "--page", str(doc))
     assert done.returncode == 2
