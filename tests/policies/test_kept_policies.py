@@ -142,6 +142,19 @@ def cli(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
     )  # fmt: skip
 
 
+def evaluated(*args: str) -> dict:
+    """``cmarl-cd evaluate ARGS --json``'s document, run in this process: the loops below
+    evaluate many policies, and each start of the command costs seconds; every test
+    runs the command as a user does, a subprocess, at least once too."""
+    from typer.testing import CliRunner
+
+    from cmarlcd.cli import app
+
+    done = CliRunner().invoke(app, ["evaluate", *args, "--json"])
+    assert done.exit_code == 0, done.output
+    return json.loads(done.stdout)
+
+
 def test_evaluate_replays_the_runs_last_evaluation(tmp_path) -> None:
     """Kept with train --env --save-policies, each policy's evaluate gives its run's last
     curve point (random lengths and pay: other seeds give another return)."""
@@ -161,10 +174,14 @@ def test_evaluate_replays_the_runs_last_evaluation(tmp_path) -> None:
     os.umask(mask)  # as any file the user makes (the library alone writes 0600)
     assert {f.stat().st_mode & 0o777 for f in files} == {0o666 & ~mask}
     stored = {}
-    for path in files:
-        shown = cli("evaluate", "--policy", str(path), "--store", str(store), "--json")
-        assert shown.returncode == 0, shown.stderr
-        doc = json.loads(shown.stdout)
+    for k, path in enumerate(files):
+        args = ("--policy", str(path), "--store", str(store))
+        if k == 0:
+            shown = cli("evaluate", *args, "--json")
+            assert shown.returncode == 0, shown.stderr
+            doc = json.loads(shown.stdout)
+        else:
+            doc = evaluated(*args)
         assert doc["mean_return"] == doc["stored_return"] and doc["episodes"] == 7
         stored[path] = doc["stored_return"]
     other = json.loads(cli("evaluate", "--policy", str(files[0]), "--seed", "9", "--json").stdout)
@@ -186,14 +203,13 @@ def test_policies_kept_on_the_dsn_replay_their_last_curve_point(tmp_path) -> Non
     assert len(files) == 8
     returns = set()
     for path in files:
-        doc = json.loads(cli("evaluate", "--policy", str(path), "--store", str(store),
-                             "--json").stdout)  # fmt: skip
+        doc = evaluated("--policy", str(path), "--store", str(store))
         assert doc["mean_return"] == doc["stored_return"]
         returns.add(doc["mean_return"])
     assert len(returns) == len(files)  # eight policies, eight figures: the check can fail
     other = json.loads(cli("evaluate", "--policy", str(files[0]), "--episodes", "300",
                            "--seed", "5", "--json").stdout)  # fmt: skip
-    first = json.loads(cli("evaluate", "--policy", str(files[0]), "--json").stdout)
+    first = evaluated("--policy", str(files[0]))
     assert other["mean_return"] != first["mean_return"]
 
 
@@ -221,9 +237,9 @@ def test_networks_kept_on_a_compiled_game_replay_their_last_curve_point(tmp_path
     assert len(files) == 6
     for path in kept.glob("foraging-deep-cmarl-cd-*"):
         assert len(load_policy(path).arrays()["memory_keys"]) > 0
-    for path in files:
-        doc = json.loads(cli("evaluate", "--policy", str(path), "--store", str(store),
-                             "--json").stdout)  # fmt: skip
+    for k, path in enumerate(files):
+        args = ("--policy", str(path), "--store", str(store))
+        doc = json.loads(cli("evaluate", *args, "--json").stdout) if k == 0 else evaluated(*args)
         assert doc["mean_return"] == doc["stored_return"]
 
 
@@ -242,9 +258,9 @@ def test_greedy_joint_actions_kept_on_repeated_games_give_the_stored_payoff(tmp_
     files = sorted(kept.glob("compare-*.npz"))
     assert any("deep-cmarl-cd" in f.name for f in files) and len(files) > 10
     payoffs = set()
-    for path in files[::3]:
-        doc = json.loads(cli("evaluate", "--policy", str(path), "--store", str(store),
-                             "--json").stdout)  # fmt: skip
+    for k, path in enumerate(files[::3]):
+        args = ("--policy", str(path), "--store", str(store))
+        doc = json.loads(cli("evaluate", *args, "--json").stdout) if k == 0 else evaluated(*args)
         assert doc["mean_return"] == doc["stored_return"]
         payoffs.add(doc["mean_return"])
     assert len(payoffs) > 2  # random games, other payoffs: the check can fail
@@ -254,8 +270,7 @@ def test_greedy_joint_actions_kept_on_repeated_games_give_the_stored_payoff(tmp_
     assert done.returncode == 0, done.stderr[-3000:]
     joints = set()
     for path in kept.glob("repeated-*.npz"):  # each an optimum (1) of its own random game
-        doc = json.loads(cli("evaluate", "--policy", str(path), "--store", str(store),
-                             "--json").stdout)  # fmt: skip
+        doc = evaluated("--policy", str(path), "--store", str(store))
         assert doc["mean_return"] == doc["stored_return"] == 1.0 and doc["optimal"]
         joints.add(tuple(doc["greedy_joint_action"]))
     assert len(joints) == 3  # three games, three optima: a game remade wrong would miss
