@@ -138,7 +138,15 @@ DEEPER = {
 FEATURES = ["features, masks in the batch", "features, every action legal", "own observations"]
 
 
-@pytest.mark.parametrize("networks", list(DEEPER))
+#: Cases of the slow set only: each compiles kernels of its own (three layers) for
+#: minutes of a fresh checkout's CI; two layers exercise the middle layers in the default set.
+SLOW_NETWORKS = {"3 layers, shared"}
+
+
+@pytest.mark.parametrize(
+    "networks",
+    [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_NETWORKS else n for n in DEEPER],
+)
 @pytest.mark.parametrize("inputs", FEATURES)
 @pytest.mark.parametrize("mixer", MIXERS)
 def test_fused_gradients_equal_autograd_through_middle_layers(
