@@ -21,7 +21,8 @@
 #             declared check that every task and learner runs end to end.
 #
 # One store per form (OUT/store.sqlite): every run is stored as it ends, so a killed study
-# resumes where it stopped. Read it with
+# resumes where it stopped; its progress goes to stderr, one line a minute into a log
+# (`bash benchmarks/field_study.sh full OUT 2> OUT/progress.log`). Read it with
 #
 #   cmarl-cd report --store results/field/study/store.sqlite --format json
 #
@@ -57,7 +58,7 @@ field() {  # field PART LEARNER [ARGS ...]: one learner on every task
   shift 2
   echo "$(date +%T) $part" >&2
   python -m cmarlcd field --tasks "$(IFS=,; echo "${tasks[*]}")" --learners "$learner" \
-    "${protocol[@]}" --inputs own-observations --workers 1 --no-progress --json "$@" \
+    "${protocol[@]}" --inputs own-observations --workers 1 --json "$@" \
     --store "$out/store.sqlite" --figures "$out/figures" >"$out/$part.json"
 }
 # learner by learner, so that a partial store holds whole columns: deep CMARL-CD's best
