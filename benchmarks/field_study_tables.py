@@ -17,6 +17,7 @@ marked blocks (``<!-- study-max -->`` ... ``<!-- /study-max -->``, ``study-avera
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import subprocess
@@ -129,6 +130,50 @@ def fill(page: str, block: str, lines: list[str]) -> str:
     return head + start + "\n" + "\n".join(lines) + ("\n" if lines else "") + end + tail
 
 
+#: The store's name of each learner of the study (deep CMARL-CD's two by their design).
+ALGORITHMS = {"deep-iql": "IQL", "hysteretic-dqn": "hysteretic DQN", "vdn": "VDN", "qmix": "QMIX"}
+
+
+def hours(store: Path) -> dict[str, dict[str, float]]:
+    """Per task and learner of the study, the hours its runs took (the store's wall
+    seconds of each run: a seed's share of its stacked batch)."""
+    import sqlite3
+
+    spent: dict[str, dict[str, float]] = {}
+    with contextlib.closing(sqlite3.connect(f"file:{store}?mode=ro", uri=True)) as db:
+        rows = db.execute("SELECT experiment, algorithm, config, wall_seconds FROM runs")
+        for experiment, algorithm, config, seconds in rows:
+            game = json.loads(config).get("game", {})
+            task = f"{experiment}:{game.get('task')}" if isinstance(game, dict) else None
+            task = "simple_spread" if task == STORED["simple_spread"] else task
+            if algorithm == "deep-cmarl-cd":
+                shares = '"critic_form":"degrees"' in config.replace(" ", "")
+                name = "deep CMARL-CD (shares)" if shares else "deep CMARL-CD"
+            else:
+                name = ALGORITHMS.get(algorithm)
+            if task in TASKS and name is not None:
+                row = spent.setdefault(task, {})
+                row[name] = row.get(name, 0.0) + seconds / 3600
+    return spent
+
+
+def time_table(spent: dict[str, dict[str, float]]) -> list[str]:
+    """Hours per task (rows) and learner (columns), with each row's and column's sum."""
+    names = [name for name, _ in LEARNERS]
+    lines = ["| task | " + " | ".join(names) + " | all |", "|---|" + "---|" * (len(names) + 1)]
+    for game in TASKS:
+        if game in spent:
+            row = spent[game]
+            cells = [f"{row[n]:.2f}" if n in row else "–" for n in names]
+            total = sum(row.values())
+            lines.append(
+                f"| {game.removeprefix('foraging:')} | " + " | ".join(cells) + f" | {total:.2f} |"
+            )
+    sums = [sum(spent[g].get(n, 0.0) for g in spent) for n in names]
+    lines.append("| all | " + " | ".join(f"{h:.2f}" for h in sums) + f" | {sum(sums):.2f} |")
+    return lines
+
+
 def draw(tasks: dict[str, dict[str, Any]], path: Path) -> None:
     import matplotlib
 
@@ -186,6 +231,10 @@ def main(argv: list[str] | None = None) -> int:
     for key, title in FIGURES:
         print(f"\n{title} (95 % interval over the seeds; bold: the row's best)\n")
         print("\n".join(table(tasks, key)))
+    spent = hours(args.store) if args.store is not None else None
+    if spent is not None:
+        print("\nhours of one core (the runs' wall seconds)\n")
+        print("\n".join(time_table(spent)))
     absent = missing(tasks)
     print("\nnot in the store yet:" if absent else "\nevery task and learner is in the store")
     print("\n".join(absent))
@@ -198,6 +247,8 @@ def main(argv: list[str] | None = None) -> int:
             for key, _ in FIGURES:
                 page = fill(page, "study-" + key.split("_")[0], table(tasks, key))
             page = fill(page, "study-missing", [f"- {line}" for line in absent] or ["none"])
+            if spent is not None:
+                page = fill(page, "study-hours", time_table(spent))
         except ValueError as error:
             print(f"error: {args.page}: {error}", file=sys.stderr)
             return 2

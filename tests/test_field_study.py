@@ -116,6 +116,37 @@ def test_the_page_blocks_are_filled(tmp_path: Path) -> None:
     )
 
 
+def test_hours_sum_each_tasks_runs_by_learner(tmp_path: Path) -> None:
+    import sqlite3
+
+    store = tmp_path / "s.sqlite"
+    spread = '{"game": {"task": "N=3,local_ratio=0.5,max_cycles=25"}}'
+    rows = [  # (experiment, algorithm, config, wall seconds)
+        ("foraging", "vdn", '{"game": {"task": "8x8-2p-2f-coop"}}', 1800.0),
+        ("foraging", "vdn", '{"game": {"task": "8x8-2p-2f-coop"}}', 1800.0),
+        ("foraging", "deep-cmarl-cd", '{"game": {"task": "8x8-2p-2f-coop"}}', 3600.0),
+        ("foraging", "deep-cmarl-cd",
+         '{"game": {"task": "8x8-2p-2f-coop"}, "learner": {"critic_form": "degrees"}}', 7200.0),
+        ("simple_spread", "qmix", spread, 900.0),
+        ("foraging", "vdn", '{"game": {"task": "5x5-2p-1f"}}', 99.0),  # not the study's
+    ]  # fmt: skip
+    with sqlite3.connect(store) as db:
+        db.execute("CREATE TABLE runs (experiment, algorithm, config, wall_seconds)")
+        db.executemany("INSERT INTO runs VALUES (?, ?, ?, ?)", rows)
+    spent = tables.hours(store)
+    assert spent == {
+        "foraging:8x8-2p-2f-coop": {
+            "VDN": 1.0,
+            "deep CMARL-CD": 1.0,
+            "deep CMARL-CD (shares)": 2.0,
+        },
+        "simple_spread": {"QMIX": 0.25},
+    }
+    table = tables.time_table(spent)
+    assert table[2] == "| 8x8-2p-2f-coop | – | – | 1.00 | – | 1.00 | 2.00 | 4.00 |"
+    assert table[-1] == "| all | 0.00 | 0.00 | 1.00 | 0.25 | 1.00 | 2.00 | 4.25 |"
+
+
 def test_bad_input_is_one_line(tmp_path: Path) -> None:
     done = run("--report", str(tmp_path / "absent.json"))
     assert done.returncode == 2 and done.stderr.strip().startswith("error: no such file")
