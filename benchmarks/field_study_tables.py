@@ -226,7 +226,12 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         report = json.loads(done.stdout)
     else:
-        report = json.loads(args.report.read_text())
+        try:
+            report = json.loads(args.report.read_text())
+        except (UnicodeDecodeError, json.JSONDecodeError):
+            print(f"error: {args.report} is not a report (cmarl-cd report --format json)",
+                  file=sys.stderr)  # fmt: skip
+            return 2
     tasks = study(report)
     for key, title in FIGURES:
         print(f"\n{title} (95 % interval over the seeds; bold: the row's best)\n")

@@ -152,6 +152,13 @@ def test_bad_input_is_one_line(tmp_path: Path) -> None:
     assert done.returncode == 2 and done.stderr.strip().startswith("error: no such file")
     done = run()
     assert done.returncode == 2 and done.stderr.strip() == "error: give one of --store and --report"
+    text = tmp_path / "text.json"
+    text.write_text("not JSON")
+    done = run("--report", str(text))
+    assert done.returncode == 2
+    assert done.stderr.strip() == f"error: {text} is not a report (cmarl-cd report --format json)"
+    done = run("--store", str(text))
+    assert done.returncode == 2 and done.stderr.strip().startswith("error: --store:")
     shell = subprocess.run(
         ["bash", str(ROOT / "benchmarks/field_study.sh"), "fast", str(tmp_path)],
         capture_output=True, text=True, check=False,
