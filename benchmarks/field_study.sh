@@ -26,9 +26,20 @@
 #
 #   cmarl-cd report --store results/field/study/store.sqlite --format json
 #
-# Usage: bash benchmarks/field_study.sh [full|quick] [OUT] [TASK ...]
-#   (one worker, so that the machine's other core stays free; needs the [deep] extra)
+# Usage: [PARTS="vdn qmix"] [WORKERS=2] bash benchmarks/field_study.sh [full|quick] [OUT] [TASK ...]
+#   PARTS: which learners' parts to run, in the study's order unless told (shares, vdn,
+#   deep-cmarl-cd, qmix, deep-iql, hysteretic-dqn; default all); WORKERS: worker
+#   processes, each a task at a time (default 1, so that the machine's other core stays
+#   free). Needs the [deep] extra.
 set -euo pipefail
+all_parts=(shares vdn deep-cmarl-cd qmix deep-iql hysteretic-dqn)
+read -r -a parts <<<"${PARTS:-${all_parts[*]}}"
+for part in "${parts[@]}"; do
+  [[ " ${all_parts[*]} " == *" $part "* ]] ||
+    { echo "error: unknown part '$part' (${all_parts[*]})" >&2; exit 2; }
+done
+workers="${WORKERS:-1}"
+[[ "$workers" =~ ^[1-9][0-9]*$ ]] || { echo "error: WORKERS must be >= 1 (got '$workers')" >&2; exit 2; }
 form="${1:-full}"
 out="${2:-results/field/study}"
 shift $(($# < 2 ? $# : 2))
@@ -58,16 +69,17 @@ field() {  # field PART LEARNER [ARGS ...]: one learner on every task
   shift 2
   echo "$(date +%T) $part" >&2
   python -m cmarlcd field --tasks "$(IFS=,; echo "${tasks[*]}")" --learners "$learner" \
-    "${protocol[@]}" --inputs own-observations --workers 1 --json "$@" \
+    "${protocol[@]}" --inputs own-observations --workers "$workers" --json "$@" \
     --store "$out/store.sqlite" --figures "$out/figures" >"$out/$part.json"
 }
 # learner by learner, so that a partial store holds whole columns: deep CMARL-CD's best
 # measured design and VDN (the selection run's pair) first, the costliest gradient steps
 # (IQL's and hysteretic DQN's 128 hidden units) last
-field deep-cmarl-cd-shares "$d" --set "$shares,$d.gamma=0.99"
-field vdn vdn --preset epymarl --set "$(model vdn)"
-field deep-cmarl-cd "$d" --set "$d.gamma=0.99"
-for learner in qmix deep-iql hysteretic-dqn; do
-  field "$learner" "$learner" --preset epymarl --set "$(model "$learner")"
+for part in "${parts[@]}"; do
+  case "$part" in
+    shares) field deep-cmarl-cd-shares "$d" --set "$shares,$d.gamma=0.99" ;;
+    deep-cmarl-cd) field deep-cmarl-cd "$d" --set "$d.gamma=0.99" ;;
+    *) field "$part" "$part" --preset epymarl --set "$(model "$part")" ;;
+  esac
 done
 echo "$(date +%T) done" >&2

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -165,3 +166,14 @@ def test_bad_input_is_one_line(tmp_path: Path) -> None:
     )  # fmt: skip
     assert shell.returncode == 2
     assert shell.stderr.strip() == "error: unknown form 'fast' (full or quick)"
+    for env, line in (
+        ({"PARTS": "vdn iql"}, "error: unknown part 'iql' (shares vdn deep-cmarl-cd qmix "
+                               "deep-iql hysteretic-dqn)"),
+        ({"WORKERS": "0"}, "error: WORKERS must be >= 1 (got '0')"),
+    ):  # fmt: skip
+        shell = subprocess.run(
+            ["bash", str(ROOT / "benchmarks/field_study.sh"), "quick", str(tmp_path)],
+            capture_output=True, text=True, check=False, env={**os.environ, **env},
+        )  # fmt: skip
+        assert shell.returncode == 2 and shell.stderr.strip() == line
+    assert not (tmp_path / "store.sqlite").exists()  # refused before anything ran
