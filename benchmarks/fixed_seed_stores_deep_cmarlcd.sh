@@ -7,7 +7,8 @@
 #   for s in OLD/*.sqlite; do python benchmarks/compare_stores.py "$s" NEW/$(basename "$s"); done
 #
 # Stores: the keyed default on LBF (features), self-imitation on λ-returns on LBF (the
-# bootstrapped ring), the summed critic bootstrapped from the greedy joint action on LBF, the keyed memory with first visits on simple_spread, the keyed
+# bootstrapped ring), the summed critic bootstrapped from the greedy joint action on LBF, the agents' degrees
+# as their shares of the record on LBF, the keyed memory with first visits on simple_spread, the keyed
 # default on the DSN (one-hot states), the replayed design on the tests' tiny environment
 # (the object API). Usage: bash benchmarks/fixed_seed_stores_deep_cmarlcd.sh DIR
 # (about 5 minutes on one core; needs the [deep] extra)
@@ -29,6 +30,7 @@ lbf=(train --game foraging:5x5-2p-1f --steps 20k --runs 2 --curve-points 2 --eva
 run keyed-lbf "${lbf[@]}"
 run imitation-lambda-lbf "${lbf[@]}" --set "$d.update=imitation,$d.return_lambda=0.9"
 run critic-sum-lbf "${lbf[@]}" --set "$d.update=critic,$d.return_lambda=0.9,$d.critic_form=sum,$d.critic_bootstrap=greedy,$d.critic_fit=imitation"
+run shares-lbf "${lbf[@]}" --set "$d.update=critic,$d.return_lambda=0.9,$d.critic_form=degrees,$d.critic_bootstrap=greedy,$d.critic_fit=imitation"
 run first-visit-spread train --game simple_spread:N=3 --steps 10k --runs 2 --curve-points 2 \
   --eval-episodes 5 --set "$d.unseen_record=first-visit"
 run keyed-dsn dsn --episodes 2000 --eval-episodes 50 --runs 2

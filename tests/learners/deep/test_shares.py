@@ -195,3 +195,43 @@ def test_the_design_passes_every_learner_check() -> None:
     from cmarlcd.testing import check_learner
 
     check_learner(SHARES_DEEP_CMARLCD)
+
+
+def test_two_hidden_layers_act_in_the_loop_as_the_networks_compute() -> None:
+    """``hidden_layers=2``: each degree network gets a middle layer, the loop's copy of
+    the weights carries it, and the compiled degrees at sampled features are the
+    networks' own (to float32 rounding) after a few hundred learning steps on LBF."""
+    from cmarlcd.experiments import games
+    from cmarlcd.training.deep import DeepBatch
+    from cmarlcd.training.deep_kernels import hidden_scratch
+    from cmarlcd.training.degree_kernels import agent_degrees
+
+    spec = games.parse_game("foraging:5x5-2p-1f")[1].spec()
+    config = replace(
+        SHARES_DEEP_CMARLCD, hidden_layers=2, hidden=16, batch_size=64, buffer_size=2000
+    )
+    run = DeepBatch(spec, config, [np.random.SeedSequence(3)], 200)
+    run.train([], lambda *args: None)
+    model, group = run.group.model, run.group
+    names = [name for name, _ in model.agents.named_parameters()]
+    assert any(name.startswith("middle.") for name in names)
+    weights = group.weights
+    assert weights.wm.shape[1:] == (1, 16, 16)
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((50, spec.n_features)).astype(np.float32)
+    with torch.no_grad():
+        expected = model.agents(torch.from_numpy(x)[None]).numpy()[0]  # (50, agents, width)
+    hidden, out = hidden_scratch(weights), np.zeros(spec.width, np.float64)
+    for k in range(len(x)):
+        for i in range(spec.n_agents):
+            agent_degrees(weights, i, x[k], 0, spec.width, hidden, out)
+            np.testing.assert_allclose(out, expected[k, i], rtol=1e-5, atol=1e-5)
+
+
+def test_hidden_layers_is_checked_and_refuses_the_fused_step() -> None:
+    with pytest.raises(ConfigError, match="hidden_layers"):
+        DeepCMARLCDConfig(hidden_layers=0)
+    assert DeepCMARLCDConfig().fused_covered
+    assert not DeepCMARLCDConfig(hidden_layers=2).fused_covered
+    with pytest.raises(ConfigError, match="hidden_layers=1"):
+        DeepCMARLCDConfig(hidden_layers=2, step="fused")

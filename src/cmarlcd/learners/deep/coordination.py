@@ -188,6 +188,10 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     return, in (0, 1]."""
     hidden: int = 49
     """Hidden units of each degree network (VDN's agent networks: 49)."""
+    hidden_layers: int = added_setting(1, "0.7.0")
+    """[choice] Hidden layers of each degree network, each of ``hidden`` units (2: the
+    model class of EPyMARL's agents, what VDN needed on LBF's cooperative tasks: the
+    field page); more than one takes autograd's step."""
     share: bool = False
     """[choice] One degree network for every agent (the agent's one-hot index appended to
     its input) rather than one per agent (VDN's and QMIX's: none shared)."""
@@ -329,8 +333,9 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
         require(
             self.step != "fused" or self.fused_covered,
             "step",
-            "'fused' is the keyed update with one network per agent (update='keyed', "
-            "share=false); the others take step=autograd (or auto, which falls back to it)",
+            "'fused' is the keyed update with one network per agent of one hidden layer "
+            "(update='keyed', share=false, hidden_layers=1); the others take step=autograd "
+            "(or auto, which falls back to it)",
         )
         lam = self.return_lambda
         require(0 <= lam <= 1, "return_lambda", f"must be in [0, 1] (got {lam})")
@@ -372,7 +377,8 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             "'memory' needs the keyed memory (update='keyed'); "
             f"with update='{self.update}' set act_from=network",
         )
-        for name in ("hidden", "record_hidden", "buffer_size", "batch_size", "train_every", "ways"):
+        for name in ("hidden", "hidden_layers", "record_hidden", "buffer_size", "batch_size",
+                     "train_every", "ways"):  # fmt: skip
             value = getattr(self, name)
             require(value >= 1, name, f"must be >= 1 (got {value})")
         require(self.target_every >= 1, "target_every", f"must be >= 1 (got {self.target_every})")
@@ -442,7 +448,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     def fused_covered(self) -> bool:
         """Whether the fused step covers these settings: the keyed update with one
         network per agent."""
-        return self.keyed and not self.share
+        return self.keyed and not self.share and self.hidden_layers == 1
 
     def ready(self, stored: int) -> bool:
         """Keyed: learning starts once a state is kept (a batch draws states with

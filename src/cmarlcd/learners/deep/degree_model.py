@@ -80,12 +80,14 @@ class DegreeModel(StackedModel):
         if config.share:
             shared = [g[0] for g in gens]
             self.agents = SharedAgentNetwork(
-                self.n_seeds, self.n_agents, in_dim, config.hidden, width, shared, own_dim
-            )
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, shared, own_dim,
+                config.hidden_layers,
+            )  # fmt: skip
         else:
             self.agents = AgentNetworks(
-                self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens, own_dim
-            )
+                self.n_seeds, self.n_agents, in_dim, config.hidden, width, gens, own_dim,
+                config.hidden_layers,
+            )  # fmt: skip
         outputs = config.record_outputs(action_counts)
         self.record = RecordNetwork(in_dim, config.record_hidden, [g[-1] for g in gens], outputs)
         # joint action index = sum_i a_i * strides[i], the last agent's action fastest
