@@ -16,6 +16,11 @@ from cmarlcd.experiments.repeated import CellSummary
 LEGEND_WIDTH = 60
 
 
+def _wrapped(label: str) -> str:
+    """A legend label on lines of at most :data:`LEGEND_WIDTH` characters."""
+    return "\n".join(textwrap.wrap(label, LEGEND_WIDTH))
+
+
 def _pyplot():
     import matplotlib
 
@@ -75,7 +80,8 @@ def learning_curves(curves: dict[str, np.ndarray], path: Path) -> Path:
         for ax, column, scale in ((ax_success, 1, 100.0), (ax_steps, 3, 1.0)):
             values = scale * data[:, :, column]
             lo, hi = np.percentile(values, [10, 90], axis=0)
-            (line,) = ax.plot(x, values.mean(axis=0), label=f"{name} ({len(data)} runs)")
+            label = _wrapped(f"{name} ({len(data)} runs)")
+            (line,) = ax.plot(x, values.mean(axis=0), label=label)
             ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.2)
     ax_success.set_ylabel("success rate of the greedy policy (%)")
     ax_steps.set_ylabel("average steps per episode")
@@ -96,12 +102,12 @@ def scaling_curves(series: dict[str, np.ndarray], title: str, path: Path) -> Pat
     fig, (ax_success, ax_return) = plt.subplots(1, 2, figsize=(11, 4))
     for name, rows in series.items():
         states, success, spread, per_target = rows.T
-        (line,) = ax_success.plot(states, 100 * success, marker="o", label=name)
+        (line,) = ax_success.plot(states, 100 * success, marker="o", label=_wrapped(name))
         ax_success.fill_between(
             states, 100 * (success - spread), 100 * (success + spread),
             color=line.get_color(), alpha=0.15,
         )  # fmt: skip
-        ax_return.plot(states, per_target, marker="o", color=line.get_color(), label=name)
+        ax_return.plot(states, per_target, marker="o", color=line.get_color(), label=_wrapped(name))
     ax_success.set_ylabel("episodes with every target captured (%)")
     ax_success.set_ylim(-3, 103)
     ax_return.set_ylabel("mean return per target")
@@ -110,7 +116,7 @@ def scaling_curves(series: dict[str, np.ndarray], title: str, path: Path) -> Pat
         ax.set_xlabel("states of the network")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
-    fig.suptitle(title, fontsize=10)
+    fig.suptitle(textwrap.fill(title, 110), fontsize=10)
     fig.tight_layout()
     return _save(fig, path)
 
@@ -132,7 +138,7 @@ def environment_curves(
         x, values = data[0, :, 0], data[:, :, 1]
         style = {"linestyle": "--", "color": "grey"} if name == baseline else {}
         label = name if name == baseline and len(data) == 1 else f"{name} ({len(data)} runs)"
-        label = "\n".join(textwrap.wrap(label, LEGEND_WIDTH))  # a label with many settings
+        label = _wrapped(label)  # a label with many settings
         (line,) = ax.plot(x, values.mean(axis=0), label=label, **style)
         lo, hi = np.percentile(values, [10, 90], axis=0)
         ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.15)
@@ -140,7 +146,7 @@ def environment_curves(
     ax.set_ylabel("return of the greedy policy (team)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title(title, fontsize=9)
+    ax.set_title(textwrap.fill(title, 80), fontsize=9)
     fig.tight_layout()
     return _save(fig, path)
 
@@ -159,7 +165,7 @@ def dsn_policy_grid(policy: np.ndarray, title: str, path: Path) -> Path:
     fig, axes = plt.subplots(6, 7, figsize=(14, 10))
     for state, ax in enumerate(axes.flat):
         _draw_state(ax, state, policy[state], dsn)
-    fig.suptitle(title, fontsize=11)
+    fig.suptitle(textwrap.fill(title, 150), fontsize=11)
     fig.legend(handles=_fig4_legend(), loc="lower center", ncol=4, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.05, 1, 1))
     return _save(fig, path)

@@ -16,6 +16,8 @@ from rich.text import Text
 from cmarlcd.reports.section import BAD, GOOD, Block, Cell, FigureBlock, Section, TableBlock
 
 TONES = {GOOD: "green", BAD: "red"}
+#: A row name longer than this (a learner with its ``--set`` settings) wraps.
+LONGEST_NAME = 48
 
 
 def say(console: Console, text: str, style: str = "") -> None:
@@ -43,7 +45,10 @@ def rich_table(block: TableBlock) -> Table:
         if block.prose:
             table.add_column(heading, overflow="fold")
         elif k == 0:
-            table.add_column(heading, no_wrap=True)
+            # a row's name stays on one line unless it is long (a learner with its
+            # --set settings), which wraps rather than squeezing the values out
+            longest = max((len(row[0].text) for row in block.rows), default=0)
+            table.add_column(heading, no_wrap=longest <= LONGEST_NAME, max_width=LONGEST_NAME)
         else:
             table.add_column(heading, justify="right", overflow="fold", min_width=narrowest)
     for row in block.rows:
