@@ -98,3 +98,28 @@ def test_deep_and_table_runs_of_one_machine_are_one_place() -> None:
     assert provenance.store_lines([(table, 5), (deep, 2)]) == [
         "computed with " + provenance.describe(deep)
     ]
+
+
+def test_reading_an_older_store_leaves_its_file_as_it_was(tmp_path) -> None:
+    """A report of a store committed by an older version (no provenance tables) reads it
+    without adding them: the file stays byte for byte what was committed."""
+    store = tmp_path / "old.sqlite"
+    done = cli("repeated", "--runs", "2", "--workers", "1", "--no-progress", "--store",
+               str(store))  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    with sqlite3.connect(store) as conn:  # as 0.6.0 left it
+        conn.execute("DROP TABLE run_provenance")
+        conn.execute("DROP TABLE provenances")
+    with sqlite3.connect(store) as conn:
+        conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+    before = store.read_bytes()
+    report = cli("report", "--store", str(store), "--format", "json")
+    assert report.returncode == 0, report.stderr[-2000:]
+    with ResultStore(store, create=False) as db:
+        runs = db.count()
+        assert runs > 0 and db.provenances() == [(None, runs)]
+    assert [row["runs"] for row in json.loads(report.stdout)["provenance"]] == [runs]
+    assert store.read_bytes() == before
+    with sqlite3.connect(store) as conn:
+        tables = {row[0] for row in conn.execute("SELECT name FROM sqlite_master")}
+    assert "provenances" not in tables and "runs" in tables

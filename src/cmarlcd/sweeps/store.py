@@ -262,7 +262,8 @@ Claims = tuple[list[RunKey], list[RunKey]]
 class ResultStore:
     """Read and append runs; safe to open from several processes (SQLite WAL).
 
-    ``create=False`` opens an existing store only (for reading reports).
+    ``create=False`` opens an existing store only (for reading reports) and writes
+    nothing to it.
     """
 
     def __init__(self, path: str | Path = DEFAULT_STORE, create: bool = True) -> None:
@@ -274,11 +275,14 @@ class ResultStore:
             self._lock = _hold_shared(self.path) if create or self.path.exists() else None
             # autocommit: each write below is one explicit transaction
             self._conn = sqlite3.connect(self.path, timeout=60.0, isolation_level=None)
-            self._conn.execute("PRAGMA journal_mode=WAL")
             self._conn.execute("PRAGMA synchronous=NORMAL")
-            with self._writing() as conn:
-                for statement in filter(str.strip, SCHEMA.split(";")):
-                    conn.execute(statement)
+            if create:
+                self._conn.execute("PRAGMA journal_mode=WAL")  # kept in the file
+                with self._writing() as conn:
+                    for statement in filter(str.strip, SCHEMA.split(";")):
+                        conn.execute(statement)
+            else:
+                self._read_only_schema()
         except ConfigError:
             self._let_go()
             raise
@@ -286,6 +290,18 @@ class ResultStore:
             self._let_go()
             reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
             raise ConfigError("store", f"cannot open {self.path} ({reason})") from None
+
+    def _read_only_schema(self) -> None:
+        """A store opened for reading is left as it is on disk (a store committed to a
+        repository stays unchanged by a report): the tables an older version did not
+        write are made empty in this connection's temporary schema instead."""
+        tables = {
+            row[0] for row in self._conn.execute("SELECT name FROM sqlite_master WHERE type='table'")
+        }
+        for statement in filter(str.strip, SCHEMA.split(";")):
+            name = statement.split("EXISTS", 1)[1].split("(", 1)[0].strip()
+            if name not in tables:
+                self._conn.execute(statement.replace("CREATE TABLE", "CREATE TEMP TABLE", 1))
 
     def close(self) -> None:
         self._let_go()
