@@ -295,9 +295,8 @@ class ResultStore:
         """A store opened for reading is left as it is on disk (a store committed to a
         repository stays unchanged by a report): the tables an older version did not
         write are made empty in this connection's temporary schema instead."""
-        tables = {
-            row[0] for row in self._conn.execute("SELECT name FROM sqlite_master WHERE type='table'")
-        }
+        listed = self._conn.execute("SELECT name FROM sqlite_master WHERE type='table'")
+        tables = {row[0] for row in listed}
         for statement in filter(str.strip, SCHEMA.split(";")):
             name = statement.split("EXISTS", 1)[1].split("(", 1)[0].strip()
             if name not in tables:
