@@ -197,7 +197,8 @@ SetOption = Annotated[
         "--set",
         help="Learner settings, LEARNER.SETTING=VALUE as a comma list, e.g. "
         "deep-cmarl-cd.expectile=0.99,vdn.lr=0.0005 (any field of the learner's config; "
-        "see the docs' interpretation choices).",
+        "see the docs' interpretation choices); deep-cmarl-cd.design=NAME takes a named "
+        "design's settings (shares-cold, critic, ...), which the others then change.",
     ),
 ]
 
@@ -208,19 +209,49 @@ def apply_settings(text: str, configs: tuple[Any, ...], parameter: str = "set") 
     or a value the learner refuses is one clear error."""
     by_name = {config.name: config for config in configs}
     changes: dict[str, dict[str, Any]] = {}
+    designs: dict[str, dict[str, Any]] = {}
     for item in (part.strip() for part in text.split(",") if part.strip()):
+        design = _design_item(item, by_name, parameter)
+        if design is not None:
+            designs[design[0]] = design[1]
+            continue
         name, field, value = _setting_item(item, by_name, parameter)
         changes.setdefault(name, {})[field] = value
     out = []
     for config in configs:
         try:
-            changed = dataclasses.replace(config, **changes.get(config.name, {}))
+            settings = {**designs.get(config.name, {}), **changes.get(config.name, {})}
+            changed = dataclasses.replace(config, **settings)
         except ConfigError as err:
             raise ConfigError(parameter, f"{config.name}.{err.parameter} {err.message}") from None
         renamed = f"would make {config.name} another learner; choose it with --algorithms"
         require(changed.name == config.name, parameter, renamed)
         out.append(changed)
     return tuple(out)
+
+
+def _design_item(
+    item: str, by_name: dict[str, Any], parameter: str
+) -> tuple[str, dict[str, Any]] | None:
+    """``"learner.design=NAME"`` -> (learner, the settings in which the named design
+    differs from the learner's defaults), applied before the learner's other settings
+    (which win) and after the command's own options and the game's settings (which it
+    changes only where the design does); None for any other item."""
+    target, _, text = item.partition("=")
+    name, _, field = target.strip().lower().rpartition(".")
+    from cmarlcd.learners.deep.designs import DESIGNS_BY_LEARNER
+
+    if field != "design" or name not in DESIGNS_BY_LEARNER or name not in by_name:
+        return None
+    designs = DESIGNS_BY_LEARNER[name]
+    chosen = text.strip().lower()
+    known = f"{name} has no design {chosen!r}; its designs: {', '.join(designs)}"
+    require(chosen in designs, parameter, known)
+    design, default = designs[chosen], type(by_name[name])()
+    fields = (f.name for f in dataclasses.fields(design))
+    return name, {
+        f: getattr(design, f) for f in fields if getattr(design, f) != getattr(default, f)
+    }
 
 
 def _setting_item(item: str, by_name: dict[str, Any], parameter: str) -> tuple[str, str, Any]:

@@ -44,6 +44,7 @@ CRITIC_DEEP_CMARLCD = replace(
     expectile=0.5,
     critic_bootstrap="greedy",
     critic_fit="imitation",
+    tolerance=DeepCMARLCDConfig.tolerance,  # as measured; the critic's update reads none
 )
 #: The agents' degrees as their shares of the record (``critic_form="degrees"``; declared
 #: before its selection run): the critic's λ-returns (λ 0.9) and mean (τ 0.5) fitted by
@@ -58,7 +59,15 @@ SHARES_DEEP_CMARLCD = replace(
 #: The critic as measured first (the critic settings' defaults): 0.9-expectile, λ-returns
 #: bootstrapped from its best joint action, ``max_a R(s, a)``, the degrees moved by the
 #: tie of eqs. (14)-(15).
-BEST_CRITIC_DEEP_CMARLCD = replace(IMITATION_LAMBDA_DEEP_CMARLCD, update="critic")
+BEST_CRITIC_DEEP_CMARLCD = replace(
+    IMITATION_LAMBDA_DEEP_CMARLCD, update="critic", tolerance=DeepCMARLCDConfig.tolerance
+)
+#: The shares with T annealed to 0.01 (``shares-cold``): the first design that learns an
+#: LBF task (0.110 on 2s-8x8-2p-2f-coop at 500k steps, 0.240 at the field's 2.05M) and
+#: the field study's best measured setting of deep CMARL-CD.
+SHARES_COLD_DEEP_CMARLCD = replace(SHARES_DEEP_CMARLCD, temperature_end=0.01)
+#: ``shares-cold`` with every stored λ-return recomputed at each target copy.
+SHARES_REFRESH_DEEP_CMARLCD = replace(SHARES_COLD_DEEP_CMARLCD, refresh_returns=True)
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
@@ -112,3 +121,22 @@ BATTLEFIELD_DEEP_CMARLCD = DeepCMARLCDConfig(
     train_every=240,
     target_every=2_400,
 )
+
+#: Deep CMARL-CD's designs by name, for ``--set deep-cmarl-cd.design=NAME`` (which takes
+#: the settings where a design differs from the default): each at the settings it was
+#: measured at (the selection run's names; the field's discount, 0.99, is not part of a
+#: design and is set beside it), and the games' own settings.
+DESIGNS: dict[str, DeepCMARLCDConfig] = {
+    "one-step": REPEATED_DEEP_CMARLCD,
+    "battlefield": BATTLEFIELD_DEEP_CMARLCD,
+    "replayed": REPLAYED_DEEP_CMARLCD,
+    "imitation": IMITATION_DEEP_CMARLCD,
+    "imitation-lambda": IMITATION_LAMBDA_DEEP_CMARLCD,
+    "critic-best": BEST_CRITIC_DEEP_CMARLCD,
+    "critic": CRITIC_DEEP_CMARLCD,
+    "shares": SHARES_DEEP_CMARLCD,
+    "shares-cold": SHARES_COLD_DEEP_CMARLCD,
+    "shares-refresh": SHARES_REFRESH_DEEP_CMARLCD,
+}
+#: The learners with named designs (``LEARNER.design=NAME``), by learner name.
+DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}

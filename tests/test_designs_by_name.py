@@ -1,0 +1,99 @@
+"""``--set deep-cmarl-cd.design=NAME``: a named design is the settings it was measured
+at, so it finds the runs the long settings string stored; the learner's other settings
+win, the command's options and the game's settings stay where the design leaves them;
+a wrong name is one line."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+
+import pytest
+
+from cmarlcd import ConfigError
+from cmarlcd.cli.options import apply_settings
+from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.designs import DESIGNS, REPEATED_DEEP_CMARLCD
+
+D = "deep-cmarl-cd"
+#: shares-cold as the selection run and the field study wrote it (by hand, from the
+#: scripts' settings strings).
+SHARES_COLD = {
+    "update": "critic", "expectile": 0.5, "return_lambda": 0.9, "train_every": 50,
+    "target_every": 500, "critic_bootstrap": "greedy", "critic_fit": "imitation",
+    "critic_form": "degrees", "temperature_end": 0.01, "temperature_steps": 50_000,
+}  # fmt: skip
+
+
+def settings(text: str, config: DeepCMARLCDConfig | None = None) -> DeepCMARLCDConfig:
+    return apply_settings(text, (config or DeepCMARLCDConfig(),))[0]
+
+
+def test_shares_cold_is_the_settings_the_selection_run_measured() -> None:
+    written = ",".join(f"{D}.{k}={v}" for k, v in SHARES_COLD.items())
+    assert settings(f"{D}.design=shares-cold") == settings(written)
+    assert settings(f"{D}.design=shares-cold,{D}.gamma=0.99").gamma == 0.99
+
+
+def test_every_design_by_name_is_that_design() -> None:
+    for name, design in DESIGNS.items():
+        assert settings(f"{D}.design={name}") == design, name
+    assert settings(f"{D}.design=Shares-Cold") == DESIGNS["shares-cold"]
+
+
+def test_the_learners_other_settings_win_in_any_order() -> None:
+    for text in (f"{D}.temperature_end=0.5,{D}.design=shares-cold",
+                 f"{D}.design=shares-cold,{D}.temperature_end=0.5"):  # fmt: skip
+        chosen = settings(text)
+        assert chosen.temperature_end == 0.5 and chosen.critic_form == "degrees"
+
+
+def test_what_the_design_leaves_stays_as_the_command_and_the_game_set_it() -> None:
+    assert settings(f"{D}.design=shares", replace(DeepCMARLCDConfig(), gamma=0.95)).gamma == 0.95
+    game = replace(DeepCMARLCDConfig(), lr=1e-2, batch_size=50, train_every=10)
+    chosen = settings(f"{D}.design=shares", game)
+    assert (chosen.lr, chosen.batch_size) == (1e-2, 50)  # the game's
+    assert (chosen.update, chosen.train_every) == ("critic", 50)  # the design's
+    # a game's settings the design cannot go with are refused in one line
+    with pytest.raises(ConfigError, match="record 'expectile' is a record kept in the keyed"):
+        settings(f"{D}.design=shares", REPEATED_DEEP_CMARLCD)
+
+
+def test_a_design_that_does_not_exist_is_one_line_naming_those_that_do() -> None:
+    with pytest.raises(ConfigError, match=r"no design 'sharez'; its designs: one-step, "):
+        settings(f"{D}.design=sharez")
+    with pytest.raises(ConfigError, match="vdn has no setting 'design'"):
+        apply_settings("vdn.design=shares", (registry_vdn(),))
+
+
+def registry_vdn():
+    from cmarlcd import registry
+
+    return registry.require_learner("vdn")
+
+
+def test_the_field_finds_the_runs_the_settings_string_stored(tmp_path) -> None:
+    pytest.importorskip("torch")
+    written = ",".join(f"{D}.{k}={v}" for k, v in SHARES_COLD.items())
+
+    def field(setting: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-m", "cmarlcd", "field", "--tasks", "simple_spread:N=2",
+             "--learners", D, "--seeds", "1", "--steps", "1k", "--eval-interval", "1k",
+             "--eval-episodes", "2", "--workers", "1", "--no-progress", "--json",
+             "--set", setting, "--store", str(tmp_path / "s.sqlite"),
+             "--figures", str(tmp_path / "f")],
+            capture_output=True, text=True, timeout=600, cwd=tmp_path,
+        )  # fmt: skip
+
+    first = field(written)
+    assert first.returncode == 0, first.stderr[-3000:]
+    again = field(f"{D}.design=shares-cold")
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert json.loads(first.stdout)["runs_computed"] > 0
+    assert json.loads(again.stdout)["runs_computed"] == 0
+    wrong = field(f"{D}.design=nope")
+    assert wrong.returncode == 2
+    assert wrong.stderr.strip().count("\n") == 0 and "no design 'nope'" in wrong.stderr
