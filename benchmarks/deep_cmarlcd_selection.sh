@@ -67,34 +67,25 @@ mkdir -p "$out"
 tasks="foraging:8x8-2p-2f-coop,foraging:2s-8x8-2p-2f-coop,foraging:10x10-3p-3f,simple_spread"
 d=deep-cmarl-cd
 anneal="$d.temperature_end=0.1,$d.temperature_steps=50000"
-cold="$d.temperature_end=0.01,$d.temperature_steps=50000"
 range="$d.unseen_tolerance=0.1,$d.unseen_spread=range"
-imitation="$d.update=imitation,$d.expectile=0.9,$d.tolerance=0.1,$d.train_every=50,$d.target_every=500"
-critic="$d.update=critic,$d.expectile=0.5,$d.return_lambda=0.9,$d.train_every=50,$d.target_every=500"
-critic="$critic,$d.critic_bootstrap=greedy,$d.critic_fit=imitation"
-best="$d.update=critic,$d.expectile=0.9,$d.return_lambda=0.9,$d.train_every=50,$d.target_every=500"
+# a design by name is the same runs as its settings written out (docs: deep CMARL-CD)
 for design in "${designs[@]}"; do
   case "$design" in
-    keyed) settings="$d.gamma=0.99" ;;
-    replayed) settings="$d.update=replayed,$d.tolerance=1.0,$d.train_every=50,$d.target_every=500,$d.gamma=0.99" ;;
-    imitation) settings="$imitation,$d.gamma=0.99" ;;
-    imitation-lambda) settings="$imitation,$d.return_lambda=0.9,$d.gamma=0.99" ;;
-    anneal) settings="$anneal,$d.gamma=0.99" ;;
-    spread) settings="$d.unseen_tolerance=0.25,$d.gamma=0.99" ;;
-    spread-anneal) settings="$d.unseen_tolerance=0.25,$anneal,$d.gamma=0.99" ;;
-    range) settings="$range,$d.gamma=0.99" ;;
-    range-anneal) settings="$range,$anneal,$d.gamma=0.99" ;;
-    imitation-anneal) settings="$imitation,$d.return_lambda=0.9,$anneal,$d.gamma=0.99" ;;
-    critic) settings="$critic,$d.gamma=0.99" ;;
-    critic-anneal) settings="$critic,$anneal,$d.gamma=0.99" ;;
-    critic-sum) settings="$critic,$d.critic_form=sum,$d.gamma=0.99" ;;
-    critic-best) settings="$best,$d.gamma=0.99" ;;
-    critic-best-anneal) settings="$best,$anneal,$d.gamma=0.99" ;;
-    shares) settings="$critic,$d.critic_form=degrees,$anneal,$d.gamma=0.99" ;;
-    shares-cold) settings="$critic,$d.critic_form=degrees,$cold,$d.gamma=0.99" ;;
-    shares-refresh) settings="$critic,$d.critic_form=degrees,$cold,$d.refresh_returns=true,$d.gamma=0.99" ;;
-    shares-refresh-05) settings="$critic,$d.critic_form=degrees,$cold,$d.refresh_returns=true,$d.return_lambda=0.5,$d.gamma=0.99" ;;
+    keyed) settings="" ;;
+    replayed | imitation | imitation-lambda | critic | critic-best | shares | shares-cold \
+      | shares-refresh) settings="$d.design=$design," ;;
+    anneal) settings="$anneal," ;;
+    spread) settings="$d.unseen_tolerance=0.25," ;;
+    spread-anneal) settings="$d.unseen_tolerance=0.25,$anneal," ;;
+    range) settings="$range," ;;
+    range-anneal) settings="$range,$anneal," ;;
+    imitation-anneal) settings="$d.design=imitation-lambda,$anneal," ;;
+    critic-anneal) settings="$d.design=critic,$anneal," ;;
+    critic-sum) settings="$d.design=critic,$d.critic_form=sum," ;;
+    critic-best-anneal) settings="$d.design=critic-best,$anneal," ;;
+    shares-refresh-05) settings="$d.design=shares-refresh,$d.return_lambda=0.5," ;;
   esac
+  settings="$settings$d.gamma=0.99"
   echo "$(date +%T) $design" >&2
   python -m cmarlcd field --tasks "$tasks" --learners "$d" --set "$settings" \
     --steps 500k --seeds 3 --eval-interval 50k --eval-episodes 100 --workers 1 \

@@ -55,9 +55,7 @@ tasks=("$@")
 mkdir -p "$out"
 
 d=deep-cmarl-cd
-shares="$d.update=critic,$d.expectile=0.5,$d.return_lambda=0.9,$d.train_every=50"
-shares="$shares,$d.target_every=500,$d.critic_bootstrap=greedy,$d.critic_fit=imitation"
-shares="$shares,$d.critic_form=degrees,$d.temperature_end=0.01,$d.temperature_steps=50000"
+shares="$d.design=shares-cold"  # the same runs as its ten settings written out
 model() {  # model LEARNER: the anchor's model class at EPyMARL's settings
   local m="$1.share=true,$1.hidden_layers=2,$1.step=fused"
   [ "$1" = qmix ] && m="$m,qmix.hypernet_layers=2"
