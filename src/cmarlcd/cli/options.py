@@ -22,6 +22,7 @@ import typer
 
 from cmarlcd.errors import BackendLost, ConfigError, require
 from cmarlcd.games.battlefield import Unit
+from cmarlcd.learners.deep.designs import DESIGNS_BY_LEARNER
 from cmarlcd.sweeps.runner import RunFailed, SweepInterrupted
 from cmarlcd.sweeps.store import check_output_directory, check_store
 
@@ -239,8 +240,6 @@ def _design_item(
     changes only where the design does); None for any other item."""
     target, _, text = item.partition("=")
     name, _, field = target.strip().lower().rpartition(".")
-    from cmarlcd.learners.deep.designs import DESIGNS_BY_LEARNER
-
     if field != "design" or name not in DESIGNS_BY_LEARNER or name not in by_name:
         return None
     designs = DESIGNS_BY_LEARNER[name]
