@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import pytest
 
-from cmarlcd import ConfigError
+from cmarlcd import ConfigError, registry
 from cmarlcd.cli.options import apply_settings
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.learners.deep.designs import DESIGNS, REPEATED_DEEP_CMARLCD
@@ -65,13 +65,7 @@ def test_a_design_that_does_not_exist_is_one_line_naming_those_that_do() -> None
     with pytest.raises(ConfigError, match=r"no design 'sharez'; its designs: one-step, "):
         settings(f"{D}.design=sharez")
     with pytest.raises(ConfigError, match="vdn has no setting 'design'"):
-        apply_settings("vdn.design=shares", (registry_vdn(),))
-
-
-def registry_vdn():
-    from cmarlcd import registry
-
-    return registry.require_learner("vdn")
+        apply_settings("vdn.design=shares", (registry.require_learner("vdn"),))
 
 
 def test_the_field_finds_the_runs_the_settings_string_stored(tmp_path) -> None:

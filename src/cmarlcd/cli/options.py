@@ -212,12 +212,14 @@ def apply_settings(text: str, configs: tuple[Any, ...], parameter: str = "set") 
     changes: dict[str, dict[str, Any]] = {}
     designs: dict[str, dict[str, Any]] = {}
     for item in (part.strip() for part in text.split(",") if part.strip()):
-        design = _design_item(item, by_name, parameter)
-        if design is not None:
-            designs[design[0]] = design[1]
-            continue
-        name, field, value = _setting_item(item, by_name, parameter)
-        changes.setdefault(name, {})[field] = value
+        target, _, value = item.partition("=")
+        name, _, field = target.strip().lower().rpartition(".")
+        if field == "design" and name in DESIGNS_BY_LEARNER and name in by_name:
+            designs[name] = _design_settings(by_name[name], value, parameter)
+        else:
+            changes.setdefault(name, {})[field] = _setting_value(
+                item, name, field, value, by_name, parameter
+            )
     out = []
     for config in configs:
         try:
@@ -231,32 +233,25 @@ def apply_settings(text: str, configs: tuple[Any, ...], parameter: str = "set") 
     return tuple(out)
 
 
-def _design_item(
-    item: str, by_name: dict[str, Any], parameter: str
-) -> tuple[str, dict[str, Any]] | None:
-    """``"learner.design=NAME"`` -> (learner, the settings in which the named design
-    differs from the learner's defaults), applied before the learner's other settings
-    (which win) and after the command's own options and the game's settings (which it
-    changes only where the design does); None for any other item."""
-    target, _, text = item.partition("=")
-    name, _, field = target.strip().lower().rpartition(".")
-    if field != "design" or name not in DESIGNS_BY_LEARNER or name not in by_name:
-        return None
-    designs = DESIGNS_BY_LEARNER[name]
+def _design_settings(config: Any, text: str, parameter: str) -> dict[str, Any]:
+    """``LEARNER.design=NAME``: the settings in which the named design differs from the
+    learner's defaults, applied before the learner's other settings (which win) and after
+    the command's own options and the game's settings (which it changes only where the
+    design does)."""
+    designs = DESIGNS_BY_LEARNER[config.name]
     chosen = text.strip().lower()
-    known = f"{name} has no design {chosen!r}; its designs: {', '.join(designs)}"
+    known = f"{config.name} has no design {chosen!r}; its designs: {', '.join(designs)}"
     require(chosen in designs, parameter, known)
-    design, default = designs[chosen], type(by_name[name])()
+    design, default = designs[chosen], type(config)()
     fields = (f.name for f in dataclasses.fields(design))
-    return name, {
-        f: getattr(design, f) for f in fields if getattr(design, f) != getattr(default, f)
-    }
+    return {f: getattr(design, f) for f in fields if getattr(design, f) != getattr(default, f)}
 
 
-def _setting_item(item: str, by_name: dict[str, Any], parameter: str) -> tuple[str, str, Any]:
-    """``"learner.setting=value"`` -> (learner, setting, value of the setting's type)."""
-    target, _, text = item.partition("=")
-    name, _, field = target.strip().lower().rpartition(".")
+def _setting_value(
+    item: str, name: str, field: str, text: str, by_name: dict[str, Any], parameter: str
+) -> Any:
+    """``item``, ``"learner.setting=value"`` split into ``name``, ``field`` and ``text``:
+    the value as the setting's type."""
     usage = f"expected LEARNER.SETTING=VALUE (got {item!r})"
     require(bool(name and field and text.strip()), parameter, usage)
     playing = ", ".join(by_name)
@@ -269,9 +264,9 @@ def _setting_item(item: str, by_name: dict[str, Any], parameter: str) -> tuple[s
     if default is None:  # an optional setting: its declared type says what it holds
         declared = next(f.type for f in dataclasses.fields(config) if f.name == field)
         if text.strip().lower() == "none":
-            return name, field, None
+            return None
         default = 0.0 if "float" in str(declared) else 0 if "int" in str(declared) else None
-    return name, field, _typed(default, text.strip(), parameter, f"{name}.{field}")
+    return _typed(default, text.strip(), parameter, f"{name}.{field}")
 
 
 #: How a setting's type is named where a value does not parse as one.

@@ -77,10 +77,10 @@ def learning_curves(curves: dict[str, np.ndarray], path: Path) -> Path:
     fig, (ax_success, ax_steps) = plt.subplots(1, 2, figsize=(11, 4))
     for name, data in curves.items():
         x = data[0, :, 0]
+        label = _wrapped(f"{name} ({len(data)} runs)")
         for ax, column, scale in ((ax_success, 1, 100.0), (ax_steps, 3, 1.0)):
             values = scale * data[:, :, column]
             lo, hi = np.percentile(values, [10, 90], axis=0)
-            label = _wrapped(f"{name} ({len(data)} runs)")
             (line,) = ax.plot(x, values.mean(axis=0), label=label)
             ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.2)
     ax_success.set_ylabel("success rate of the greedy policy (%)")
