@@ -43,6 +43,9 @@
 #              copy (refresh_returns): one seed located the rest of the loss in returns
 #              bootstrapped once, at their episode's end
 #   shares-refresh-05  shares-refresh with λ 0.5 (more of each return bootstrapped)
+#   shares-range  shares with T in the range of each agent's degrees at the state
+#              (temperature_unit=range), annealed 1 to 0.2: as greedy on every game,
+#              whatever its returns' scale (SHARES_RANGE_DEEP_CMARLCD)
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -55,11 +58,12 @@ for design in "${designs[@]}"; do
   case "$design" in
     keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | \
       imitation-anneal | range | range-anneal | critic | critic-anneal | critic-sum | critic-best | \
-      critic-best-anneal | shares | shares-cold | shares-refresh | shares-refresh-05) ;;
+      critic-best-anneal | shares | shares-cold | shares-refresh | shares-refresh-05 | \
+      shares-range) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
          "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
          "critic-anneal, critic-sum, critic-best, critic-best-anneal, shares, shares-cold," \
-         "shares-refresh, shares-refresh-05)" >&2
+         "shares-refresh, shares-refresh-05, shares-range)" >&2
        exit 2 ;;
   esac
 done
@@ -73,7 +77,7 @@ for design in "${designs[@]}"; do
   case "$design" in
     keyed) settings="" ;;
     replayed | imitation | imitation-lambda | critic | critic-best | shares | shares-cold \
-      | shares-refresh) settings="$d.design=$design," ;;
+      | shares-refresh | shares-range) settings="$d.design=$design," ;;
     anneal) settings="$anneal," ;;
     spread) settings="$d.unseen_tolerance=0.25," ;;
     spread-anneal) settings="$d.unseen_tolerance=0.25,$anneal," ;;

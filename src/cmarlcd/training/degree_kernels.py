@@ -45,7 +45,7 @@ from cmarlcd.training.protocol import SideKernels
 
 #: Entries of deep CMARL-CD's ``schedule`` (``DeepCMARLCDConfig.schedule``).
 TEMPERATURE, C_MIN, C_MAX, GAMMA = range(4)
-TEMPERATURE_END, TEMPERATURE_STEPS = 6, 7
+TEMPERATURE_END, TEMPERATURE_STEPS, TEMPERATURE_UNIT = 6, 7, 8
 
 
 @kernel
@@ -65,12 +65,26 @@ def agent_degrees(weights, agent: int, x, lo: int, count: int, hidden, out) -> N
 
 
 @kernel
+def legal_range(row, legal_row, count: int) -> float:
+    """The largest minus the smallest of ``row`` over the legal actions; 1 where they
+    are all equal (any T then gives the uniform strategy)."""
+    lo, hi = np.inf, -np.inf
+    for a in range(count):
+        if legal_row[a]:
+            lo, hi = min(lo, row[a]), max(hi, row[a])
+    return hi - lo if hi > lo else 1.0
+
+
+@kernel
 def sample_degrees(side, raw, legal_row, count: int, rng) -> int:
     """An action from ``softmax(clip(raw) / T)`` over the legal actions (eq. 17), T
-    annealed over the side's steps where the schedule anneals it."""
+    annealed over the side's steps where the schedule anneals it, and in the range of
+    the legal degrees with ``temperature_unit="range"``."""
     s, row, probs = side.schedule, side.scratch[0], side.scratch[1]
     clip_row(raw, count, s[C_MIN], s[C_MAX], row)
     t = annealed(s[TEMPERATURE], s[TEMPERATURE_END], s[TEMPERATURE_STEPS], side.counters[TURNS])
+    if s[TEMPERATURE_UNIT] == 1.0:  # "range": T in the range of the legal degrees
+        t *= legal_range(row, legal_row, count)
     softmax_strategy(row, legal_row, count, t, probs)
     return sample_action(probs, count, rng.random())
 

@@ -81,6 +81,8 @@ CRITIC_BOOTSTRAPS = ("greedy", "best")
 UNSEEN_SPREADS = ("std", "range")
 #: What the keyed memory's per-state record is (``record``).
 RECORDS = ("maximum", "expectile")
+#: What the behaviour's T is measured in (``temperature_unit``).
+TEMPERATURE_UNITS = ("fixed", "range")
 #: The settings that take one of a few names, and those names.
 CHOICES = {
     "update": UPDATES,
@@ -91,6 +93,7 @@ CHOICES = {
     "critic_fit": CRITIC_FITS,
     "critic_bootstrap": CRITIC_BOOTSTRAPS,
     "unseen_spread": UNSEEN_SPREADS,
+    "temperature_unit": TEMPERATURE_UNITS,
 }
 
 
@@ -255,6 +258,17 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     fallen, as VDN's ε-greedy does once its ε has (the deep CMARL-CD page of the
     documentation measures it). Only acting anneals: the self-imitation loss's
     ``softmax(c / T)`` keeps ``temperature``."""
+    temperature_unit: str = added_setting("fixed", "0.7.0")
+    """[choice] What T of eq. (17) is measured in when the behaviour acts: ``"fixed"``,
+    the degrees' own units (the paper's); ``"range"``, the range of the acting agent's
+    degrees over its legal actions at the state (largest minus smallest), so that the
+    behaviour is ``softmax((c - max c) / (T (max c - min c)))``: as greedy wherever the
+    degrees differ, whatever their scale. The shares of a record
+    (``critic_form="degrees"``) are in the returns' units, which differ by a factor of
+    about 40 between LBF and the DSN, so no fixed T suits both (the deep CMARL-CD page of
+    the documentation measures it). Where an agent's legal degrees are all equal it
+    acts uniformly, as at any T. Greedy execution and the self-imitation loss do not
+    read it."""
     c_min: float = 0.5
     """Lower clip of the degrees (positive, Section IV-D)."""
     c_max: float = 3.0
@@ -472,7 +486,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
 
     def schedule(self, learn_episodes: int) -> list[float]:
         """T, the clip (:attr:`degree_bounds`), γ, L, ``train_every``, the end of T's
-        anneal and its steps."""
+        anneal, its steps and its unit (the index in :data:`TEMPERATURE_UNITS`)."""
         lo, hi = self.degree_bounds
         return [
             self.temperature,
@@ -483,6 +497,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.train_every,
             self.temperature_end,
             self.temperature_steps,
+            float(TEMPERATURE_UNITS.index(self.temperature_unit)),
         ]
 
     def behaviour_temperature(self, steps: int) -> float:

@@ -120,18 +120,27 @@ class DegreeAgent(StepAgent):
     def act_many(self, states, masks, copies) -> list:
         """A draw from softmax(c/T) over each agent's legal actions (eq. 17) at each
         state, with one forward pass; the draws go state by state, agent by agent. T is
-        annealed over the steps observed where ``temperature_steps`` > 0."""
+        annealed over the steps observed where ``temperature_steps`` > 0, and measured
+        in the range of the legal degrees with ``temperature_unit="range"``."""
         all_degrees, all_legal = self._degrees(states, masks)
         temperature = self.config.behaviour_temperature(self.steps)
         joints = []
         for degrees, legal in zip(all_degrees, all_legal, strict=True):
             joint = []
             for d, row in zip(degrees, legal, strict=True):
-                logits = np.where(row, d / temperature, -np.inf)
+                logits = np.where(row, d / (temperature * self._unit(d, row)), -np.inf)
                 p = np.exp(logits - logits.max())
                 joint.append(int(self.act_rng.choice(self.width, p=p / p.sum())))
             joints.append(tuple(joint))
         return joints
+
+    def _unit(self, degrees: np.ndarray, legal: np.ndarray) -> float:
+        """What T is measured in (``temperature_unit``): 1, or the range of the legal
+        degrees (1 where they are all equal)."""
+        if self.config.temperature_unit == "fixed":
+            return 1.0
+        spread = float(degrees[legal].max() - degrees[legal].min())
+        return spread if spread > 0 else 1.0
 
     def observe(self, state, joint_action, reward: float, copy: int = 0) -> None:
         """Record a visit of ``copy``'s episode; the schedule of gradient steps counts

@@ -68,6 +68,17 @@ BEST_CRITIC_DEEP_CMARLCD = replace(
 SHARES_COLD_DEEP_CMARLCD = replace(SHARES_DEEP_CMARLCD, temperature_end=0.01)
 #: ``shares-cold`` with every stored λ-return recomputed at each target copy.
 SHARES_REFRESH_DEEP_CMARLCD = replace(SHARES_COLD_DEEP_CMARLCD, refresh_returns=True)
+#: The shares with T measured in the range of each agent's degrees at the state
+#: (``temperature_unit="range"``; declared before its selection run): a share is in the
+#: returns' units, so ``shares-cold``'s T of 0.01 is a constant of LBF's rewards (on the
+#: DSN's, some 40 times larger, it leaves the behaviour greedy from the start; a probe
+#: at 0.003 learned 8x8-2p-2f-coop where 0.01 and 0.03 did not). In ranges, T annealed
+#: from 1 to 0.2 over the first 50k steps: where one action's share stands above five
+#: alike the behaviour then takes it with probability 1 / (1 + 5 e^-5) = 0.97, as
+#: VDN's ε-greedy at its ε of 0.05 takes its greedy action with 0.96.
+SHARES_RANGE_DEEP_CMARLCD = replace(
+    SHARES_DEEP_CMARLCD, temperature_unit="range", temperature_end=0.2
+)
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
@@ -137,6 +148,7 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares": SHARES_DEEP_CMARLCD,
     "shares-cold": SHARES_COLD_DEEP_CMARLCD,
     "shares-refresh": SHARES_REFRESH_DEEP_CMARLCD,
+    "shares-range": SHARES_RANGE_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
