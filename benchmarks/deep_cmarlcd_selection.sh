@@ -46,6 +46,8 @@
 #   shares-range  shares with T in the range of each agent's degrees at the state
 #              (temperature_unit=range), annealed 1 to 0.2: as greedy on every game,
 #              whatever its returns' scale (SHARES_RANGE_DEEP_CMARLCD)
+#   shares-range-bootstrap  shares-range whose episodes cut at max_steps end their
+#              λ-returns in the estimate at the state they were cut in (truncation=bootstrap)
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -59,11 +61,11 @@ for design in "${designs[@]}"; do
     keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | \
       imitation-anneal | range | range-anneal | critic | critic-anneal | critic-sum | critic-best | \
       critic-best-anneal | shares | shares-cold | shares-refresh | shares-refresh-05 | \
-      shares-range) ;;
+      shares-range | shares-range-bootstrap) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
          "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
          "critic-anneal, critic-sum, critic-best, critic-best-anneal, shares, shares-cold," \
-         "shares-refresh, shares-refresh-05, shares-range)" >&2
+         "shares-refresh, shares-refresh-05, shares-range, shares-range-bootstrap)" >&2
        exit 2 ;;
   esac
 done
@@ -77,7 +79,7 @@ for design in "${designs[@]}"; do
   case "$design" in
     keyed) settings="" ;;
     replayed | imitation | imitation-lambda | critic | critic-best | shares | shares-cold \
-      | shares-refresh | shares-range) settings="$d.design=$design," ;;
+      | shares-refresh | shares-range | shares-range-bootstrap) settings="$d.design=$design," ;;
     anneal) settings="$anneal," ;;
     spread) settings="$d.unseen_tolerance=0.25," ;;
     spread-anneal) settings="$d.unseen_tolerance=0.25,$anneal," ;;

@@ -34,8 +34,10 @@ game = Unbound("game")
 #: Entries of a deep side's ``counters``: turns observed, episodes finished, the turns
 #: observed when the loop last paused for it, whether it met a state for the first time
 #: since its group last looked (index inputs), and how many times its weights have been
-#: copied from the networks (the generation its greedy cache is valid for).
-TURNS, EPISODES, PAUSED_AT, NEW_STATES, GENERATION = range(5)
+#: copied from the networks (the generation its greedy cache is valid for), and whether
+#: the last turn it observed ended in a terminal state (1) or not (0: an episode that
+#: ended there was cut at ``max_steps``; deep CMARL-CD's sides keep it).
+TURNS, EPISODES, PAUSED_AT, NEW_STATES, GENERATION, ENDED_TERMINAL = range(6)
 #: Slots of a deep side's cache of greedy actions (:class:`GreedyCache`; a power of 2,
 #: 0.6 MB a side). A cache changes no action, only how often the networks are
 #: evaluated: fixed greedy strategies meet the same few thousand battlefield states over

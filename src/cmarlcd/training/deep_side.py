@@ -56,6 +56,7 @@ from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
 from cmarlcd.learners.tabular.protocol import full_legal
 from cmarlcd.plugins import note
 from cmarlcd.training.deep_kernels import (
+    ENDED_TERMINAL,
     GENERATION,
     GREEDY_CACHE_SLOTS,
     INPUTS,
@@ -290,7 +291,7 @@ class DeepSide(Side):
         n, width, steps = counts.shape[0], int(counts.max()), spec.max_steps
         self.group, self.index, self.kernels, self.frozen = group, index, kernels, False
         replay = group.replay_kind.view(group.ring, index)
-        counters = np.zeros(GENERATION + 1, np.int64)  # every entry up to the last
+        counters = np.zeros(ENDED_TERMINAL + 1, np.int64)  # every entry up to the last
         by_steps = unit == "steps" or config.explores_by_steps
         counted = STEPS_UNIT if by_steps else EPISODES_UNIT
         schedule = np.array([*config.schedule(learn_episodes), counted], np.float64)

@@ -30,6 +30,7 @@ from cmarlcd.learners.deep.degree_memory import features_key, find, fold_episode
 from cmarlcd.learners.deep.replay import push_visit, push_visit_row
 from cmarlcd.learners.policy import annealed, greedy_action, sample_action, softmax_strategy
 from cmarlcd.training.deep_kernels import (
+    ENDED_TERMINAL,
     EPISODES,
     TURNS,
     deep_fits,
@@ -45,7 +46,7 @@ from cmarlcd.training.protocol import SideKernels
 
 #: Entries of deep CMARL-CD's ``schedule`` (``DeepCMARLCDConfig.schedule``).
 TEMPERATURE, C_MIN, C_MAX, GAMMA = range(4)
-TEMPERATURE_END, TEMPERATURE_STEPS, TEMPERATURE_UNIT = 6, 7, 8
+TEMPERATURE_END, TEMPERATURE_STEPS, TEMPERATURE_UNIT, TRUNCATION_BOOTSTRAP = 6, 7, 8, 9
 
 
 @kernel
@@ -99,8 +100,10 @@ def greedy_degrees(side, raw, legal_row, count: int) -> int:
 
 @kernel
 def count_turn(side, t: int, next_key: int, terminal: bool) -> None:
-    """``observe``: count the turn (the episode is stored when it ends)."""
+    """``observe``: count the turn, and whether it ended in a terminal state (the
+    episode is stored when it ends)."""
     side.counters[TURNS] += 1
+    side.counters[ENDED_TERMINAL] = 1 if terminal else 0
 
 
 # ---------------------------------------------------------- feature inputs
@@ -156,9 +159,19 @@ def index_store(side, length: int) -> None:
 
 
 @kernel
+def cut_and_bootstrapped(side) -> bool:
+    """Whether the episode just ended was cut at ``max_steps`` (its last turn did not
+    end in a terminal state) and its last λ-return bootstraps from the estimate at the
+    state it was cut in (``truncation="bootstrap"``)."""
+    return side.schedule[TRUNCATION_BOOTSTRAP] == 1.0 and side.counters[ENDED_TERMINAL] == 0
+
+
+@kernel
 def index_lambda_store(side, length: int) -> None:
     """``end_episode``: every visit with its λ-return bootstrapped from the record
-    network's estimate of the next visit's state (``return_lambda``), backwards."""
+    network's estimate of the next visit's state (``return_lambda``), backwards; the
+    last visit of a cut episode from the state it was cut in, with
+    ``truncation="bootstrap"``, else from nothing."""
     replay, gamma = side.replay, side.schedule[GAMMA]
     g = 0.0
     for t in range(length - 1, -1, -1):
@@ -166,6 +179,8 @@ def index_lambda_store(side, length: int) -> None:
         if t + 1 < length:
             estimate = replay.record_table[side.obs[t + 1]]
             after = (1.0 - replay.lam) * estimate + replay.lam * g
+        elif cut_and_bootstrapped(side):
+            after = replay.record_table[side.obs[length]]
         g = side.rewards[t] + gamma * after
         p = replay.ring.position[0]
         push_visit(replay.ring, side.obs[t], side.joints[t], g)
@@ -184,6 +199,8 @@ def features_lambda_store(side, length: int) -> None:
         if t + 1 < length:
             estimate = bootstrap_estimate(side, t + 1)
             after = (1.0 - replay.lam) * estimate + replay.lam * g
+        elif cut_and_bootstrapped(side):
+            after = bootstrap_estimate(side, length)
         g = side.rewards[t] + gamma * after
         p = replay.ring.position[0]
         push_visit_row(replay.ring, side.obs[t], side.joints[t], g)

@@ -83,6 +83,8 @@ UNSEEN_SPREADS = ("std", "range")
 RECORDS = ("maximum", "expectile")
 #: What the behaviour's T is measured in (``temperature_unit``).
 TEMPERATURE_UNITS = ("fixed", "range")
+#: What an episode cut at ``max_steps`` ends in for λ-returns (``truncation``).
+TRUNCATIONS = ("terminal", "bootstrap")
 #: The settings that take one of a few names, and those names.
 CHOICES = {
     "update": UPDATES,
@@ -94,6 +96,7 @@ CHOICES = {
     "critic_bootstrap": CRITIC_BOOTSTRAPS,
     "unseen_spread": UNSEEN_SPREADS,
     "temperature_unit": TEMPERATURE_UNITS,
+    "truncation": TRUNCATIONS,
 }
 
 
@@ -186,6 +189,15 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     degree_model.DegreeModel.estimate`), so that a return bootstraps from estimates at
     most ``target_every`` steps old, not from those of its episode's end, kept for as
     long as the ring keeps the visit (measured: the deep CMARL-CD page)."""
+    truncation: str = added_setting("terminal", "0.7.0")
+    """[choice] (``return_lambda`` below 1) What an episode cut at the game's
+    ``max_steps`` ends in: ``"terminal"``, nothing (its last visit's return is its reward,
+    as a terminated episode's, as first measured); ``"bootstrap"``, the estimate at the
+    state it was cut in (``G_T = r_T + γ R(s_T)``; Pardo et al., 2018, "Time Limits in
+    Reinforcement Learning"), as VDN's and QMIX's TD targets do. Where every episode is
+    cut (simple_spread's 25 steps) ``"terminal"`` makes a state's return depend on the
+    steps left, which its observation does not show. Not with ``refresh_returns``, whose
+    recomputation does not keep the state an episode was cut in."""
     record_step: float = added_setting(0.02, "0.6.0")
     """(``record="expectile"``) How far a visit moves its state's record towards its
     return, in (0, 1]."""
@@ -364,6 +376,12 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             "refresh_returns",
             "recomputes λ-returns: a ring of visits with return_lambda below 1",
         )
+        require(
+            self.truncation == "terminal" or (self.bootstraps and not self.refresh_returns),
+            "truncation",
+            "'bootstrap' is for λ-returns (return_lambda below 1) not recomputed "
+            "(refresh_returns false)",
+        )
         spread = self.unseen_tolerance
         require(
             bool(np.isfinite(spread)) and spread >= 0,
@@ -486,7 +504,8 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
 
     def schedule(self, learn_episodes: int) -> list[float]:
         """T, the clip (:attr:`degree_bounds`), γ, L, ``train_every``, the end of T's
-        anneal, its steps and its unit (the index in :data:`TEMPERATURE_UNITS`)."""
+        anneal, its steps and its unit (the index in :data:`TEMPERATURE_UNITS`), and whether
+        a cut episode's λ-returns bootstrap (``truncation``)."""
         lo, hi = self.degree_bounds
         return [
             self.temperature,
@@ -498,6 +517,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.temperature_end,
             self.temperature_steps,
             float(TEMPERATURE_UNITS.index(self.temperature_unit)),
+            float(self.truncation == "bootstrap"),
         ]
 
     def behaviour_temperature(self, steps: int) -> float:

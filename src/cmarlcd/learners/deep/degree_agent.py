@@ -160,12 +160,14 @@ class DegreeAgent(StepAgent):
         visit with its discounted return (``replayed``, ``imitation``). Returns are the
         episode's rewards from each visit on, a cut episode's return what it collected;
         with ``return_lambda`` below 1, λ-returns bootstrapped from the record network at
-        the visits after each (:meth:`_store`)."""
+        the visits after each (:meth:`_store`), and a cut episode's (``terminated``
+        false) from ``final_state`` with ``truncation="bootstrap"``."""
         visits = self._visits.pop(copy, [])
         if self.config.keyed:
             self._fold(visits)
         else:
-            self._store(visits)
+            cut = self.config.truncation == "bootstrap" and not terminated
+            self._store(visits, final_state if cut else None)
         self.episode += 1
 
     def _fold(self, visits: list) -> None:
@@ -194,22 +196,25 @@ class DegreeAgent(StepAgent):
             len(states), self._params,
         )  # fmt: skip
 
-    def _store(self, visits: list) -> None:
+    def _store(self, visits: list, cut_in=None) -> None:
         """Every visit of an episode with its discounted return, into the ring; with
         ``return_lambda`` λ below 1, ``G_t = r + γ((1 - λ) R(s_{t+1}) + λ G_{t+1})`` from
-        the record network ``R`` as it is now (0 after the last visit), as the compiled
-        loop stores them."""
+        the record network ``R`` as it is now (after the last visit 0, or ``R`` at
+        ``cut_in``, the state a cut episode ended in), as the compiled loop stores them."""
         lam, gamma = self.config.return_lambda, self.config.gamma
         estimates = None
         if lam < 1 and visits:
-            x = self._encode_many([state for state, _, _ in visits])
+            states = [state for state, _, _ in visits]
+            x = self._encode_many(states if cut_in is None else [*states, cut_in])
             with torch.no_grad():
                 estimates = self.model.estimate(x)[0].double().cpu().numpy()
         value = 0.0
         for t in range(len(visits) - 1, -1, -1):
             state, joint, reward = visits[t]
-            if estimates is not None:
-                value = 0.0 if t + 1 == len(visits) else (1 - lam) * estimates[t + 1] + lam * value
+            if estimates is not None and t + 1 == len(visits):
+                value = 0.0 if cut_in is None else float(estimates[t + 1])
+            elif estimates is not None:
+                value = (1 - lam) * estimates[t + 1] + lam * value
             value = reward + gamma * value
             actions = np.array(joint, dtype=np.int64)
             if self.integer_states:

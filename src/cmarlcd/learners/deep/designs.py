@@ -79,6 +79,12 @@ SHARES_REFRESH_DEEP_CMARLCD = replace(SHARES_COLD_DEEP_CMARLCD, refresh_returns=
 SHARES_RANGE_DEEP_CMARLCD = replace(
     SHARES_DEEP_CMARLCD, temperature_unit="range", temperature_end=0.2
 )
+#: ``shares-range`` whose cut episodes' λ-returns bootstrap from the state they were cut
+#: in (``truncation="bootstrap"``; declared before its runs). Every design on λ-returns
+#: so far ended a cut episode in nothing, so a state's return counted the steps left,
+#: which no observation shows: every simple_spread episode is cut at 25 steps, LBF's at
+#: 50 until its food is gone. VDN's and QMIX's TD targets bootstrap there.
+SHARES_RANGE_BOOTSTRAP_DEEP_CMARLCD = replace(SHARES_RANGE_DEEP_CMARLCD, truncation="bootstrap")
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
@@ -149,6 +155,7 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-cold": SHARES_COLD_DEEP_CMARLCD,
     "shares-refresh": SHARES_REFRESH_DEEP_CMARLCD,
     "shares-range": SHARES_RANGE_DEEP_CMARLCD,
+    "shares-range-bootstrap": SHARES_RANGE_BOOTSTRAP_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
