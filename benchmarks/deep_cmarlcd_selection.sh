@@ -48,6 +48,7 @@
 #              whatever its returns' scale (SHARES_RANGE_DEEP_CMARLCD)
 #   shares-range-bootstrap  shares-range whose episodes cut at max_steps end their
 #              λ-returns in the estimate at the state they were cut in (truncation=bootstrap)
+#   shares-cold-bootstrap  shares-cold with cut episodes bootstrapped
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -61,11 +62,12 @@ for design in "${designs[@]}"; do
     keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | \
       imitation-anneal | range | range-anneal | critic | critic-anneal | critic-sum | critic-best | \
       critic-best-anneal | shares | shares-cold | shares-refresh | shares-refresh-05 | \
-      shares-range | shares-range-bootstrap) ;;
+      shares-range | shares-range-bootstrap | shares-cold-bootstrap) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
          "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
          "critic-anneal, critic-sum, critic-best, critic-best-anneal, shares, shares-cold," \
-         "shares-refresh, shares-refresh-05, shares-range, shares-range-bootstrap)" >&2
+         "shares-refresh, shares-refresh-05, shares-range, shares-range-bootstrap," \
+         "shares-cold-bootstrap)" >&2
        exit 2 ;;
   esac
 done
@@ -79,7 +81,8 @@ for design in "${designs[@]}"; do
   case "$design" in
     keyed) settings="" ;;
     replayed | imitation | imitation-lambda | critic | critic-best | shares | shares-cold \
-      | shares-refresh | shares-range | shares-range-bootstrap) settings="$d.design=$design," ;;
+      | shares-refresh | shares-range | shares-range-bootstrap | shares-cold-bootstrap)
+      settings="$d.design=$design," ;;
     anneal) settings="$anneal," ;;
     spread) settings="$d.unseen_tolerance=0.25," ;;
     spread-anneal) settings="$d.unseen_tolerance=0.25,$anneal," ;;

@@ -85,6 +85,11 @@ SHARES_RANGE_DEEP_CMARLCD = replace(
 #: which no observation shows: every simple_spread episode is cut at 25 steps, LBF's at
 #: 50 until its food is gone. VDN's and QMIX's TD targets bootstrap there.
 SHARES_RANGE_BOOTSTRAP_DEEP_CMARLCD = replace(SHARES_RANGE_DEEP_CMARLCD, truncation="bootstrap")
+#: ``shares-cold`` (the fourth round's, T annealed to 0.01) with cut episodes bootstrapped
+#: (declared before its runs, after ``shares-range-bootstrap``'s selection run: the
+#: bootstrap lifted simple_spread to VDN's level at 500k steps, the range's T learned
+#: less than ``shares-cold`` on 2s-8x8-2p-2f-coop).
+SHARES_COLD_BOOTSTRAP_DEEP_CMARLCD = replace(SHARES_COLD_DEEP_CMARLCD, truncation="bootstrap")
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
@@ -156,6 +161,7 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-refresh": SHARES_REFRESH_DEEP_CMARLCD,
     "shares-range": SHARES_RANGE_DEEP_CMARLCD,
     "shares-range-bootstrap": SHARES_RANGE_BOOTSTRAP_DEEP_CMARLCD,
+    "shares-cold-bootstrap": SHARES_COLD_BOOTSTRAP_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
