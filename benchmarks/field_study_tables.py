@@ -201,6 +201,19 @@ def draw(tasks: dict[str, dict[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
+def read(store: Path) -> dict[str, Any]:
+    """``cmarl-cd report --store STORE --format json``, read; ValueError with the report's
+    last line of error where it fails."""
+    done = subprocess.run(
+        [sys.executable, "-m", "cmarlcd", "report", "--store", str(store), "--format", "json"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    if done.returncode != 0:
+        lines = done.stderr.strip().splitlines()
+        raise ValueError(lines[-1] if lines else f"error: cmarl-cd report failed on {store}")
+    return json.loads(done.stdout)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--store", type=Path, help="the study's store (runs cmarl-cd report)")
@@ -217,14 +230,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: no such file: {path}", file=sys.stderr)
             return 2
     if args.store is not None:
-        done = subprocess.run(
-            [sys.executable, "-m", "cmarlcd", "report", "--store", str(args.store),
-             "--format", "json"], capture_output=True, text=True, check=False,
-        )  # fmt: skip
-        if done.returncode != 0:
-            print(done.stderr.strip().splitlines()[-1], file=sys.stderr)
+        try:
+            report = read(args.store)
+        except ValueError as error:
+            print(error, file=sys.stderr)
             return 2
-        report = json.loads(done.stdout)
     else:
         try:
             report = json.loads(args.report.read_text())

@@ -1,0 +1,94 @@
+"""Deep CMARL-CD's designs at the field study's protocol, beside the study's VDN and
+shares columns: one Markdown table per figure (maximum and average return, 95 % interval
+over the seeds), the study's tasks as rows.
+
+Each design's runs are a store of their own, made with the study's command for one
+learner (``cmarl-cd field --tasks ... --learners deep-cmarl-cd --steps 2.05M --seeds 5
+--eval-interval 50k --eval-episodes 100 --inputs own-observations --set
+deep-cmarl-cd.design=NAME,deep-cmarl-cd.gamma=0.99 --store STORE``); the study's store
+gives the columns beside them. Reads each store through ``cmarl-cd report``, so the
+numbers are the report's.
+
+    python benchmarks/deep_cmarlcd_designs_field.py --study results/field/study/store.sqlite \
+        --design shares-range=results/deep-cmarlcd-shares/range-field.sqlite
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from field_study_tables import FIGURES, STORED, TASKS, cell, read, study
+
+#: The study's columns shown beside the designs.
+BESIDE = ("VDN", "deep CMARL-CD (shares)")
+
+
+def design_figures(store: Path) -> dict[str, dict[str, Any]]:
+    """Per task, the field figures of the one deep CMARL-CD setting a design's store
+    holds (the first, where it holds more)."""
+    short = {STORED.get(task, task): task for task in TASKS}
+    found: dict[str, dict[str, Any]] = {}
+    for doc in read(store).get("train", []):
+        if doc["game"] not in short:
+            continue
+        for label, figures in doc["field"].items():
+            if label.startswith("Deep CMARL-CD"):
+                found.setdefault(short[doc["game"]], figures)
+    return found
+
+
+def table(columns: dict[str, dict[str, dict[str, Any]]], key: str) -> list[str]:
+    """Tasks as rows, ``columns`` (name: task: figures) as columns, each row's best in
+    bold."""
+    names = list(columns)
+    lines = ["| task | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for task in TASKS:
+        held = {n: columns[n][task] for n in names if task in columns[n]}
+        if not held:
+            continue
+        top = max(f[key] for f in held.values())
+        cells = [cell(held[n], key, held[n][key] == top) if n in held else "–" for n in names]
+        lines.append(f"| {task.removeprefix('foraging:')} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--study", type=Path, required=True, help="the field study's store")
+    parser.add_argument(
+        "--design", action="append", default=[], metavar="NAME=STORE",
+        help="a design's name and the store of its runs (repeat)",
+    )  # fmt: skip
+    args = parser.parse_args(argv)
+    designs = [given.partition("=") for given in args.design]
+    for (name, _, store), given in zip(designs, args.design, strict=True):
+        if not name or not store:
+            print(f"error: --design takes NAME=STORE (got {given!r})", file=sys.stderr)
+            return 2
+    for path in [args.study, *(Path(store) for _, _, store in designs)]:
+        if not path.is_file():
+            print(f"error: no store at {path}", file=sys.stderr)
+            return 2
+    try:
+        tasks = study(read(args.study))
+        columns = {
+            n: {t: tasks[t]["field"][n] for t in tasks if n in tasks[t]["field"]} for n in BESIDE
+        }
+        for name, _, store in designs:
+            columns[name] = design_figures(Path(store))
+    except ValueError as error:
+        print(error, file=sys.stderr)
+        return 2
+    for key, title in FIGURES:
+        print(f"\n{title} (95 % interval over the seeds; bold: the row's best)\n")
+        print("\n".join(table(columns, key)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

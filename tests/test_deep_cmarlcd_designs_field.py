@@ -1,0 +1,71 @@
+"""Deep CMARL-CD's designs at the field protocol beside the study's columns
+(benchmarks/deep_cmarlcd_designs_field.py): a hand-built report's figures land in their
+design's column, each row's best in bold; bad input is one line and status 2."""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).parents[1]
+SCRIPT = ROOT / "benchmarks/deep_cmarlcd_designs_field.py"
+sys.path.insert(0, str(SCRIPT.parent))
+spec = importlib.util.spec_from_file_location("deep_cmarlcd_designs_field", SCRIPT)
+assert spec is not None and spec.loader is not None
+designs = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(designs)
+
+
+def figures(best: float) -> dict[str, float]:
+    return {"max_return": best, "max_return_low": best - 0.1, "max_return_high": best + 0.1,
+            "average_return": best / 2, "average_return_low": float("nan"),
+            "average_return_high": float("nan")}  # fmt: skip
+
+
+DESIGN_REPORT = {
+    "train": [
+        {"game": "foraging:8x8-2p-2f-coop", "field": {"Deep CMARL-CD (a=1)": figures(0.3)}},
+        {"game": "foraging:5x5-2p-1f", "field": {"Deep CMARL-CD (a=1)": figures(0.9)}},
+        {"game": "simple_spread:N=3,local_ratio=0.5,max_cycles=25",
+         "field": {"random policy": figures(-79.0), "Deep CMARL-CD (a=1)": figures(-50.0)}},
+    ]
+}  # fmt: skip
+
+
+def test_a_designs_store_gives_its_column(monkeypatch) -> None:
+    monkeypatch.setattr(designs, "read", lambda store: DESIGN_REPORT)
+    found = designs.design_figures(Path("any"))
+    # a task outside the study is left out; simple_spread is found by its stored name
+    assert list(found) == ["foraging:8x8-2p-2f-coop", "simple_spread"]
+    assert found["simple_spread"]["max_return"] == -50.0
+    columns = {
+        "VDN": {"foraging:8x8-2p-2f-coop": figures(0.5)},
+        "design": found,
+    }
+    lines = designs.table(columns, "max_return")
+    assert lines[0] == "| task | VDN | design |"
+    assert lines[2] == "| 8x8-2p-2f-coop | **0.500** [0.400, 0.600] | 0.300 [0.200, 0.400] |"
+    assert lines[3] == "| simple_spread | – | **-50.000** [-50.100, -49.900] |"
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(SCRIPT), *args], capture_output=True, text=True, check=False
+    )
+
+
+def test_bad_input_is_one_line(tmp_path: Path) -> None:
+    done = run("--study", str(tmp_path / "absent.sqlite"))
+    assert done.returncode == 2 and done.stderr.strip() == (
+        f"error: no store at {tmp_path / 'absent.sqlite'}"
+    )
+    done = run("--study", str(tmp_path / "absent.sqlite"), "--design", "x")
+    assert (
+        done.returncode == 2 and done.stderr.strip() == "error: --design takes NAME=STORE (got 'x')"
+    )
+    text = tmp_path / "text.sqlite"
+    text.write_text("not a store")
+    done = run("--study", str(text))
+    assert done.returncode == 2 and done.stderr.strip().startswith("error: --store:")
