@@ -54,50 +54,24 @@ import numpy as np
 
 from cmarlcd.errors import check_discount, require
 from cmarlcd.learners.deep.config import DEFAULT_STEP, STEP_BEFORE, STEPS, DeepLearnerConfig
+from cmarlcd.learners.deep.coordination_choices import (  # noqa: F401  (re-exported)
+    ACT_FROM,
+    CHOICES,
+    CRITIC_BOOTSTRAPS,
+    CRITIC_FITS,
+    CRITIC_FORMS,
+    MAX_JOINT_ACTIONS,
+    RANGE_WEIGHT,
+    RECORDS,
+    TEMPERATURE_UNITS,
+    TRUNCATIONS,
+    UNSEEN_RECORDS,
+    UNSEEN_SPREADS,
+    UPDATES,
+)
 from cmarlcd.learners.degree_rules import check_degree_settings
 from cmarlcd.learners.policy import annealed
 from cmarlcd.runs import added_setting
-
-#: The ways Algorithm 2's updates reach the degree network (``DeepCMARLCDConfig.update``).
-UPDATES = ("keyed", "replayed", "imitation", "critic")
-#: (``update="critic"``) The most joint actions the critic may have outputs for.
-MAX_JOINT_ACTIONS = 4_096
-#: [choice] (``update="imitation"``) Weight of the penalty that keeps each raw degree
-#: within ``[c_min, c_max]``: the strategy reads the clipped degrees, whose gradient is
-#: zero outside the range, so a degree pushed past a bound would stay there when a better
-#: action is found; the squared distance to the range brings it back.
-RANGE_WEIGHT = 1.0
-#: What a state not in the keyed memory is compared with (``unseen_record``).
-UNSEEN_RECORDS = ("first-visit", "estimate", "estimate-kept", "estimate-once-kept")
-#: Where the degrees it acts with come from (``act_from``).
-ACT_FROM = ("network", "memory")
-#: The critic's form (``critic_form``).
-CRITIC_FORMS = ("joint", "sum", "degrees")
-#: How the degrees learn the critic's best joint action (``critic_fit``).
-CRITIC_FITS = ("imitation", "tie")
-#: What the critic's λ-returns bootstrap from (``critic_bootstrap``).
-CRITIC_BOOTSTRAPS = ("greedy", "best")
-#: The spread of the returns that scales ``unseen_tolerance`` (``unseen_spread``).
-UNSEEN_SPREADS = ("std", "range")
-#: What the keyed memory's per-state record is (``record``).
-RECORDS = ("maximum", "expectile")
-#: What the behaviour's T is measured in (``temperature_unit``).
-TEMPERATURE_UNITS = ("fixed", "range")
-#: What an episode cut at ``max_steps`` ends in for λ-returns (``truncation``).
-TRUNCATIONS = ("terminal", "bootstrap")
-#: The settings that take one of a few names, and those names.
-CHOICES = {
-    "update": UPDATES,
-    "unseen_record": UNSEEN_RECORDS,
-    "act_from": ACT_FROM,
-    "record": RECORDS,
-    "critic_form": CRITIC_FORMS,
-    "critic_fit": CRITIC_FITS,
-    "critic_bootstrap": CRITIC_BOOTSTRAPS,
-    "unseen_spread": UNSEEN_SPREADS,
-    "temperature_unit": TEMPERATURE_UNITS,
-    "truncation": TRUNCATIONS,
-}
 
 
 @dataclass(frozen=True)

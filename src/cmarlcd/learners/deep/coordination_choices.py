@@ -1,0 +1,46 @@
+"""The names deep CMARL-CD's settings take (:class:`~cmarlcd.learners.deep.coordination.
+DeepCMARLCDConfig`), and the constants its updates read: one place for what a setting
+may be, so that the settings, their checks and the command line's help agree."""
+
+from __future__ import annotations
+
+#: The ways Algorithm 2's updates reach the degree network (``DeepCMARLCDConfig.update``).
+UPDATES = ("keyed", "replayed", "imitation", "critic")
+#: (``update="critic"``) The most joint actions the critic may have outputs for.
+MAX_JOINT_ACTIONS = 4_096
+#: [choice] (``update="imitation"``) Weight of the penalty that keeps each raw degree
+#: within ``[c_min, c_max]``: the strategy reads the clipped degrees, whose gradient is
+#: zero outside the range, so a degree pushed past a bound would stay there when a better
+#: action is found; the squared distance to the range brings it back.
+RANGE_WEIGHT = 1.0
+#: What a state not in the keyed memory is compared with (``unseen_record``).
+UNSEEN_RECORDS = ("first-visit", "estimate", "estimate-kept", "estimate-once-kept")
+#: Where the degrees it acts with come from (``act_from``).
+ACT_FROM = ("network", "memory")
+#: The critic's form (``critic_form``).
+CRITIC_FORMS = ("joint", "sum", "degrees")
+#: How the degrees learn the critic's best joint action (``critic_fit``).
+CRITIC_FITS = ("imitation", "tie")
+#: What the critic's λ-returns bootstrap from (``critic_bootstrap``).
+CRITIC_BOOTSTRAPS = ("greedy", "best")
+#: The spread of the returns that scales ``unseen_tolerance`` (``unseen_spread``).
+UNSEEN_SPREADS = ("std", "range")
+#: What the keyed memory's per-state record is (``record``).
+RECORDS = ("maximum", "expectile")
+#: What the behaviour's T is measured in (``temperature_unit``).
+TEMPERATURE_UNITS = ("fixed", "range")
+#: What an episode cut at ``max_steps`` ends in for λ-returns (``truncation``).
+TRUNCATIONS = ("terminal", "bootstrap")
+#: The settings that take one of a few names, and those names.
+CHOICES = {
+    "update": UPDATES,
+    "unseen_record": UNSEEN_RECORDS,
+    "act_from": ACT_FROM,
+    "record": RECORDS,
+    "critic_form": CRITIC_FORMS,
+    "critic_fit": CRITIC_FITS,
+    "critic_bootstrap": CRITIC_BOOTSTRAPS,
+    "unseen_spread": UNSEEN_SPREADS,
+    "temperature_unit": TEMPERATURE_UNITS,
+    "truncation": TRUNCATIONS,
+}
