@@ -49,6 +49,9 @@
 #   shares-range-bootstrap  shares-range whose episodes cut at max_steps end their
 #              λ-returns in the estimate at the state they were cut in (truncation=bootstrap)
 #   shares-cold-bootstrap  shares-cold with cut episodes bootstrapped
+#   shares-cold-bootstrap-shared, shares-range-bootstrap-shared  the two bootstrapped
+#              designs in the field's baselines' model class: one degree network shared by
+#              the agents (their index in its input), two hidden layers of 64
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -62,12 +65,13 @@ for design in "${designs[@]}"; do
     keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | \
       imitation-anneal | range | range-anneal | critic | critic-anneal | critic-sum | critic-best | \
       critic-best-anneal | shares | shares-cold | shares-refresh | shares-refresh-05 | \
-      shares-range | shares-range-bootstrap | shares-cold-bootstrap) ;;
+      shares-range | shares-range-bootstrap | shares-cold-bootstrap | \
+      shares-cold-bootstrap-shared | shares-range-bootstrap-shared) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
          "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
          "critic-anneal, critic-sum, critic-best, critic-best-anneal, shares, shares-cold," \
          "shares-refresh, shares-refresh-05, shares-range, shares-range-bootstrap," \
-         "shares-cold-bootstrap)" >&2
+         "shares-cold-bootstrap, shares-cold-bootstrap-shared, shares-range-bootstrap-shared)" >&2
        exit 2 ;;
   esac
 done
@@ -81,7 +85,8 @@ for design in "${designs[@]}"; do
   case "$design" in
     keyed) settings="" ;;
     replayed | imitation | imitation-lambda | critic | critic-best | shares | shares-cold \
-      | shares-refresh | shares-range | shares-range-bootstrap | shares-cold-bootstrap)
+      | shares-refresh | shares-range | shares-range-bootstrap | shares-cold-bootstrap \
+      | shares-cold-bootstrap-shared | shares-range-bootstrap-shared)
       settings="$d.design=$design," ;;
     anneal) settings="$anneal," ;;
     spread) settings="$d.unseen_tolerance=0.25," ;;

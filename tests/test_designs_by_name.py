@@ -43,6 +43,17 @@ def test_every_design_by_name_is_that_design() -> None:
     assert settings(f"{D}.design=Shares-Cold") == DESIGNS["shares-cold"]
 
 
+def test_the_shared_designs_are_the_bootstrapped_ones_in_the_baselines_model_class() -> None:
+    # the field study's VDN and QMIX: one network shared, two hidden layers of 64
+    model = f"{D}.share=true,{D}.hidden_layers=2,{D}.hidden=64"
+    for kind in ("cold", "range"):
+        shared = settings(f"{D}.design=shares-{kind}-bootstrap-shared")
+        assert shared == settings(f"{D}.design=shares-{kind}-bootstrap,{model}"), kind
+        assert (shared.share, shared.hidden_layers, shared.hidden) == (True, 2, 64)
+        assert shared.truncation == "bootstrap" and shared.critic_form == "degrees"
+    assert settings(f"{D}.design=shares-range-bootstrap-shared").temperature_unit == "range"
+
+
 def test_the_learners_other_settings_win_in_any_order() -> None:
     for text in (f"{D}.temperature_end=0.5,{D}.design=shares-cold",
                  f"{D}.design=shares-cold,{D}.temperature_end=0.5"):  # fmt: skip

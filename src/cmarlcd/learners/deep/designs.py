@@ -90,6 +90,24 @@ SHARES_RANGE_BOOTSTRAP_DEEP_CMARLCD = replace(SHARES_RANGE_DEEP_CMARLCD, truncat
 #: bootstrap lifted simple_spread to VDN's level at 500k steps, the range's T learned
 #: less than ``shares-cold`` on 2s-8x8-2p-2f-coop).
 SHARES_COLD_BOOTSTRAP_DEEP_CMARLCD = replace(SHARES_COLD_DEEP_CMARLCD, truncation="bootstrap")
+#: The field study's baselines' model class: one network shared by the agents, two hidden
+#: layers of 64 units.
+BASELINE_MODEL = {"share": True, "hidden_layers": 2, "hidden": 64}
+#: ``shares-cold-bootstrap`` in the baselines' model class (declared before its selection
+#: run, 2026-12-07): one degree network shared by the agents (their one-hot index in its
+#: input), two hidden layers of 64 units, the form VDN, QMIX, deep IQL and hysteretic DQN
+#: take in the field study (``--preset epymarl`` with ``share=true,hidden_layers=2``),
+#: where every design so far kept the paper's one network per agent of one layer of 49.
+#: EPyMARL's IQL learned 8x8-2p-2f-coop with two hidden layers (0.360 at 1M steps) and
+#: not with one (0.030; the EPyMARL anchor page). Nothing else of the two designs
+#: changes, so their numbers beside these say what the model class alone is worth.
+SHARES_COLD_BOOTSTRAP_SHARED_DEEP_CMARLCD = replace(
+    SHARES_COLD_BOOTSTRAP_DEEP_CMARLCD, **BASELINE_MODEL
+)
+#: ``shares-range-bootstrap`` in the baselines' model class (declared with the above).
+SHARES_RANGE_BOOTSTRAP_SHARED_DEEP_CMARLCD = replace(
+    SHARES_RANGE_BOOTSTRAP_DEEP_CMARLCD, **BASELINE_MODEL
+)
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
@@ -162,6 +180,8 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-range": SHARES_RANGE_DEEP_CMARLCD,
     "shares-range-bootstrap": SHARES_RANGE_BOOTSTRAP_DEEP_CMARLCD,
     "shares-cold-bootstrap": SHARES_COLD_BOOTSTRAP_DEEP_CMARLCD,
+    "shares-cold-bootstrap-shared": SHARES_COLD_BOOTSTRAP_SHARED_DEEP_CMARLCD,
+    "shares-range-bootstrap-shared": SHARES_RANGE_BOOTSTRAP_SHARED_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
