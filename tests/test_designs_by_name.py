@@ -54,6 +54,12 @@ def test_the_shared_designs_are_the_bootstrapped_ones_in_the_baselines_model_cla
     assert settings(f"{D}.design=shares-range-bootstrap-shared").temperature_unit == "range"
 
 
+def test_the_slow_design_is_shares_cold_bootstrap_with_vdns_target_interval() -> None:
+    slow = settings(f"{D}.design=shares-cold-bootstrap-slow")
+    assert slow == settings(f"{D}.design=shares-cold-bootstrap,{D}.target_every=10000")
+    assert slow.target_every == 50 * 200  # EPyMARL's: 200 episodes of 50 steps
+
+
 def test_the_learners_other_settings_win_in_any_order() -> None:
     for text in (f"{D}.temperature_end=0.5,{D}.design=shares-cold",
                  f"{D}.design=shares-cold,{D}.temperature_end=0.5"):  # fmt: skip
