@@ -5,6 +5,7 @@ design's column, each row's best in bold; bad input is one line and status 2."""
 from __future__ import annotations
 
 import importlib.util
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -69,3 +70,20 @@ def test_bad_input_is_one_line(tmp_path: Path) -> None:
     text.write_text("not a store")
     done = run("--study", str(text))
     assert done.returncode == 2 and done.stderr.strip().startswith("error: --store:")
+
+
+def test_the_design_script_refuses_missing_arguments_and_unknown_designs(tmp_path: Path) -> None:
+    """benchmarks/deep_cmarlcd_design_field.sh: a usage line without a design and a store;
+    a design that does not exist refused by the field command, before anything runs."""
+    shell = ROOT / "benchmarks/deep_cmarlcd_design_field.sh"
+    done = subprocess.run(["bash", str(shell)], capture_output=True, text=True, check=False)
+    assert done.returncode == 2 and done.stderr.strip().startswith("usage:")
+    store = tmp_path / "designs" / "s.sqlite"
+    done = subprocess.run(
+        ["bash", str(shell), "sharez", str(store), "simple_spread"],
+        capture_output=True, text=True, check=False,
+        env={**os.environ, "PYTHONPATH": str(ROOT / "src")},
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert "error: --set: deep-cmarl-cd has no design 'sharez'" in done.stderr
+    assert not store.exists()

@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# One deep CMARL-CD design at the field study's protocol, into a store of its own: the
+# study's command (benchmarks/field_study.sh, full form) for one learner, its eight tasks
+# (or those named), 2.05M steps, 5 seeds, 100 greedy episodes every 50k steps, each agent
+# reading its own observation, the field's discount. Resumable: rerun after a stop.
+# Compare it with the study's columns by
+#
+#   python benchmarks/deep_cmarlcd_designs_field.py --study results/field/study/store.sqlite \
+#       --design NAME=STORE ...
+#
+# Usage: bash benchmarks/deep_cmarlcd_design_field.sh DESIGN STORE [TASK ...]
+#   (some 60-90 minutes a design for the eight tasks on a core shared with the study;
+#   needs the [deep] extra)
+set -euo pipefail
+[ $# -ge 2 ] || { echo "usage: $0 DESIGN STORE [TASK ...]" >&2; exit 2; }
+design="$1" store="$2"
+shift 2
+tasks=("$@")
+[ ${#tasks[@]} -eq 0 ] && tasks=(foraging:8x8-2p-2f-coop foraging:2s-8x8-2p-2f-coop
+  simple_spread foraging:10x10-3p-3f foraging:2s-10x10-3p-3f foraging:15x15-3p-5f
+  foraging:15x15-4p-3f foraging:15x15-4p-5f)
+d=deep-cmarl-cd
+mkdir -p "$(dirname "$store")"
+echo "$(date +%T) $design" >&2
+python -m cmarlcd field --tasks "$(IFS=,; echo "${tasks[*]}")" --learners "$d" \
+  --steps 2.05M --seeds 5 --eval-interval 50k --eval-episodes 100 \
+  --inputs own-observations --workers 1 --json --set "$d.design=$design,$d.gamma=0.99" \
+  --store "$store" --figures "$(dirname "$store")/figures"
+echo "$(date +%T) done" >&2
