@@ -55,6 +55,7 @@
 #   shares-cold-bootstrap-slow  shares-cold-bootstrap with the target copy every 10,000
 #              steps (VDN's), not 500: what the cut episodes' returns bootstrap from moves
 #              slower
+#   shares-range-bootstrap-shared-slow  shares-range-bootstrap-shared with that interval
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)
@@ -70,13 +71,13 @@ for design in "${designs[@]}"; do
       critic-best-anneal | shares | shares-cold | shares-refresh | shares-refresh-05 | \
       shares-range | shares-range-bootstrap | shares-cold-bootstrap | \
       shares-cold-bootstrap-shared | shares-range-bootstrap-shared | \
-      shares-cold-bootstrap-slow) ;;
+      shares-cold-bootstrap-slow | shares-range-bootstrap-shared-slow) ;;
     *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
          "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
          "critic-anneal, critic-sum, critic-best, critic-best-anneal, shares, shares-cold," \
          "shares-refresh, shares-refresh-05, shares-range, shares-range-bootstrap," \
          "shares-cold-bootstrap, shares-cold-bootstrap-shared, shares-range-bootstrap-shared," \
-         "shares-cold-bootstrap-slow)" >&2
+         "shares-cold-bootstrap-slow, shares-range-bootstrap-shared-slow)" >&2
        exit 2 ;;
   esac
 done
@@ -91,7 +92,8 @@ for design in "${designs[@]}"; do
     keyed) settings="" ;;
     replayed | imitation | imitation-lambda | critic | critic-best | shares | shares-cold \
       | shares-refresh | shares-range | shares-range-bootstrap | shares-cold-bootstrap \
-      | shares-cold-bootstrap-shared | shares-range-bootstrap-shared | shares-cold-bootstrap-slow)
+      | shares-cold-bootstrap-shared | shares-range-bootstrap-shared | shares-cold-bootstrap-slow \
+      | shares-range-bootstrap-shared-slow)
       settings="$d.design=$design," ;;
     anneal) settings="$anneal," ;;
     spread) settings="$d.unseen_tolerance=0.25," ;;

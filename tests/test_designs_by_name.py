@@ -58,6 +58,9 @@ def test_the_slow_design_is_shares_cold_bootstrap_with_vdns_target_interval() ->
     slow = settings(f"{D}.design=shares-cold-bootstrap-slow")
     assert slow == settings(f"{D}.design=shares-cold-bootstrap,{D}.target_every=10000")
     assert slow.target_every == 50 * 200  # EPyMARL's: 200 episodes of 50 steps
+    both = settings(f"{D}.design=shares-range-bootstrap-shared-slow")
+    assert both == settings(f"{D}.design=shares-range-bootstrap-shared,{D}.target_every=10000")
+    assert (both.share, both.temperature_unit, both.target_every) == (True, "range", 10_000)
 
 
 def test_the_learners_other_settings_win_in_any_order() -> None:

@@ -118,6 +118,13 @@ SHARES_RANGE_BOOTSTRAP_SHARED_DEEP_CMARLCD = replace(
 SHARES_COLD_BOOTSTRAP_SLOW_DEEP_CMARLCD = replace(
     SHARES_COLD_BOOTSTRAP_DEEP_CMARLCD, target_every=10_000
 )
+#: ``shares-range-bootstrap-shared`` with VDN's target interval (declared before its runs,
+#: 2026-12-07, from the seventh round at the field's protocol: the model class learned
+#: 8x8-2p-2f-coop, 0.508, and the slower copy gave simple_spread its best maximum,
+#: -36.2, each without the other).
+SHARES_RANGE_BOOTSTRAP_SHARED_SLOW_DEEP_CMARLCD = replace(
+    SHARES_RANGE_BOOTSTRAP_SHARED_DEEP_CMARLCD, target_every=10_000
+)
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
@@ -193,6 +200,7 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-cold-bootstrap-shared": SHARES_COLD_BOOTSTRAP_SHARED_DEEP_CMARLCD,
     "shares-range-bootstrap-shared": SHARES_RANGE_BOOTSTRAP_SHARED_DEEP_CMARLCD,
     "shares-cold-bootstrap-slow": SHARES_COLD_BOOTSTRAP_SLOW_DEEP_CMARLCD,
+    "shares-range-bootstrap-shared-slow": SHARES_RANGE_BOOTSTRAP_SHARED_SLOW_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
