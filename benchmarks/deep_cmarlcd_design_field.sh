@@ -12,18 +12,19 @@
 #   (some 60-90 minutes a design for the eight tasks on a core shared with the study;
 #   needs the [deep] extra)
 set -euo pipefail
+# the study's tasks and protocol (benchmarks/field_protocol.sh)
+source "$(dirname "${BASH_SOURCE[0]}")/field_protocol.sh"
 [ $# -ge 2 ] || { echo "usage: $0 DESIGN STORE [TASK ...]" >&2; exit 2; }
 design="$1" store="$2"
 shift 2
+field_protocol full
 tasks=("$@")
-[ ${#tasks[@]} -eq 0 ] && tasks=(foraging:8x8-2p-2f-coop foraging:2s-8x8-2p-2f-coop
-  simple_spread foraging:10x10-3p-3f foraging:2s-10x10-3p-3f foraging:15x15-3p-5f
-  foraging:15x15-4p-3f foraging:15x15-4p-5f)
+[ ${#tasks[@]} -eq 0 ] && tasks=("${field_tasks[@]}")
 d=deep-cmarl-cd
 mkdir -p "$(dirname "$store")"
 echo "$(date +%T) $design" >&2
 python -m cmarlcd field --tasks "$(IFS=,; echo "${tasks[*]}")" --learners "$d" \
-  --steps 2.05M --seeds 5 --eval-interval 50k --eval-episodes 100 \
-  --inputs own-observations --workers 1 --json --set "$d.design=$design,$d.gamma=0.99" \
+  "${protocol[@]}" --inputs own-observations --workers 1 --json \
+  --set "$d.design=$design,$d.gamma=0.99" \
   --store "$store" --figures "$(dirname "$store")/figures"
 echo "$(date +%T) done" >&2

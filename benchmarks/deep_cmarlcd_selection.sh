@@ -64,49 +64,37 @@ out="${1:-results/deep-cmarlcd-selection}"
 shift || true
 designs=("$@")
 [ ${#designs[@]} -eq 0 ] && designs=(keyed replayed imitation imitation-lambda)
-for design in "${designs[@]}"; do
-  case "$design" in
-    keyed | replayed | imitation | imitation-lambda | anneal | spread | spread-anneal | \
-      imitation-anneal | range | range-anneal | critic | critic-anneal | critic-sum | critic-best | \
-      critic-best-anneal | shares | shares-cold | shares-refresh | shares-refresh-05 | \
-      shares-range | shares-range-bootstrap | shares-cold-bootstrap | \
-      shares-cold-bootstrap-shared | shares-range-bootstrap-shared | \
-      shares-cold-bootstrap-slow | shares-range-bootstrap-shared-slow) ;;
-    *) echo "error: unknown design '$design' (keyed, replayed, imitation, imitation-lambda," \
-         "anneal, spread, spread-anneal, imitation-anneal, range, range-anneal, critic," \
-         "critic-anneal, critic-sum, critic-best, critic-best-anneal, shares, shares-cold," \
-         "shares-refresh, shares-refresh-05, shares-range, shares-range-bootstrap," \
-         "shares-cold-bootstrap, shares-cold-bootstrap-shared, shares-range-bootstrap-shared," \
-         "shares-cold-bootstrap-slow, shares-range-bootstrap-shared-slow)" >&2
-       exit 2 ;;
-  esac
-done
-mkdir -p "$out"
-tasks="foraging:8x8-2p-2f-coop,foraging:2s-8x8-2p-2f-coop,foraging:10x10-3p-3f,simple_spread"
 d=deep-cmarl-cd
 anneal="$d.temperature_end=0.1,$d.temperature_steps=50000"
 range="$d.unseen_tolerance=0.1,$d.unseen_spread=range"
-# a design by name is the same runs as its settings written out (docs: deep CMARL-CD)
-for design in "${designs[@]}"; do
-  case "$design" in
-    keyed) settings="" ;;
-    replayed | imitation | imitation-lambda | critic | critic-best | shares | shares-cold \
-      | shares-refresh | shares-range | shares-range-bootstrap | shares-cold-bootstrap \
-      | shares-cold-bootstrap-shared | shares-range-bootstrap-shared | shares-cold-bootstrap-slow \
-      | shares-range-bootstrap-shared-slow)
-      settings="$d.design=$design," ;;
-    anneal) settings="$anneal," ;;
-    spread) settings="$d.unseen_tolerance=0.25," ;;
-    spread-anneal) settings="$d.unseen_tolerance=0.25,$anneal," ;;
-    range) settings="$range," ;;
-    range-anneal) settings="$range,$anneal," ;;
-    imitation-anneal) settings="$d.design=imitation-lambda,$anneal," ;;
-    critic-anneal) settings="$d.design=critic,$anneal," ;;
-    critic-sum) settings="$d.design=critic,$d.critic_form=sum," ;;
-    critic-best-anneal) settings="$d.design=critic-best,$anneal," ;;
-    shares-refresh-05) settings="$d.design=shares-refresh,$d.return_lambda=0.5," ;;
+# the designs by name (--set deep-cmarl-cd.design=NAME): the learner's own list
+named="$(python -c 'from cmarlcd.learners.deep.designs import DESIGNS; print(*DESIGNS)')"
+composed="keyed anneal spread spread-anneal range range-anneal imitation-anneal critic-anneal"
+composed="$composed critic-sum critic-best-anneal shares-refresh-05"
+settings_of() {  # settings_of DESIGN: its settings before the discount; status 1 if unknown
+  case "$1" in  # a design by name is the same runs as its settings written out
+    keyed) echo "" ;;
+    anneal) echo "$anneal," ;;
+    spread) echo "$d.unseen_tolerance=0.25," ;;
+    spread-anneal) echo "$d.unseen_tolerance=0.25,$anneal," ;;
+    range) echo "$range," ;;
+    range-anneal) echo "$range,$anneal," ;;
+    imitation-anneal) echo "$d.design=imitation-lambda,$anneal," ;;
+    critic-anneal) echo "$d.design=critic,$anneal," ;;
+    critic-sum) echo "$d.design=critic,$d.critic_form=sum," ;;
+    critic-best-anneal) echo "$d.design=critic-best,$anneal," ;;
+    shares-refresh-05) echo "$d.design=shares-refresh,$d.return_lambda=0.5," ;;
+    *) [[ " $named " == *" $1 "* ]] && echo "$d.design=$1," ;;
   esac
-  settings="$settings$d.gamma=0.99"
+}
+for design in "${designs[@]}"; do  # every name checked before the first run starts
+  settings_of "$design" >/dev/null ||
+    { echo "error: unknown design '$design' ($composed $named)" >&2; exit 2; }
+done
+mkdir -p "$out"
+tasks="foraging:8x8-2p-2f-coop,foraging:2s-8x8-2p-2f-coop,foraging:10x10-3p-3f,simple_spread"
+for design in "${designs[@]}"; do
+  settings="$(settings_of "$design")$d.gamma=0.99"
   echo "$(date +%T) $design" >&2
   python -m cmarlcd field --tasks "$tasks" --learners "$d" --set "$settings" \
     --steps 500k --seeds 3 --eval-interval 50k --eval-episodes 100 --workers 1 \

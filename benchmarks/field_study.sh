@@ -4,7 +4,8 @@
 #
 #   tasks     8x8-2p-2f-coop, 2s-8x8-2p-2f-coop, 10x10-3p-3f, 2s-10x10-3p-3f, 15x15-3p-5f,
 #             15x15-4p-3f, 15x15-4p-5f (the five-food ones built with the same rules;
-#             lbforaging 2.0.0 registers none) and the compiled simple_spread
+#             lbforaging 2.0.0 registers none) and the compiled simple_spread (both the
+#             tasks and the protocol below are benchmarks/field_protocol.sh's)
 #   learners  deep IQL, hysteretic DQN, VDN and QMIX at EPyMARL's settings and model class
 #             (--preset epymarl; one network shared by the agents, two hidden layers,
 #             QMIX's two-layer hypernetworks, the fused step: the anchor's form, the
@@ -32,6 +33,8 @@
 #   processes, each a task at a time (default 1, so that the machine's other core stays
 #   free). Needs the [deep] extra.
 set -euo pipefail
+# the tasks and the protocol, shared with the design runs
+source "$(dirname "${BASH_SOURCE[0]}")/field_protocol.sh"
 all_parts=(shares vdn deep-cmarl-cd qmix deep-iql hysteretic-dqn)
 read -r -a parts <<<"${PARTS:-${all_parts[*]}}"
 for part in "${parts[@]}"; do
@@ -43,15 +46,9 @@ workers="${WORKERS:-1}"
 form="${1:-full}"
 out="${2:-results/field/study}"
 shift $(($# < 2 ? $# : 2))
-case "$form" in
-  full) protocol=(--steps 2.05M --seeds 5 --eval-interval 50k --eval-episodes 100) ;;
-  quick) protocol=(--steps 50k --seeds 2 --eval-interval 25k --eval-episodes 10) ;;
-  *) echo "error: unknown form '$form' (full or quick)" >&2; exit 2 ;;
-esac
+field_protocol "$form"
 tasks=("$@")
-[ ${#tasks[@]} -eq 0 ] && tasks=(foraging:8x8-2p-2f-coop foraging:2s-8x8-2p-2f-coop
-  foraging:10x10-3p-3f foraging:2s-10x10-3p-3f foraging:15x15-3p-5f foraging:15x15-4p-3f
-  foraging:15x15-4p-5f simple_spread)
+[ ${#tasks[@]} -eq 0 ] && tasks=("${field_tasks[@]}")
 mkdir -p "$out"
 
 d=deep-cmarl-cd

@@ -87,3 +87,46 @@ def test_the_design_script_refuses_missing_arguments_and_unknown_designs(tmp_pat
     assert done.returncode == 2
     assert "error: --set: deep-cmarl-cd has no design 'sharez'" in done.stderr
     assert not store.exists()
+
+
+def recorded_field_calls(tmp_path: Path, *command: str, **env: str) -> list[list[str]]:
+    """The ``python -m cmarlcd field`` calls a script makes, recorded, not run."""
+    stub = tmp_path / "bin"
+    stub.mkdir(exist_ok=True)
+    (stub / "python").write_text(f'#!/bin/bash\necho "$@" >> {tmp_path / "calls"}\n')
+    (stub / "python").chmod(0o755)
+    path = {"PATH": f"{stub}:{os.environ['PATH']}"}
+    done = subprocess.run(
+        ["bash", *command], capture_output=True, text=True, check=False,
+        env={**os.environ, **path, **env}, cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    calls = [line.split() for line in (tmp_path / "calls").read_text().splitlines()]
+    (tmp_path / "calls").unlink()
+    return calls
+
+
+def test_a_design_runs_at_the_studys_protocol_on_its_tasks(tmp_path: Path) -> None:
+    """A design's store holds the study's runs of it: the same tasks, budget, seeds,
+    evaluations and inputs as the field study's own deep CMARL-CD parts."""
+
+    def protocol(call: list[str]) -> dict[str, str]:
+        options: dict[str, str] = {}
+        for word, following in zip(call[3:], [*call[4:], "--"], strict=True):
+            if word.startswith("--"):  # an option and its value, or a flag
+                options[word] = "" if following.startswith("--") else following
+        return {k: v for k, v in options.items() if k not in ("--set", "--store", "--figures")}
+
+    (design,) = recorded_field_calls(
+        tmp_path, str(ROOT / "benchmarks/deep_cmarlcd_design_field.sh"), "shares-cold",
+        str(tmp_path / "d.sqlite"),
+    )  # fmt: skip
+    (study,) = recorded_field_calls(
+        tmp_path, str(ROOT / "benchmarks/field_study.sh"), "full", str(tmp_path / "study"),
+        PARTS="shares",
+    )  # fmt: skip
+    assert design[:3] == study[:3] == ["-m", "cmarlcd", "field"]
+    assert protocol(design) == protocol(study)
+    assert protocol(design)["--steps"] == "2.05M" and protocol(design)["--seeds"] == "5"
+    assert len(protocol(design)["--tasks"].split(",")) == 8
+    assert design[design.index("--set") + 1] == study[study.index("--set") + 1]
