@@ -56,6 +56,8 @@
 #              steps (VDN's), not 500: what the cut episodes' returns bootstrap from moves
 #              slower
 #   shares-range-bootstrap-shared-slow  shares-range-bootstrap-shared with that interval
+#   shares-cold-shared, shares-range-shared  shares-cold and shares-range in the
+#              baselines' model class, their cut episodes ending in what they collected
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)

@@ -54,6 +54,18 @@ def test_the_shared_designs_are_the_bootstrapped_ones_in_the_baselines_model_cla
     assert settings(f"{D}.design=shares-range-bootstrap-shared").temperature_unit == "range"
 
 
+def test_the_anchored_shared_designs_end_cut_episodes_in_what_they_collected() -> None:
+    model = f"{D}.share=true,{D}.hidden_layers=2,{D}.hidden=64"
+    for kind in ("cold", "range"):
+        shared = settings(f"{D}.design=shares-{kind}-shared")
+        assert shared == settings(f"{D}.design=shares-{kind},{model}"), kind
+        assert shared.truncation == "terminal" and shared.critic_form == "degrees"
+        assert (shared.share, shared.hidden_layers, shared.hidden) == (True, 2, 64)
+        # the same design as its bootstrapped form but for the cut episodes' returns
+        bootstrapped = settings(f"{D}.design=shares-{kind}-bootstrap-shared")
+        assert replace(bootstrapped, truncation="terminal") == shared, kind
+
+
 def test_the_slow_design_is_shares_cold_bootstrap_with_vdns_target_interval() -> None:
     slow = settings(f"{D}.design=shares-cold-bootstrap-slow")
     assert slow == settings(f"{D}.design=shares-cold-bootstrap,{D}.target_every=10000")

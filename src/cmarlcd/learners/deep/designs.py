@@ -125,6 +125,15 @@ SHARES_COLD_BOOTSTRAP_SLOW_DEEP_CMARLCD = replace(
 SHARES_RANGE_BOOTSTRAP_SHARED_SLOW_DEEP_CMARLCD = replace(
     SHARES_RANGE_BOOTSTRAP_SHARED_DEEP_CMARLCD, target_every=10_000
 )
+#: ``shares-cold`` in the baselines' model class, its cut episodes ending in what they
+#: collected (declared before its runs, 2026-12-07, the eighth round): the model class
+#: gave 8x8-2p-2f-coop its learning (0.199 and 0.508 with cut episodes bootstrapped),
+#: while bootstrapping them cost 2s-8x8-2p-2f-coop its own (``shares-cold``'s 0.240
+#: against 0.058-0.088 for every bootstrapped design); these say whether the model class
+#: keeps its gain with every return anchored in what an episode collected.
+SHARES_COLD_SHARED_DEEP_CMARLCD = replace(SHARES_COLD_DEEP_CMARLCD, **BASELINE_MODEL)
+#: ``shares-range`` in the baselines' model class (declared with the above).
+SHARES_RANGE_SHARED_DEEP_CMARLCD = replace(SHARES_RANGE_DEEP_CMARLCD, **BASELINE_MODEL)
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
@@ -201,6 +210,8 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-range-bootstrap-shared": SHARES_RANGE_BOOTSTRAP_SHARED_DEEP_CMARLCD,
     "shares-cold-bootstrap-slow": SHARES_COLD_BOOTSTRAP_SLOW_DEEP_CMARLCD,
     "shares-range-bootstrap-shared-slow": SHARES_RANGE_BOOTSTRAP_SHARED_SLOW_DEEP_CMARLCD,
+    "shares-cold-shared": SHARES_COLD_SHARED_DEEP_CMARLCD,
+    "shares-range-shared": SHARES_RANGE_SHARED_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
