@@ -58,6 +58,8 @@
 #   shares-range-bootstrap-shared-slow  shares-range-bootstrap-shared with that interval
 #   shares-cold-shared, shares-range-shared  shares-cold and shares-range in the
 #              baselines' model class, their cut episodes ending in what they collected
+#   shares-range-bootstrap-shared-epymarl  shares-range-bootstrap-shared-slow with the
+#              baselines' batch (1,600 visits), buffer (250,000) and learning rate (5e-4)
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)

@@ -14,8 +14,9 @@ import pytest
 
 from cmarlcd import ConfigError, registry
 from cmarlcd.cli.options import apply_settings
+from cmarlcd.games.foraging.rules import Foraging
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
-from cmarlcd.learners.deep.designs import DESIGNS, REPEATED_DEEP_CMARLCD
+from cmarlcd.learners.deep.designs import DESIGNS, LBF_EPISODE_STEPS, REPEATED_DEEP_CMARLCD
 
 D = "deep-cmarl-cd"
 #: shares-cold as the selection run and the field study wrote it (by hand, from the
@@ -64,6 +65,17 @@ def test_the_anchored_shared_designs_end_cut_episodes_in_what_they_collected() -
         # the same design as its bootstrapped form but for the cut episodes' returns
         bootstrapped = settings(f"{D}.design=shares-{kind}-bootstrap-shared")
         assert replace(bootstrapped, truncation="terminal") == shared, kind
+
+
+def test_the_epymarl_design_replays_as_the_baselines_do_on_lbf() -> None:
+    epymarl = settings(f"{D}.design=shares-range-bootstrap-shared-epymarl")
+    # EPyMARL's 32-episode batches and 5,000-episode buffer of 50-step LBF episodes, VDN's
+    # learning rate; the rest is shares-range-bootstrap-shared-slow
+    assert (epymarl.batch_size, epymarl.buffer_size, epymarl.lr) == (1_600, 250_000, 5e-4)
+    slow = settings(f"{D}.design=shares-range-bootstrap-shared-slow")
+    assert replace(epymarl, batch_size=400, buffer_size=40_000, lr=1e-3) == slow
+    assert (epymarl.train_every, epymarl.target_every) == (50, 10_000)
+    assert Foraging().max_steps == LBF_EPISODE_STEPS == 50
 
 
 def test_the_slow_design_is_shares_cold_bootstrap_with_vdns_target_interval() -> None:

@@ -9,6 +9,11 @@ from __future__ import annotations
 from dataclasses import replace
 
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+from cmarlcd.learners.deep.epymarl import BATCH_EPISODES, BUFFER_EPISODES, BY_ALGORITHM
+
+#: LBF's step cap (``Foraging.max_steps``), by which EPyMARL's settings in episodes are
+#: counted in environment steps for the designs measured on LBF.
+LBF_EPISODE_STEPS = 50
 
 #: The first design, kept to compare with: targets recomputed at every replay against
 #: an expectile record, with the tolerance and the schedule (a gradient step per 50
@@ -134,6 +139,21 @@ SHARES_RANGE_BOOTSTRAP_SHARED_SLOW_DEEP_CMARLCD = replace(
 SHARES_COLD_SHARED_DEEP_CMARLCD = replace(SHARES_COLD_DEEP_CMARLCD, **BASELINE_MODEL)
 #: ``shares-range`` in the baselines' model class (declared with the above).
 SHARES_RANGE_SHARED_DEEP_CMARLCD = replace(SHARES_RANGE_DEEP_CMARLCD, **BASELINE_MODEL)
+#: ``shares-range-bootstrap-shared-slow`` at the baselines' replay and learning rate
+#: (declared before its runs, 2026-12-07, the eighth round): EPyMARL's batch of 32
+#: episodes and buffer of 5,000, counted in LBF's 50-step episodes (1,600 and 250,000
+#: visits, as ``--preset epymarl`` counts them there), and VDN's learning rate, 5e-4. Its
+#: gradient step every 50 steps and its target copy every 10,000 are already VDN's, so
+#: the shares then replay four times the visits of every other design per step (1,600
+#: every 50 steps, not 400), from a memory six times as long: what is left between them
+#: and VDN is the record (λ-returns, the degrees' greedy bootstrap) and eq. (17)'s
+#: Boltzmann behaviour in place of ε-greedy.
+SHARES_RANGE_BOOTSTRAP_SHARED_EPYMARL_DEEP_CMARLCD = replace(
+    SHARES_RANGE_BOOTSTRAP_SHARED_SLOW_DEEP_CMARLCD,
+    batch_size=BATCH_EPISODES * LBF_EPISODE_STEPS,
+    buffer_size=BUFFER_EPISODES * LBF_EPISODE_STEPS,
+    lr=BY_ALGORITHM["vdn"][0],
+)
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
@@ -212,6 +232,7 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-range-bootstrap-shared-slow": SHARES_RANGE_BOOTSTRAP_SHARED_SLOW_DEEP_CMARLCD,
     "shares-cold-shared": SHARES_COLD_SHARED_DEEP_CMARLCD,
     "shares-range-shared": SHARES_RANGE_SHARED_DEEP_CMARLCD,
+    "shares-range-bootstrap-shared-epymarl": SHARES_RANGE_BOOTSTRAP_SHARED_EPYMARL_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
