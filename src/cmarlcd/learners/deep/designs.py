@@ -9,11 +9,18 @@ from __future__ import annotations
 from dataclasses import replace
 
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
-from cmarlcd.learners.deep.epymarl import BATCH_EPISODES, BUFFER_EPISODES, BY_ALGORITHM
+from cmarlcd.learners.deep.epymarl import (
+    BATCH_EPISODES,
+    BUFFER_EPISODES,
+    BY_ALGORITHM,
+    TARGET_EPISODES,
+)
 
 #: LBF's step cap (``Foraging.max_steps``), by which EPyMARL's settings in episodes are
 #: counted in environment steps for the designs measured on LBF.
 LBF_EPISODE_STEPS = 50
+#: VDN's target interval at the field's settings on LBF: every 200 episodes of 50 steps.
+VDN_TARGET_EVERY = TARGET_EPISODES * LBF_EPISODE_STEPS
 
 #: The first design, kept to compare with: targets recomputed at every replay against
 #: an expectile record, with the tolerance and the schedule (a gradient step per 50
@@ -121,14 +128,14 @@ SHARES_RANGE_BOOTSTRAP_SHARED_DEEP_CMARLCD = replace(
 #: average (0.16 with cut episodes ending in their reward; an episode earns at most 1),
 #: 0.95 with a copy every 2,000 steps and 0.77 every 10,000 (the deep CMARL-CD page).
 SHARES_COLD_BOOTSTRAP_SLOW_DEEP_CMARLCD = replace(
-    SHARES_COLD_BOOTSTRAP_DEEP_CMARLCD, target_every=10_000
+    SHARES_COLD_BOOTSTRAP_DEEP_CMARLCD, target_every=VDN_TARGET_EVERY
 )
 #: ``shares-range-bootstrap-shared`` with VDN's target interval (declared before its runs,
 #: 2026-12-07, from the seventh round at the field's protocol: the model class learned
 #: 8x8-2p-2f-coop, 0.508, and the slower copy gave simple_spread its best maximum,
 #: -36.2, each without the other).
 SHARES_RANGE_BOOTSTRAP_SHARED_SLOW_DEEP_CMARLCD = replace(
-    SHARES_RANGE_BOOTSTRAP_SHARED_DEEP_CMARLCD, target_every=10_000
+    SHARES_RANGE_BOOTSTRAP_SHARED_DEEP_CMARLCD, target_every=VDN_TARGET_EVERY
 )
 #: ``shares-cold`` in the baselines' model class, its cut episodes ending in what they
 #: collected (declared before its runs, 2026-12-07, the eighth round): the model class
