@@ -99,6 +99,29 @@ def test_the_evaluation_at_start_changes_nothing_the_runs_learn(tmp_path) -> Non
         assert [run[1:] for run in runs] == curves["--no-eval-at-start"][learner]
 
 
+def test_the_time_left_is_read_and_its_runs_stored_apart(tmp_path) -> None:
+    """``--time-left``: the learners read one more number per agent, the section says so,
+    and the same command without it computes its own runs in the same store."""
+    store = str(tmp_path / "s.sqlite")
+    tiny = ["--learners", "deep-cmarl-cd,vdn", *TINY[2:], "--inputs", "own-observations"]
+    set_shares = ["--set", "deep-cmarl-cd.design=shares-cold"]
+    docs = {}
+    for flag in ("--time-left", "--no-time-left"):
+        done = field(
+            "--tasks", "foraging:5x5-2p-1f", *tiny, *set_shares, flag, "--json",
+            "--store", store, "--figures", str(tmp_path / "f"), cwd=tmp_path,
+        )  # fmt: skip
+        assert done.returncode == 0, done.stderr[-3000:]
+        docs[flag] = json.loads(done.stdout)
+    for flag, doc in docs.items():
+        assert doc["runs_computed"] == 4 and doc["runs_reused"] == 0, flag
+        (task,) = doc["tasks"]
+        assert task["time_left"] is (flag == "--time-left")
+        assert ("and the time left" in json.dumps(task)) is (flag == "--time-left")
+    with sqlite3.connect(store) as db:
+        assert db.execute("select count(*) from runs").fetchone()[0] == 8
+
+
 def test_the_epymarl_preset_sets_epymarls_numbers_per_task() -> None:
     vdn, iql, cmarl = (registry.require_learner(n) for n in ("vdn", "deep-iql", "deep-cmarl-cd"))
     assert with_preset((vdn, cmarl), "paper", 25) == (vdn, cmarl)
@@ -234,6 +257,7 @@ def test_killed_with_sigkill_and_resumed_to_the_same_store(tmp_path) -> None:
         (["--env", "tests.tiny_env:make", "--learners", "cmarl-cd"], "--learners: tests.tiny"),
         (["--env", "tests.tiny_env:make", "--steps", "2k", "--eval-interval", "10"], "--eval-i"),
         (["--env", "tests.tiny_env:make", "--env-kwargs", "[1]"], "--env-kwargs: expected"),
+        (["--env", "tests.tiny_env:make", "--time-left"], "--time-left: applies to --tasks"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, says) -> None:

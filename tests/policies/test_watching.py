@@ -55,6 +55,9 @@ def kept(tmp_path_factory) -> Path:
          "own-observations", "--steps", "600", "--runs", "1"),
         ("scaling", "--algorithms", "vdn", "--sizes", "3x4/3", "--episodes", "100", "--runs",
          "1"),
+        ("field", "--tasks", "foraging:5x5-2p-1f", "--learners", "vdn", "--inputs",
+         "own-observations", "--time-left", "--steps", "600", "--eval-interval", "300",
+         "--eval-episodes", "2", "--seeds", "1"),
     ):  # fmt: skip
         done = cli(*command, "--workers", "1", "--no-progress", "--store",
                    str(where / "s.sqlite"), "--figures", str(where / "f"), "--save-policies",
@@ -87,12 +90,15 @@ def test_watching_a_dsn_policy_shows_the_grid_step_by_step(kept) -> None:
     assert f"episode 0: return {expected[0]:g}" in text
 
 
-@pytest.mark.parametrize("pattern", ["dsn-cmarl-cd-*", "simple_spread-qmix-*", "scaling-vdn-*"])
+@pytest.mark.parametrize(
+    "pattern", ["dsn-cmarl-cd-*", "simple_spread-qmix-*", "scaling-vdn-*", "foraging-vdn-*"]
+)
 def test_watching_plays_the_episodes_evaluate_plays(kept, pattern) -> None:
     """The same seed, the same episodes: watched in the run's PettingZoo environment
     (reset with the seed, then its stream), played by evaluate in the compiled loop or
     the environment's copies (a table, QMIX's own-observation networks, VDN reading the
-    scaled DSN's features); two paths, one return."""
+    scaled DSN's features, VDN reading LBF's observations and the time left); two paths,
+    one return."""
     path = str(next(kept.glob(pattern)))
     watched = json.loads(cli("play", "--policy", path, "--episodes", "5", "--seed", "3",
                              "--json").stdout)  # fmt: skip

@@ -207,6 +207,14 @@ def field(
             "own-observations (each agent its own; VDN, QMIX, deep IQL, hysteretic DQN)."
         ),
     ] = "observations",
+    time_left: Annotated[
+        bool,
+        typer.Option(
+            help="With --tasks: each agent also reads the time left in the episode, "
+            "(T - t) / T, after its observation (a time-aware input; the runs of each "
+            "setting are stored apart)."
+        ),
+    ] = False,
     seed_batch: Annotated[
         int, typer.Option(help="Seeds of a deep learner trained together in one model.")
     ] = SEED_BATCH,
@@ -275,7 +283,7 @@ def field(
                     seed=seed,
                     curve_points=points,
                     curve_eval_episodes=evaluated,
-                    options=family.options(rules, inputs),
+                    options=family.options(rules, inputs, time_left),
                     eval_at_start=eval_at_start,
                 )
             )
@@ -283,6 +291,7 @@ def field(
             parameter = {"algorithms": "learners", "game": "tasks"}.get(error.parameter)
             raise ConfigError(parameter or error.parameter, f"{task}: {error.message}") from None
     if env is not None:
+        require(not time_left, "time_left", "applies to --tasks only (a compiled game's clock)")
         kwargs = parse_env_kwargs(env_kwargs)
         episode = env_episode_steps(env, kwargs, episode_steps) if preset == "epymarl" else 1
         chosen = apply_settings(settings, with_preset(configs, preset, episode))

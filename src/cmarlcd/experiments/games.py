@@ -41,6 +41,7 @@ from cmarlcd.experiments.episodic import (
 from cmarlcd.games.foraging import Foraging
 from cmarlcd.games.observations import own_observations
 from cmarlcd.games.spread import SimpleSpread
+from cmarlcd.games.time_left import with_time_left
 from cmarlcd.learners.deep.config import OWN_OBSERVATION_LEARNERS
 from cmarlcd.registry import LearnerConfig
 from cmarlcd.runs import Experiment
@@ -94,24 +95,33 @@ class GameFamily:
     def rules_of(self, options: Options) -> Any:
         """The rules of the task ``options`` name."""
         given = dict(options)
-        unknown = sorted(set(given) - {"task", "inputs"})
+        unknown = sorted(set(given) - {"task", "inputs", "time_left"})
         require(not unknown, unknown[0] if unknown else "game", f"is no option of {self.name}")
         return self.parse(str(given.get("task", self.warm_up.name)))
 
     @staticmethod
-    def options(rules: Any, inputs: str = "observations") -> Options:
-        """The options of a task's runs: its full name, always, and what the learners
-        read where it is not every observation joined."""
+    def options(rules: Any, inputs: str = "observations", time_left: bool = False) -> Options:
+        """The options of a task's runs: its full name, always, what the learners read
+        where it is not every observation joined, and the time left where they read it
+        (so the runs of before either option keep their keys in a store)."""
         require(inputs in GAME_INPUTS, "inputs", f"must be one of {', '.join(GAME_INPUTS)}")
-        return (("inputs", inputs),) * (inputs != GAME_INPUTS[0]) + (("task", rules.name),)
+        return (
+            (("inputs", inputs),) * (inputs != GAME_INPUTS[0])
+            + (("task", rules.name),)
+            + (("time_left", "true"),) * time_left
+        )
 
     def spec_of(self, options: Options) -> Any:
-        """The game the options name: the task's, with each agent's own observation laid
-        out for it where ``inputs`` says so."""
-        rules = self.rules_of(options)
-        if dict(options).get("inputs", GAME_INPUTS[0]) == "own-observations":
-            return own_observations(rules.spec(), rules.observation_size)
-        return rules.spec()
+        """The game the options name: the task's, each agent's observation followed by
+        the time left where ``time_left`` says so, and laid out for each agent's own
+        network where ``inputs`` says so."""
+        rules, given = self.rules_of(options), dict(options)
+        spec, width = rules.spec(), rules.observation_size
+        if given.get("time_left") == "true":
+            spec, width = with_time_left(spec, width), width + 1
+        if given.get("inputs", GAME_INPUTS[0]) == "own-observations":
+            return own_observations(spec, width)
+        return spec
 
 
 #: [choice] What the deep learners read of a compiled game: every agent's observation

@@ -25,6 +25,7 @@ from cmarlcd.experiments.policy_evaluation import (
     run_spec,
 )
 from cmarlcd.games.env import KernelParallelEnv
+from cmarlcd.games.time_left import time_left_features
 
 
 @dataclass
@@ -95,6 +96,7 @@ def watch(policy: Any, episodes: int = 1, seed: int = 0, partner: Any = None) ->
         and not policy.metadata.get("n_states")
         else None
     )  # fmt: skip
+    clocked = features is not None and _reads_time_left(policy)
     for episode in range(episodes):
         observations, infos = env.reset(seed=seed if episode == 0 else None)
         yield Frame(episode, 0, _picture(env))
@@ -104,8 +106,11 @@ def watch(policy: Any, episodes: int = 1, seed: int = 0, partner: Any = None) ->
             given = None if any(m is None for m in masks.values()) else masks
             if features is not None:  # a compiled game's features, as the run read them
                 env.spec.kernels.features(env.env, 0, features)
+                x = features  # and each agent's time left, where the run read it
+                if clocked:
+                    x = time_left_features(features, env.spec.n_agents, step, env.spec.max_steps)
                 legal = None if given is None else [given[a] for a in env.agents]
-                actions = dict(zip(env.agents, policy.greedy(features, legal), strict=True))
+                actions = dict(zip(env.agents, policy.greedy(x, legal), strict=True))
             else:
                 state = env.state() if reads_state else None
                 actions = policy.act(observations, state=state, masks=given)
@@ -117,6 +122,18 @@ def watch(policy: Any, episodes: int = 1, seed: int = 0, partner: Any = None) ->
                         said, team_reward(said), done)  # fmt: skip
             if done:
                 break
+
+
+def _reads_time_left(policy: Any) -> bool:
+    """Whether the run that kept ``policy`` played a compiled game with the time left
+    after each agent's observation (``field --time-left``)."""
+    from cmarlcd.experiments.episodic import EpisodicRun
+    from cmarlcd.experiments.games import FAMILIES
+
+    spec = run_spec(policy.metadata)
+    if spec.experiment not in FAMILIES:
+        return False
+    return dict(EpisodicRun.from_config(spec.config).options).get("time_left") == "true"
 
 
 class _MatchPlayers:

@@ -111,12 +111,13 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
     where = f"{family.name} {rules.name}"
     steps = first.unit == "steps"
     learnt = f"{budget:,} environment steps" if steps else f"L = {budget:,} episodes"
-    inputs = dict(first.options).get("inputs", "observations")
+    options = dict(first.options)
+    inputs, time_left = options.get("inputs", "observations"), options.get("time_left") == "true"
     read = (
         "each agent its own observation"
         if inputs == "own-observations"
         else "every agent's observation"
-    )
+    ) + (" and the time left" if time_left else "")
     team = "mean" if getattr(rules, "reward", "sum") == "mean" else "sum"
     protocol = (
         f"{learnt}, deep learners reading {read}, greedy return over {episodes:,} episodes "
@@ -156,6 +157,7 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
         experiment=family.name,
         game=f"{family.name}:{rules.name}",
         inputs=inputs,
+        time_left=time_left,
         budget=budget,
         unit=first.unit,
         seed=seed,
