@@ -8,7 +8,9 @@
 #   python benchmarks/deep_cmarlcd_designs_field.py --study results/field/study/store.sqlite \
 #       --design NAME=STORE ...
 #
-# Usage: bash benchmarks/deep_cmarlcd_design_field.sh DESIGN STORE [TASK ...]
+# Usage: [TIME_LEFT=1] bash benchmarks/deep_cmarlcd_design_field.sh DESIGN STORE [TASK ...]
+#   TIME_LEFT=1: the agents also read the time left (`cmarl-cd field --time-left`); the
+#   study's columns are without it
 #   (some 60-90 minutes a design for the eight tasks on a core shared with the study;
 #   needs the [deep] extra)
 set -euo pipefail
@@ -18,13 +20,19 @@ source "$(dirname "${BASH_SOURCE[0]}")/field_protocol.sh"
 design="$1" store="$2"
 shift 2
 field_protocol full
+inputs=(--inputs own-observations)
+case "${TIME_LEFT:-0}" in
+  0) ;;
+  1) inputs+=(--time-left) ;;
+  *) echo "error: TIME_LEFT must be 0 or 1 (got '$TIME_LEFT')" >&2; exit 2 ;;
+esac
 tasks=("$@")
 [ ${#tasks[@]} -eq 0 ] && tasks=("${field_tasks[@]}")
 d=deep-cmarl-cd
 mkdir -p "$(dirname "$store")"
 echo "$(date +%T) $design" >&2
 python -m cmarlcd field --tasks "$(IFS=,; echo "${tasks[*]}")" --learners "$d" \
-  "${protocol[@]}" --inputs own-observations --workers 1 --json \
+  "${protocol[@]}" "${inputs[@]}" --workers 1 --json \
   --set "$d.design=$design,$d.gamma=0.99" \
   --store "$store" --figures "$(dirname "$store")/figures"
 echo "$(date +%T) done" >&2

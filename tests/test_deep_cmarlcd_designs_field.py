@@ -130,3 +130,18 @@ def test_a_design_runs_at_the_studys_protocol_on_its_tasks(tmp_path: Path) -> No
     assert protocol(design)["--steps"] == "2.05M" and protocol(design)["--seeds"] == "5"
     assert len(protocol(design)["--tasks"].split(",")) == 8
     assert design[design.index("--set") + 1] == study[study.index("--set") + 1]
+
+
+def test_a_design_reads_the_time_left_where_told(tmp_path: Path) -> None:
+    script = str(ROOT / "benchmarks/deep_cmarlcd_design_field.sh")
+    store = str(tmp_path / "d.sqlite")
+    (plain,) = recorded_field_calls(tmp_path, script, "shares-cold-shared", store)
+    (timed,) = recorded_field_calls(tmp_path, script, "shares-cold-shared", store, TIME_LEFT="1")
+    assert "--time-left" not in plain
+    assert [w for w in timed if w != "--time-left"] == plain and "--time-left" in timed
+    done = subprocess.run(
+        ["bash", script, "shares-cold-shared", store], capture_output=True, text=True,
+        check=False, env={**os.environ, "TIME_LEFT": "yes"},
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert done.stderr.strip() == "error: TIME_LEFT must be 0 or 1 (got 'yes')"
