@@ -27,11 +27,13 @@
 #
 #   cmarl-cd report --store results/field/study/store.sqlite --format json
 #
-# Usage: [PARTS="vdn qmix"] [WORKERS=2] bash benchmarks/field_study.sh [full|quick] [OUT] [TASK ...]
+# Usage: [PARTS="vdn qmix"] [WORKERS=2] [TIME_LEFT=1] bash benchmarks/field_study.sh [full|quick] [OUT] [TASK ...]
 #   PARTS: which learners' parts to run, in the study's order unless told (shares, vdn,
 #   deep-cmarl-cd, qmix, deep-iql, hysteretic-dqn; default all); WORKERS: worker
 #   processes, each a task at a time (default 1, so that the machine's other core stays
-#   free). Needs the [deep] extra.
+#   free); TIME_LEFT=1: every learner also reads the time left in the episode (`cmarl-cd
+#   field --time-left`; the study itself is without it: run it into another OUT). Needs
+#   the [deep] extra.
 set -euo pipefail
 # the tasks and the protocol, shared with the design runs
 source "$(dirname "${BASH_SOURCE[0]}")/field_protocol.sh"
@@ -47,6 +49,12 @@ form="${1:-full}"
 out="${2:-results/field/study}"
 shift $(($# < 2 ? $# : 2))
 field_protocol "$form"
+inputs=(--inputs own-observations)
+case "${TIME_LEFT:-0}" in
+  0) ;;
+  1) inputs+=(--time-left) ;;
+  *) echo "error: TIME_LEFT must be 0 or 1 (got '$TIME_LEFT')" >&2; exit 2 ;;
+esac
 tasks=("$@")
 [ ${#tasks[@]} -eq 0 ] && tasks=("${field_tasks[@]}")
 mkdir -p "$out"
@@ -64,7 +72,7 @@ field() {  # field PART LEARNER [ARGS ...]: one learner on every task
   shift 2
   echo "$(date +%T) $part" >&2
   python -m cmarlcd field --tasks "$(IFS=,; echo "${tasks[*]}")" --learners "$learner" \
-    "${protocol[@]}" --inputs own-observations --workers "$workers" --json "$@" \
+    "${protocol[@]}" "${inputs[@]}" --workers "$workers" --json "$@" \
     --store "$out/store.sqlite" --figures "$out/figures" >"$out/$part.json"
 }
 # learner by learner, so that a partial store holds whole columns: deep CMARL-CD's best

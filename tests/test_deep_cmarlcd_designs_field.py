@@ -145,3 +145,14 @@ def test_a_design_reads_the_time_left_where_told(tmp_path: Path) -> None:
     )  # fmt: skip
     assert done.returncode == 2
     assert done.stderr.strip() == "error: TIME_LEFT must be 0 or 1 (got 'yes')"
+
+
+def test_the_study_reads_the_time_left_where_told(tmp_path: Path) -> None:
+    """TIME_LEFT=1 gives every part of the study the input, nothing else changed."""
+    script = str(ROOT / "benchmarks/field_study.sh")
+    out = str(tmp_path / "study")
+    plain = recorded_field_calls(tmp_path, script, "full", out, PARTS="vdn shares")
+    timed = recorded_field_calls(tmp_path, script, "full", out, PARTS="vdn shares", TIME_LEFT="1")
+    assert len(plain) == len(timed) == 2
+    for a, b in zip(plain, timed, strict=True):
+        assert "--time-left" not in a and [w for w in b if w != "--time-left"] == a
