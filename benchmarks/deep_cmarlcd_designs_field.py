@@ -22,22 +22,23 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from field_study_tables import FIGURES, STORED, TASKS, cell, read, study
+from field_study_tables import FIGURES, RANDOM, STORED, TASKS, cell, read, study
 
 #: The study's columns shown beside the designs.
 BESIDE = ("VDN", "deep CMARL-CD (shares)")
 
 
-def design_figures(store: Path) -> dict[str, dict[str, Any]]:
+def design_figures(store: Path, deep_cmarlcd: bool = True) -> dict[str, dict[str, Any]]:
     """Per task, the field figures of the one deep CMARL-CD setting a design's store
-    holds (the first, where it holds more)."""
+    holds (the first, where it holds more); with ``deep_cmarlcd`` false, of the one
+    other learner a baseline's store holds (not the random policy)."""
     short = {STORED.get(task, task): task for task in TASKS}
     found: dict[str, dict[str, Any]] = {}
     for doc in read(store).get("train", []):
         if doc["game"] not in short:
             continue
         for label, figures in doc["field"].items():
-            if label.startswith("Deep CMARL-CD"):
+            if label.startswith("Deep CMARL-CD") is deep_cmarlcd and label != RANDOM:
                 found.setdefault(short[doc["game"]], figures)
     return found
 
@@ -64,13 +65,22 @@ def main(argv: list[str] | None = None) -> int:
         "--design", action="append", default=[], metavar="NAME=STORE",
         help="a design's name and the store of its runs (repeat)",
     )  # fmt: skip
+    parser.add_argument(
+        "--baseline", action="append", default=[], metavar="NAME=STORE",
+        help="a baseline's runs in a store of their own (e.g. VDN reading the time left; "
+        "repeat), after the designs",
+    )  # fmt: skip
     args = parser.parse_args(argv)
-    designs = [given.partition("=") for given in args.design]
-    for (name, _, store), given in zip(designs, args.design, strict=True):
+    given_columns = [("--design", g, True) for g in args.design]
+    given_columns += [("--baseline", g, False) for g in args.baseline]
+    designs = []
+    for flag, given, deep in given_columns:
+        name, _, store = given.partition("=")
         if not name or not store:
-            print(f"error: --design takes NAME=STORE (got {given!r})", file=sys.stderr)
+            print(f"error: {flag} takes NAME=STORE (got {given!r})", file=sys.stderr)
             return 2
-    for path in [args.study, *(Path(store) for _, _, store in designs)]:
+        designs.append((name, store, deep))
+    for path in [args.study, *(Path(store) for _, store, _ in designs)]:
         if not path.is_file():
             print(f"error: no store at {path}", file=sys.stderr)
             return 2
@@ -79,8 +89,8 @@ def main(argv: list[str] | None = None) -> int:
         columns = {
             n: {t: tasks[t]["field"][n] for t in tasks if n in tasks[t]["field"]} for n in BESIDE
         }
-        for name, _, store in designs:
-            columns[name] = design_figures(Path(store))
+        for name, store, deep in designs:
+            columns[name] = design_figures(Path(store), deep)
     except ValueError as error:
         print(error, file=sys.stderr)
         return 2

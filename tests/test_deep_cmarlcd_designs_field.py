@@ -51,6 +51,20 @@ def test_a_designs_store_gives_its_column(monkeypatch) -> None:
     assert lines[3] == "| simple_spread | – | **-50.000** [-50.100, -49.900] |"
 
 
+def test_a_baselines_store_gives_its_learners_column(monkeypatch) -> None:
+    report = {
+        "train": [
+            {"game": "foraging:8x8-2p-2f-coop",
+             "field": {"random policy": figures(0.005), "VDN (EPyMARL, share=True)": figures(0.7),
+                       "Deep CMARL-CD (a=1)": figures(0.3)}},
+        ]
+    }  # fmt: skip
+    monkeypatch.setattr(designs, "read", lambda store: report)
+    baseline = designs.design_figures(Path("any"), deep_cmarlcd=False)
+    assert baseline["foraging:8x8-2p-2f-coop"]["max_return"] == 0.7  # not the floor's
+    assert designs.design_figures(Path("any"))["foraging:8x8-2p-2f-coop"]["max_return"] == 0.3
+
+
 def run(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, str(SCRIPT), *args], capture_output=True, text=True, check=False
@@ -66,6 +80,9 @@ def test_bad_input_is_one_line(tmp_path: Path) -> None:
     assert (
         done.returncode == 2 and done.stderr.strip() == "error: --design takes NAME=STORE (got 'x')"
     )
+    done = run("--study", str(tmp_path / "absent.sqlite"), "--baseline", "=s")
+    assert done.returncode == 2
+    assert done.stderr.strip() == "error: --baseline takes NAME=STORE (got '=s')"
     text = tmp_path / "text.sqlite"
     text.write_text("not a store")
     done = run("--study", str(text))
