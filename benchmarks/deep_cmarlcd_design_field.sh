@@ -20,12 +20,7 @@ source "$(dirname "${BASH_SOURCE[0]}")/field_protocol.sh"
 design="$1" store="$2"
 shift 2
 field_protocol full
-inputs=(--inputs own-observations)
-case "${TIME_LEFT:-0}" in
-  0) ;;
-  1) inputs+=(--time-left) ;;
-  *) echo "error: TIME_LEFT must be 0 or 1 (got '$TIME_LEFT')" >&2; exit 2 ;;
-esac
+field_inputs
 tasks=("$@")
 [ ${#tasks[@]} -eq 0 ] && tasks=("${field_tasks[@]}")
 d=deep-cmarl-cd

@@ -10,6 +10,10 @@
 #                   steps and before learning) or quick (50k steps, 2 seeds, 10 episodes
 #                   every 25k: the declared check that every task and learner runs end to
 #                   end); one error line and status 2 for any other FORM
+#   field_inputs    sets `inputs` to what the learners read: each agent its own
+#                   observation, and the time left too where TIME_LEFT=1 (`--time-left`;
+#                   the study is without it); one error line and status 2 for any other
+#                   TIME_LEFT than 0 or 1
 field_tasks=(foraging:8x8-2p-2f-coop foraging:2s-8x8-2p-2f-coop foraging:10x10-3p-3f
   foraging:2s-10x10-3p-3f foraging:15x15-3p-5f foraging:15x15-4p-3f foraging:15x15-4p-5f
   simple_spread)
@@ -19,5 +23,14 @@ field_protocol() {
     full) protocol=(--steps 2.05M --seeds 5 --eval-interval 50k --eval-episodes 100) ;;
     quick) protocol=(--steps 50k --seeds 2 --eval-interval 25k --eval-episodes 10) ;;
     *) echo "error: unknown form '$1' (full or quick)" >&2; exit 2 ;;
+  esac
+}
+
+field_inputs() {
+  inputs=(--inputs own-observations)
+  case "${TIME_LEFT:-0}" in
+    0) ;;
+    1) inputs+=(--time-left) ;;
+    *) echo "error: TIME_LEFT must be 0 or 1 (got '$TIME_LEFT')" >&2; exit 2 ;;
   esac
 }

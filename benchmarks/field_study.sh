@@ -49,12 +49,7 @@ form="${1:-full}"
 out="${2:-results/field/study}"
 shift $(($# < 2 ? $# : 2))
 field_protocol "$form"
-inputs=(--inputs own-observations)
-case "${TIME_LEFT:-0}" in
-  0) ;;
-  1) inputs+=(--time-left) ;;
-  *) echo "error: TIME_LEFT must be 0 or 1 (got '$TIME_LEFT')" >&2; exit 2 ;;
-esac
+field_inputs
 tasks=("$@")
 [ ${#tasks[@]} -eq 0 ] && tasks=("${field_tasks[@]}")
 mkdir -p "$out"

@@ -117,11 +117,17 @@ class GameFamily:
         network where ``inputs`` says so."""
         rules, given = self.rules_of(options), dict(options)
         spec, width = rules.spec(), rules.observation_size
-        if given.get("time_left") == "true":
+        if reads_time_left(options):
             spec, width = with_time_left(spec, width), width + 1
         if given.get("inputs", GAME_INPUTS[0]) == "own-observations":
             return own_observations(spec, width)
         return spec
+
+
+def reads_time_left(options: Options) -> bool:
+    """Whether a task's runs read the time left after each agent's observation
+    (:meth:`GameFamily.options` with ``time_left``)."""
+    return dict(options).get("time_left") == "true"
 
 
 #: [choice] What the deep learners read of a compiled game: every agent's observation

@@ -128,12 +128,12 @@ def _reads_time_left(policy: Any) -> bool:
     """Whether the run that kept ``policy`` played a compiled game with the time left
     after each agent's observation (``field --time-left``)."""
     from cmarlcd.experiments.episodic import EpisodicRun
-    from cmarlcd.experiments.games import FAMILIES
+    from cmarlcd.experiments.games import FAMILIES, reads_time_left
 
     spec = run_spec(policy.metadata)
-    if spec.experiment not in FAMILIES:
-        return False
-    return dict(EpisodicRun.from_config(spec.config).options).get("time_left") == "true"
+    return spec.experiment in FAMILIES and reads_time_left(
+        EpisodicRun.from_config(spec.config).options
+    )
 
 
 class _MatchPlayers:

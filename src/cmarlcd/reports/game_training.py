@@ -111,8 +111,8 @@ def game_training_section(records: Sequence[RunRecord], figures: Path, seed: int
     where = f"{family.name} {rules.name}"
     steps = first.unit == "steps"
     learnt = f"{budget:,} environment steps" if steps else f"L = {budget:,} episodes"
-    options = dict(first.options)
-    inputs, time_left = options.get("inputs", "observations"), options.get("time_left") == "true"
+    inputs = dict(first.options).get("inputs", "observations")
+    time_left = games.reads_time_left(first.options)
     read = (
         "each agent its own observation"
         if inputs == "own-observations"
