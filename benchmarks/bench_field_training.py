@@ -1,11 +1,15 @@
 """Benchmark: one task's run of the field's protocol, timed, and where the time goes.
 
-A VDN run (``--learner``; ``--step`` its gradient step) of ``--steps`` environment steps
+A VDN run (``--learner``; ``--step`` its gradient step, or several, comma-separated, each
+run in turn, the first the baseline the others' ratios are to) of ``--steps`` environment steps
 (2.05M, EPyMARL's budget) on a compiled task (``foraging:8x8-2p-2f-coop``), ``--seeds``
 seeds stacked in one model as ``cmarl-cd field`` trains them, a greedy evaluation of
 ``--eval-episodes`` episodes every
 ``--eval-interval`` steps, at each preset of ``--presets`` (``paper``: the project's
-settings; ``epymarl``: EPyMARL's, ``cmarl-cd field --preset epymarl``). After a short run
+settings; ``epymarl``: EPyMARL's, ``cmarl-cd field --preset epymarl``), or deep CMARL-CD at
+a named design (``--learner deep-cmarl-cd --design NAME``, the field's discount 0.99, as
+``cmarl-cd field --set deep-cmarl-cd.design=NAME,deep-cmarl-cd.gamma=0.99``; no preset).
+After a short run
 outside the clock (numba's compilation), the seconds are split by timing, in the run
 itself:
 
@@ -15,13 +19,14 @@ itself:
 * **evaluation**: the greedy evaluations,
 * **acting**: the rest (the compiled loop playing, choosing and storing; target copies).
 
-Usage: python benchmarks/bench_field_training.py [--learner vdn] [--step auto]
+Usage: python benchmarks/bench_field_training.py [--learner vdn] [--step auto[,fused,...]]
            [--task foraging:8x8-2p-2f-coop]
            [--steps 2.05M] [--seeds 5] [--presets paper,epymarl] [--eval-interval 50k]
            [--eval-episodes 100] [--share] [--inputs observations] [--layers 1]
-           [--hypernet-layers 1] [--json]
+           [--hypernet-layers 1] [--design NAME] [--json]
 
-``--layers`` and ``--hypernet-layers`` (QMIX) give EPyMARL's model class (2 and 2).
+``--layers`` and ``--hypernet-layers`` (QMIX) give EPyMARL's model class (2 and 2);
+``--share`` and ``--layers``, where given, override a design's own.
 (torch: pip install -e ".[deep]")
 """
 
@@ -52,16 +57,18 @@ PARTS = ("gradient", "replay", "weights", "evaluation")
 def timed(seconds: dict[str, float]):
     """Inside the block, the calls of each part's function add their seconds to
     ``seconds[part]``."""
+    from cmarlcd.learners.deep.degree_model import DegreeModel
     from cmarlcd.learners.deep.value_decomposition import ValueDecomposition
     from cmarlcd.training.deep_side import DeepGroup
 
-    targets = {
-        "gradient": (ValueDecomposition, "learn"),
-        "replay": (DeepGroup, "sample"),
-        "weights": (DeepGroup, "_copy_weights"),
-        "evaluation": (Recorder, "_evaluate"),
-    }
-    originals = {part: getattr(owner, name) for part, (owner, name) in targets.items()}
+    targets = [
+        ("gradient", ValueDecomposition, "learn"),
+        ("gradient", DegreeModel, "learn"),
+        ("replay", DeepGroup, "sample"),
+        ("weights", DeepGroup, "_copy_weights"),
+        ("evaluation", Recorder, "_evaluate"),
+    ]
+    originals = [getattr(owner, name) for _, owner, name in targets]
 
     def clocked(part, function):
         def call(*args, **kwargs):
@@ -73,25 +80,38 @@ def timed(seconds: dict[str, float]):
 
         return call
 
-    for part, (owner, name) in targets.items():
-        setattr(owner, name, clocked(part, originals[part]))
+    for (part, owner, name), original in zip(targets, originals, strict=True):
+        setattr(owner, name, clocked(part, original))
     try:
         yield
     finally:
-        for part, (owner, name) in targets.items():
-            setattr(owner, name, originals[part])
+        for (_, owner, name), original in zip(targets, originals, strict=True):
+            setattr(owner, name, original)
+
+
+def learner_for(name: str, preset: str, design: str | None, max_steps: int):
+    """The learner's settings: at the preset, or deep CMARL-CD's named design with the
+    field's discount."""
+    if design is not None:
+        from cmarlcd.learners.deep.designs import DESIGNS
+
+        return replace(DESIGNS[design], gamma=0.99)
+    (learner,) = with_preset((registry.require_learner(name),), preset, max_steps)
+    return learner
 
 
 def one_run(
     name: str, step: str, task: str, preset: str, steps: int, seeds: int, interval: int,
-    episodes: int, share: bool = False, inputs: str = "observations", layers: int = 1,
-    hypernet_layers: int = 1,
+    episodes: int, share: bool | None = None, inputs: str = "observations",
+    layers: int | None = None, hypernet_layers: int = 1, design: str | None = None,
 ):  # fmt: skip
     """(wall seconds, seconds per part, the learner's settings, the runs' metrics)."""
     family, rules = games.parse_game(task)
-    base = registry.require_learner(name)
-    (learner,) = with_preset((base,), preset, rules.spec().max_steps)
-    learner = replace(learner, step=step, share=share, hidden_layers=layers)
+    learner = replace(learner_for(name, preset, design, rules.spec().max_steps), step=step)
+    if share is not None:
+        learner = replace(learner, share=share)
+    if layers is not None:
+        learner = replace(learner, hidden_layers=layers)
     if hypernet_layers != 1:
         learner = replace(learner, hypernet_layers=hypernet_layers)
     settings = EpisodicRun(
@@ -117,21 +137,33 @@ def main() -> None:
     parser.add_argument("--presets", default="paper,epymarl")
     parser.add_argument("--eval-interval", default="50k")
     parser.add_argument("--eval-episodes", type=int, default=100)
-    parser.add_argument("--share", action="store_true", help="one network for the agents")
+    parser.add_argument(
+        "--share", action="store_true", default=None, help="one network for the agents"
+    )
     parser.add_argument("--inputs", default="observations", help="or own-observations")
-    parser.add_argument("--layers", type=int, default=1, help="hidden layers of each network")
+    parser.add_argument("--layers", type=int, help="hidden layers of each network (1)")
     parser.add_argument("--hypernet-layers", type=int, default=1, help="QMIX's: 1 or 2")
+    parser.add_argument("--design", help="deep CMARL-CD's design (--learner deep-cmarl-cd)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
+    if args.design is not None:
+        from cmarlcd.learners.deep.designs import DESIGNS
+
+        if args.learner != "deep-cmarl-cd" or args.design not in DESIGNS:
+            parser.error(f"--design takes --learner deep-cmarl-cd and one of {', '.join(DESIGNS)}")
+        args.presets = "design"
+    if args.layers is None and args.design is None:
+        args.layers = 1
     import torch
 
     torch.set_num_threads(1)
     steps = parse_count(args.steps, "--steps")
     interval = parse_count(args.eval_interval, "--eval-interval")
     rows = []
-    for preset in args.presets.split(","):
-        what = (args.learner, args.step, args.task, preset)
-        form = (args.share, args.inputs, args.layers, args.hypernet_layers)
+    runs = [(p, step) for p in args.presets.split(",") for step in args.step.split(",")]
+    for preset, step in runs:
+        what = (args.learner, step, args.task, preset)
+        form = (args.share, args.inputs, args.layers, args.hypernet_layers, args.design)
         one_run(*what, 2_000, 1, 1_000, 2, *form)  # compiled outside the clock
         wall, seconds, learner, metrics = one_run(
             *what, steps, args.seeds, interval, args.eval_episodes, *form
@@ -153,6 +185,8 @@ def main() -> None:
                 "final_return_per_seed": [round(x, 3) for x in last],
             }
         )
+    for row in rows:  # the first run is the baseline, measured in the same invocation
+        row["speed_vs_first"] = round(row["steps_per_second"] / rows[0]["steps_per_second"], 2)
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
     head = {
         "date": str(date.today()),
@@ -166,19 +200,27 @@ def main() -> None:
         "share": args.share,
         "layers": args.layers,
         "hypernet_layers": args.hypernet_layers,
+        "design": args.design,
     }
     if args.json:
         print(json.dumps({**head, "runs": rows}, indent=2))
         return
     print(f"{machine}, Python {platform.python_version()}, {date.today()}, one thread")
     name = registry.display_name(args.learner)
-    model = f", {args.layers} hidden layers" + (", shared" if args.share else "")
+    if args.design is not None:
+        config = learner_for(args.learner, "", args.design, 0)
+        layers, share = args.layers or config.hidden_layers, args.share or config.share
+        name += f" ({args.design})"
+    else:
+        layers, share = args.layers, args.share
+    model = f", {layers} hidden layers" + (", shared" if share else "")
     print(f"{name}{model} on {args.task}: {steps:,} steps x {args.seeds} seeds stacked, "
           f"an evaluation of {args.eval_episodes} episodes every {interval:,} steps")  # fmt: skip
     for row in rows:
         parts = ", ".join(f"{k} {v:.1f} s" for k, v in row["seconds"].items())
         print(f"  {row['preset']:8s} ({row['step']} step): {row['minutes']:.2f} min, "
-              f"{row['steps_per_second']:,} steps/s in all; {parts}")  # fmt: skip
+              f"{row['steps_per_second']:,} steps/s in all ({row['speed_vs_first']:.2f}x the "
+              f"first); {parts}")  # fmt: skip
 
 
 if __name__ == "__main__":

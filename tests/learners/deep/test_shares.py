@@ -69,14 +69,29 @@ def test_the_loss_by_hand() -> None:
     assert float(net.loss(data).detach()) == pytest.approx((0.1 * 1 + 0.1 * 2.25) / 2, rel=1e-6)
 
 
-def test_a_step_moves_the_taken_shares_only() -> None:
-    """Every visit took (1, 2) and earned more than its record: those two shares rise;
-    agent 0's action 0 and agent 1's actions 0 and 1, never taken, do not move (their
-    gradient is zero, so Adam's first step leaves them)."""
-    net = constant_model(LIVE, lr=0.01)
+@pytest.mark.parametrize("step", ["autograd", "fused"])
+def test_the_step_returns_the_loss_by_hand(step: str) -> None:
+    """The loss of :func:`test_the_loss_by_hand` as each step computes it before moving
+    the weights: 0.8125 at τ 0.5, 0.1625 at τ 0.9."""
+    data = batch([4.0, 0.0], [[1, 2], [0, 0]])
+    assert constant_model(LIVE, expectile=0.5, step=step).learn(data) == pytest.approx(0.8125)
+    assert constant_model(LIVE, expectile=0.9, step=step).learn(data) == pytest.approx(0.1625)
+
+
+@pytest.mark.parametrize("step", ["autograd", "fused"])
+def test_a_step_moves_the_taken_shares_only(step: str) -> None:
+    """Every visit took (1, 2) and earned more than its record: those two shares rise by
+    Adam's first step, the learning rate 0.01; agent 0's action 0 and agent 1's actions
+    0 and 1, never taken, do not move (their gradient is zero, so Adam's first step
+    leaves them)."""
+    net = constant_model(LIVE, lr=0.01, step=step)
     net.learn(batch([9.0, 9.0], [[1, 2], [1, 2]]))
     after = net.agents(torch.ones((1, 1, 1)))[0, 0].detach()
-    assert after[0, 1] > 2.0 and after[1, 2] > 3.0
+    # Adam's first step moves each parameter of a nonzero gradient by the learning rate:
+    # the share's bias, and its weight from each hidden unit, all at ReLU(1) = 1
+    moved = 0.01 * (net.config.hidden + 1)
+    assert after[0, 1].item() == pytest.approx(2.0 + moved, abs=1e-5)
+    assert after[1, 2].item() == pytest.approx(3.0 + moved, abs=1e-5)
     assert after[0, 0].item() == 1.0 and after[1, :2].tolist() == [0.5, 1.0]
 
 

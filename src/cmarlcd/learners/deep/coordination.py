@@ -56,6 +56,7 @@ from cmarlcd.errors import check_discount, require
 from cmarlcd.learners.deep.config import DEFAULT_STEP, STEP_BEFORE, STEPS, DeepLearnerConfig
 from cmarlcd.learners.deep.coordination_choices import (  # noqa: F401  (re-exported)
     ACT_FROM,
+    AUTO_FUSED_UPDATES,
     CHOICES,
     CRITIC_BOOTSTRAPS,
     CRITIC_FITS,
@@ -180,7 +181,8 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     hidden_layers: int = added_setting(1, "0.7.0")
     """[choice] Hidden layers of each degree network, each of ``hidden`` units (2: the
     model class of EPyMARL's agents, what VDN needed on LBF's cooperative tasks: the
-    field page); more than one takes autograd's step."""
+    field page); with more than one the keyed update takes autograd's step (the shares'
+    fused step takes any)."""
     share: bool = False
     """[choice] One degree network for every agent (the agent's one-hot index appended to
     its input) rather than one per agent (VDN's and QMIX's: none shared)."""
@@ -201,8 +203,10 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     default, ``deep_config.DEFAULT_STEP``: the fused step on the CPU where it covers the
     settings, else autograd's), ``fused`` (compiled CPU kernels,
     :mod:`cmarlcd.learners.deep.fused.degree_kernels`; for ``update="keyed"`` with one network
-    per agent) or ``autograd`` (the step of the runs stored before 0.6.0). The two steps
-    round floats differently, so runs follow other trajectories."""
+    per agent, and for the shares, ``critic_form="degrees"``, in any model class) or
+    ``autograd`` (the step of the runs stored before 0.6.0). ``auto`` takes the fused step
+    for the keyed update only (:data:`AUTO_FUSED_UPDATES`). The two steps round floats
+    differently, so runs follow other trajectories."""
     batch_size: int = 400
     """States (``keyed``, drawn from the memory) or visits (``replayed``) per gradient
     step; learning starts once a state is kept (``keyed``) or this many visits are
@@ -334,8 +338,9 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.step != "fused" or self.fused_covered,
             "step",
             "'fused' is the keyed update with one network per agent of one hidden layer "
-            "(update='keyed', share=false, hidden_layers=1); the others take step=autograd "
-            "(or auto, which falls back to it)",
+            "(update='keyed', share=false, hidden_layers=1) or the shares (update='critic', "
+            "critic_form='degrees'); the others take step=autograd (or auto, which falls "
+            "back to it)",
         )
         lam = self.return_lambda
         require(0 <= lam <= 1, "return_lambda", f"must be in [0, 1] (got {lam})")
@@ -452,9 +457,17 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
 
     @property
     def fused_covered(self) -> bool:
-        """Whether the fused step covers these settings: the keyed update with one
-        network per agent."""
-        return self.keyed and not self.share and self.hidden_layers == 1
+        """Whether the fused step covers these settings (``step="fused"``): the keyed
+        update with one network per agent of one hidden layer, or the shares
+        (``update="critic"``, ``critic_form="degrees"``) in any model class."""
+        return self.shares or (self.keyed and not self.share and self.hidden_layers == 1)
+
+    @property
+    def auto_fuses(self) -> bool:
+        """Whether ``step="auto"`` takes the fused step on the CPU: where the study of
+        the fused step showed its runs equivalent to autograd's (the keyed update,
+        :data:`AUTO_FUSED_UPDATES`)."""
+        return self.fused_covered and self.update in AUTO_FUSED_UPDATES
 
     def ready(self, stored: int) -> bool:
         """Keyed: learning starts once a state is kept (a batch draws states with

@@ -6,6 +6,12 @@ from __future__ import annotations
 
 #: The ways Algorithm 2's updates reach the degree network (``DeepCMARLCDConfig.update``).
 UPDATES = ("keyed", "replayed", "imitation", "critic")
+#: [choice] The updates whose fused step ``step="auto"`` takes on the CPU: those whose
+#: fused runs were shown equivalent to autograd's (the keyed update, by the study of the
+#: fused step's documentation page). The shares' fused step (``critic_form="degrees"``)
+#: equals autograd's per step to float32 rounding (the tests), but no study has compared
+#: their runs yet, so ``auto`` keeps autograd's for them; ``step=fused`` takes it.
+AUTO_FUSED_UPDATES = ("keyed",)
 #: (``update="critic"``) The most joint actions the critic may have outputs for.
 MAX_JOINT_ACTIONS = 4_096
 #: [choice] (``update="imitation"``) Weight of the penalty that keeps each raw degree

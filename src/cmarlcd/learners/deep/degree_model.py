@@ -26,7 +26,7 @@ from cmarlcd.learners.deep.agent_networks import (
 )
 from cmarlcd.learners.deep.config import takes_fused_step
 from cmarlcd.learners.deep.coordination import RANGE_WEIGHT, DeepCMARLCDConfig
-from cmarlcd.learners.deep.fused.step import FusedDegreeStep
+from cmarlcd.learners.deep.fused.step import FusedDegreeStep, FusedSharesStep
 from cmarlcd.learners.deep.value_decomposition import StackedModel
 
 
@@ -111,8 +111,9 @@ class DegreeModel(StackedModel):
             ],
             fused=True,
         )
-        fused = takes_fused_step(config.step, self.device, config.fused_covered)
-        self.fused = FusedDegreeStep(self) if fused else None
+        fused = takes_fused_step(config.step, self.device, config.auto_fuses)
+        step = FusedSharesStep if config.shares else FusedDegreeStep
+        self.fused = step(self) if fused else None
 
     def targets(
         self, degrees: torch.Tensor, actions: torch.Tensor, returns: torch.Tensor,

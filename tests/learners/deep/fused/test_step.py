@@ -411,7 +411,118 @@ def test_fused_degree_step_equals_autograd(index: bool, own_dim: int | None, uns
         assert all(untouched)
 
 
-@pytest.mark.parametrize("settings", [{"update": "replayed"}, {"share": True}, {"step": "manual"}])
+#: The shares' settings (``update="critic"``, ``critic_form="degrees"``).
+SHARES = {"update": "critic", "critic_form": "degrees", "critic_bootstrap": "greedy"}
+
+#: (integer states, features of each agent's own observation, one network shared, hidden
+#: layers): the model classes the shares' fused step takes.
+SHARES_MODELS = {
+    "features": (False, None, False, 1),
+    "integer states": (True, None, False, 1),
+    "own observations": (False, 2, False, 1),
+    "own observations, shared": (False, 2, True, 1),
+    "features, two layers": (False, None, False, 2),
+    "own observations, shared, three layers": (False, 2, True, 3),
+}
+
+
+def shares_pair(model: str, expectile: float):
+    """The shares' model twice (autograd's and the fused step's) and a maker of replay
+    batches: states, taken joint actions and stored returns about the summed shares, so
+    that some fall below their estimate and some above."""
+    from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+    from cmarlcd.learners.deep.degree_model import DegreeModel
+
+    index, own_dim, share, layers = SHARES_MODELS[model]
+    in_dim = 6 if index else 5 + len(COUNTS) * (own_dim or 0)
+    sequences = [np.random.SeedSequence(k) for k in range(SEEDS)]
+    settings = {"hidden": 7, "record_hidden": 5, "batch_size": BATCH, "expectile": expectile}
+    settings |= {"share": share, "hidden_layers": layers, **SHARES}
+    models = [
+        DegreeModel(
+            COUNTS, in_dim, DeepCMARLCDConfig(step=step, **settings), sequences, own_dim=own_dim
+        )
+        for step in ("autograd", "fused")
+    ]
+    rng = np.random.default_rng(5)
+
+    def batch() -> dict:
+        size = (SEEDS, BATCH)
+        if index:
+            state = torch.as_tensor(rng.integers(0, in_dim, size))
+        else:
+            state = torch.as_tensor(rng.normal(size=(*size, in_dim)).astype(np.float32))
+        actions = np.stack([rng.integers(0, k, size) for k in COUNTS], axis=-1)
+        returns = rng.normal(0.0, 2.0, size).astype(np.float32)
+        actions, returns = torch.as_tensor(actions), torch.as_tensor(returns)
+        return {"state": state, "actions": actions, "reward": returns}
+
+    return models[0], models[1], batch
+
+
+@pytest.mark.parametrize("expectile", [0.5, 0.9])
+@pytest.mark.parametrize("model", list(SHARES_MODELS))
+def test_fused_shares_step_equals_autograd(model: str, expectile: float) -> None:
+    """The shares: the degrees summed at each visit's taken joint action, fitted to its
+    stored return by the τ-expectile loss, through every model class (a network per
+    agent or one shared, one hidden layer or more, each agent on its own observation or
+    on the whole input, integer states). One step: the same loss and gradients; three
+    more: the same weights; the record network, which the shares do not read, never
+    stepped by either."""
+    auto, fused, batch = shares_pair(model, expectile)
+    sample = batch()
+    auto.optimizer.zero_grad()
+    loss = auto.loss(sample)
+    loss.backward()
+    assert fused.learn(sample) == pytest.approx(float(loss.detach()) / SEEDS, rel=1e-5)
+    step = fused.fused
+    grads = step.shared_grads if step.share else step.agent_grads
+    from cmarlcd.learners.deep.fused.step import _in_order
+
+    for p, grad in zip(auto.agents.parameters(), _in_order(grads), strict=True):
+        scale = float(p.grad.abs().max())
+        assert scale > 0
+        np.testing.assert_allclose(grad, p.grad.numpy(), rtol=0, atol=1e-5 * scale)
+    auto.optimizer.step()
+    for _ in range(3):
+        sample = batch()
+        assert auto.learn(sample) == pytest.approx(fused.learn(sample), rel=1e-4)
+    for a, b in zip(auto.parameters(), fused.parameters(), strict=True):
+        np.testing.assert_allclose(b.detach().numpy(), a.detach().numpy(), atol=1e-4)
+    for net in (auto, fused):
+        assert all(
+            torch.equal(p, q)
+            for p, q in zip(net.record.parameters(), net.target_record.parameters(), strict=True)
+        )
+
+
+def test_fused_shares_step_takes_one_hidden_layer_on_integer_states() -> None:
+    """Integer states read the first layer as a table; with a middle layer the fused step
+    refuses them in one line (autograd's step takes them)."""
+    from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
+    from cmarlcd.learners.deep.degree_model import DegreeModel
+
+    config = DeepCMARLCDConfig(hidden=4, hidden_layers=2, step="fused", **SHARES)
+    model = DegreeModel(COUNTS, 5, config, [np.random.SeedSequence(0)])
+    sample = {
+        "state": torch.zeros((1, 3), dtype=torch.int64),
+        "actions": torch.zeros((1, 3, len(COUNTS)), dtype=torch.int64),
+        "reward": torch.zeros((1, 3)),
+    }
+    with pytest.raises(ConfigError, match="hidden_layers: the fused step takes 2 hidden"):
+        model.learn(sample)
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        {"update": "replayed"},
+        {"share": True},
+        {"step": "manual"},
+        {"update": "critic", "critic_form": "joint"},
+        {"update": "imitation"},
+    ],
+)
 def test_fused_degree_step_is_refused_where_it_does_not_apply(settings: dict) -> None:
     from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 
@@ -423,13 +534,20 @@ def test_fused_degree_step_is_refused_where_it_does_not_apply(settings: dict) ->
 
 @pytest.mark.parametrize(
     ("settings", "fused"),
-    [({}, True), ({"update": "replayed"}, False), ({"share": True}, False)],
+    [
+        ({}, True),
+        ({"update": "replayed"}, False),
+        ({"share": True}, False),
+        (SHARES, False),
+        (SHARES | {"share": True, "hidden_layers": 2}, False),
+    ],
 )
 def test_deep_cmarl_cd_at_step_auto_takes_the_fused_step_where_it_covers(
     settings: dict, fused: bool
 ) -> None:
     """``step="auto"``: the fused step for the keyed update with a network per agent,
-    autograd's for the settings the fused kernels do not cover (no error)."""
+    autograd's for the settings the fused kernels do not cover (no error) and for the
+    shares, which ``step="fused"`` takes but no study has compared run by run yet."""
     from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
     from cmarlcd.learners.deep.degree_model import DegreeModel
 

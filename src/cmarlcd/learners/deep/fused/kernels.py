@@ -226,7 +226,9 @@ def agents_forward(
     (``hidden`` keeps what the backward pass reads), and where ``targets``, ``best`` the
     target networks' best legal Q (with ``double_q``, their Q at the online networks'
     best legal action): (n, N) at each transition's next state, or, for integer states
-    whose masks are per state, (n, S) at every state. ``inputs``: see :func:`td_step`."""
+    whose masks are per state, (n, S) at every state. ``inputs``: see :func:`td_step`
+    (a step without ``targets`` reads neither the next states nor the target networks,
+    and may pass the online ones for them)."""
     w1, b1, w2, b2 = agents[:4]
     tw1, tb1, tw2, tb2 = target_agents[:4]
     index, x, nx, states, next_states, actions, legal_of, own_dim = inputs
@@ -273,6 +275,8 @@ def agents_forward(
             hi = x.shape[0] if own_dim == 0 else lo + own_dim
             network_forward(agents, g, x[lo:hi], hidden[i], q)
             chosen(q, act, c[i])
+            if not targets:
+                continue
             if double_q:  # the online networks at the next states (hidden units unkept)
                 network_forward(agents, g, nx[lo:hi], target_hidden, online)
             network_forward(target_agents, g, nx[lo:hi], target_hidden, q)

@@ -95,14 +95,8 @@ class FusedStep:
         self.steps += 1
         per_state = index and "next_legal" not in batch
         n = self.model.n_agents
-        own, target = (
-            (self.shared, self.target_shared) if self.share else (self.agents, self.target_agents)
-        )
-        for net, (weights, biases) in ((own, self.middle), (target, self.target_middle)):
-            stacked(weights, net[4]), stacked(biases, net[5])  # the middle layers as they are now
-        if self.share:  # the shared networks as they are now, per agent
-            spread_shared(self.shared, self.agents, n)
-            spread_shared(self.target_shared, self.target_agents, n)
+        _refresh(self.shared, self.middle, self.agents, self.share, n)
+        _refresh(self.target_shared, self.target_middle, self.target_agents, self.share, n)
         arguments = (
             (self.agents, self.target_agents, self.mixer, self.target_mixer),
             (self.agent_grads, self.mixer_grads),
@@ -212,6 +206,72 @@ class FusedDegreeStep:
         with subnormals_flushed():
             loss = fused_degree_kernels.keyed_step(*arguments)
         return loss / self.model.n_seeds
+
+
+class FusedSharesStep:
+    """The shares of one :class:`cmarlcd.learners.deep.degree_model.DegreeModel`
+    (``update="critic"``, ``critic_form="degrees"``), fused
+    (:func:`cmarlcd.learners.deep.fused.degree_kernels.shares_step`): the degrees at each
+    visit's taken joint action, summed, fitted to its stored return by the expectile loss;
+    the agent networks as VDN's fused step takes them (one per agent or one shared, one
+    hidden layer or more on feature states). Only the degree networks learn: the record
+    network gets no gradient there, and PyTorch's Adam does not step it either."""
+
+    def __init__(self, model) -> None:
+        _on_the_cpu(model)
+        self.model = model
+        self.share = bool(model.config.share)
+        self.shared, self.middle = _layers(model.agents)
+        n = model.n_agents
+        self.agents = _per_agent(self.shared, n) if self.share else self.shared
+        self.agent_grads = tuple(np.zeros_like(p) for p in self.agents)
+        self.shared_grads = (
+            tuple(np.zeros_like(p) for p in self.shared) if self.share else _no_shared()
+        )
+        own_grads = self.shared_grads if self.share else self.agent_grads
+        self.flat = _flat(list(_arrays(model.agents)), _in_order(own_grads))
+        self.rates = np.full(len(self.flat[0]), model.config.lr, np.float64)
+        self.adam = adam_settings(model.optimizer)
+        self.steps = 0
+        self.own = model.agents.own_dim or 0
+
+    def __call__(self, batch: dict[str, torch.Tensor]) -> float:
+        """One step on a batch of visits (:meth:`DegreeModel.critic_loss`'s keys:
+        ``state``, ``actions``, ``reward``, the stored returns); the mean loss per seed."""
+        index = batch["state"].dtype == torch.int64
+        require(
+            self.middle[0] == [] or not index,
+            "hidden_layers",
+            f"the fused step takes {len(self.middle[0]) + 1} hidden layers on feature "
+            "states only, not integer states; step=autograd there",
+        )
+        self.steps += 1
+        _refresh(self.shared, self.middle, self.agents, self.share, self.model.n_agents)
+        features, states = split_states(batch["state"])
+        returns = np.ascontiguousarray(batch["reward"].numpy(), np.float32)
+        arguments = (
+            self.agents,
+            self.agent_grads,
+            (features, states, batch["actions"].numpy(), returns),
+            self.model.valid.numpy(),
+            (index, self.own, float(self.model.config.expectile)),
+            (*self.flat, self.rates, (self.steps, *self.adam)),
+            (self.share, self.shared_grads),
+        )
+        with subnormals_flushed():
+            loss = fused_degree_kernels.shares_step(*arguments)
+        return loss / self.model.n_seeds
+
+
+def _refresh(net, middle, agents, share: bool, n: int) -> None:
+    """The kernels' copies of a network as it is now: its middle layers stacked into
+    ``net`` (laid out as :func:`_layers`'s) from their own parameters ``middle``
+    (weights, biases), and, where the agents share it, spread into each agent's layers
+    ``agents``."""
+    weights, biases = middle
+    stacked(weights, net[4]), stacked(biases, net[5])
+    if share:
+        spread_shared(net, agents, n)
 
 
 @contextmanager
