@@ -8,9 +8,11 @@
 #   python benchmarks/deep_cmarlcd_designs_field.py --study results/field/study/store.sqlite \
 #       --design NAME=STORE ...
 #
-# Usage: [TIME_LEFT=1] bash benchmarks/deep_cmarlcd_design_field.sh DESIGN STORE [TASK ...]
+# Usage: [TIME_LEFT=1] [STEP=fused] bash benchmarks/deep_cmarlcd_design_field.sh DESIGN STORE [TASK ...]
 #   TIME_LEFT=1: the agents also read the time left (`cmarl-cd field --time-left`); the
 #   study's columns are without it
+#   STEP: the gradient step (`deep-cmarl-cd.step`: auto, the default, which keeps
+#   autograd's for the shares; fused, their compiled step, its runs stored apart)
 #   (some 60-90 minutes a design for the eight tasks on a core shared with the study;
 #   needs the [deep] extra)
 set -euo pipefail
@@ -21,6 +23,12 @@ design="$1" store="$2"
 shift 2
 field_protocol full
 field_inputs
+step=""  # the setting as a design's runs were stored, unless STEP names one
+case "${STEP:-}" in
+  "") ;;
+  auto|fused|autograd) step=",deep-cmarl-cd.step=$STEP" ;;
+  *) echo "error: STEP must be auto, fused or autograd (got '$STEP')" >&2; exit 2 ;;
+esac
 tasks=("$@")
 [ ${#tasks[@]} -eq 0 ] && tasks=("${field_tasks[@]}")
 d=deep-cmarl-cd
@@ -28,6 +36,6 @@ mkdir -p "$(dirname "$store")"
 echo "$(date +%T) $design" >&2
 python -m cmarlcd field --tasks "$(IFS=,; echo "${tasks[*]}")" --learners "$d" \
   "${protocol[@]}" "${inputs[@]}" --workers 1 --json \
-  --set "$d.design=$design,$d.gamma=0.99" \
+  --set "$d.design=$design,$d.gamma=0.99$step" \
   --store "$store" --figures "$(dirname "$store")/figures"
 echo "$(date +%T) done" >&2

@@ -164,6 +164,25 @@ def test_a_design_reads_the_time_left_where_told(tmp_path: Path) -> None:
     assert done.stderr.strip() == "error: TIME_LEFT must be 0 or 1 (got 'yes')"
 
 
+def test_a_design_takes_the_step_it_is_told(tmp_path: Path) -> None:
+    """STEP=fused sets deep CMARL-CD's gradient step, nothing else changed; without STEP
+    the settings are the design's as stored; another value is refused in one line."""
+    script = str(ROOT / "benchmarks/deep_cmarlcd_design_field.sh")
+    store = str(tmp_path / "d.sqlite")
+    (plain,) = recorded_field_calls(tmp_path, script, "shares-cold-shared", store)
+    (fused,) = recorded_field_calls(tmp_path, script, "shares-cold-shared", store, STEP="fused")
+    at = plain.index("--set") + 1
+    assert "step" not in plain[at]
+    assert fused[at] == plain[at] + ",deep-cmarl-cd.step=fused"
+    assert fused[:at] + fused[at + 1 :] == plain[:at] + plain[at + 1 :]
+    done = subprocess.run(
+        ["bash", script, "shares-cold-shared", store], capture_output=True, text=True,
+        check=False, env={**os.environ, "STEP": "fast"},
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert done.stderr.strip() == "error: STEP must be auto, fused or autograd (got 'fast')"
+
+
 def test_the_study_reads_the_time_left_where_told(tmp_path: Path) -> None:
     """TIME_LEFT=1 gives every part of the study the input, nothing else changed."""
     script = str(ROOT / "benchmarks/field_study.sh")
