@@ -27,13 +27,19 @@
 #
 #   cmarl-cd report --store results/field/study/store.sqlite --format json
 #
-# Usage: [PARTS="vdn qmix"] [WORKERS=2] [TIME_LEFT=1] bash benchmarks/field_study.sh [full|quick] [OUT] [TASK ...]
+# Usage: [PARTS="vdn qmix"] [WORKERS=2] [TIME_LEFT=1] [SEED_BATCH=1] bash benchmarks/field_study.sh [full|quick] [OUT] [TASK ...]
 #   PARTS: which learners' parts to run, in the study's order unless told (shares, vdn,
 #   deep-cmarl-cd, qmix, deep-iql, hysteretic-dqn; default all); WORKERS: worker
 #   processes, each a task at a time (default 1, so that the machine's other core stays
 #   free); TIME_LEFT=1: every learner also reads the time left in the episode (`cmarl-cd
-#   field --time-left`; the study itself is without it: run it into another OUT). Needs
-#   the [deep] extra.
+#   field --time-left`; the study itself is without it: run it into another OUT);
+#   SEED_BATCH: seeds of a task trained together in one model (`--seed-batch`; the
+#   command's default, 10, trains a task's 5 together, and a run stopped before its end
+#   keeps none of them; 1 trains and stores each seed on its own, so a stop loses one
+#   seed's run at most, at the cost of the per-call overhead of unstacked steps; the
+#   same numbers: deep IQL's and VDN's fused runs, 3 seeds on 8x8-2p-2f-coop and
+#   simple_spread, stored batched and apart, are equal bit for bit). Needs the [deep]
+#   extra.
 set -euo pipefail
 # the tasks and the protocol, shared with the design runs
 source "$(dirname "${BASH_SOURCE[0]}")/field_protocol.sh"
@@ -45,6 +51,12 @@ for part in "${parts[@]}"; do
 done
 workers="${WORKERS:-1}"
 [[ "$workers" =~ ^[1-9][0-9]*$ ]] || { echo "error: WORKERS must be >= 1 (got '$workers')" >&2; exit 2; }
+batch=()
+if [ -n "${SEED_BATCH:-}" ]; then
+  [[ "$SEED_BATCH" =~ ^[1-9][0-9]*$ ]] ||
+    { echo "error: SEED_BATCH must be >= 1 (got '$SEED_BATCH')" >&2; exit 2; }
+  batch=(--seed-batch "$SEED_BATCH")
+fi
 form="${1:-full}"
 out="${2:-results/field/study}"
 shift $(($# < 2 ? $# : 2))
@@ -67,7 +79,7 @@ field() {  # field PART LEARNER [ARGS ...]: one learner on every task
   shift 2
   echo "$(date +%T) $part" >&2
   python -m cmarlcd field --tasks "$(IFS=,; echo "${tasks[*]}")" --learners "$learner" \
-    "${protocol[@]}" "${inputs[@]}" --workers "$workers" --json "$@" \
+    "${protocol[@]}" "${inputs[@]}" ${batch[@]+"${batch[@]}"} --workers "$workers" --json "$@" \
     --store "$out/store.sqlite" --figures "$out/figures" >"$out/$part.json"
 }
 # learner by learner, so that a partial store holds whole columns: deep CMARL-CD's best

@@ -192,3 +192,25 @@ def test_the_study_reads_the_time_left_where_told(tmp_path: Path) -> None:
     assert len(plain) == len(timed) == 2
     for a, b in zip(plain, timed, strict=True):
         assert "--time-left" not in a and [w for w in b if w != "--time-left"] == a
+
+
+def test_the_study_trains_seeds_apart_where_told(tmp_path: Path) -> None:
+    """SEED_BATCH=1 gives every part ``--seed-batch 1`` (each seed trained and stored on
+    its own), nothing else changed; unset, the command's default; 0 or a word refused."""
+    script = str(ROOT / "benchmarks/field_study.sh")
+    out = str(tmp_path / "study")
+    plain = recorded_field_calls(tmp_path, script, "full", out, PARTS="deep-iql vdn")
+    apart = recorded_field_calls(tmp_path, script, "full", out, PARTS="deep-iql vdn",
+                                 SEED_BATCH="1")  # fmt: skip
+    assert len(plain) == len(apart) == 2
+    for a, b in zip(plain, apart, strict=True):
+        assert "--seed-batch" not in a
+        at = b.index("--seed-batch")
+        assert b[at + 1] == "1" and b[:at] + b[at + 2 :] == a
+    for bad in ("0", "one"):
+        done = subprocess.run(
+            ["bash", script, "full", out], capture_output=True, text=True, check=False,
+            env={**os.environ, "SEED_BATCH": bad},
+        )  # fmt: skip
+        assert done.returncode == 2
+        assert done.stderr.strip() == f"error: SEED_BATCH must be >= 1 (got '{bad}')"
