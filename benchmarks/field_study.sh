@@ -23,7 +23,8 @@
 #
 # One store per form (OUT/store.sqlite): every run is stored as it ends, so a killed study
 # resumes where it stopped; its progress goes to stderr, one line a minute into a log
-# (`bash benchmarks/field_study.sh full OUT 2> OUT/progress.log`). Read it with
+# (`bash benchmarks/field_study.sh full OUT 2> OUT/progress.log`); each part's report
+# of the tasks named goes to OUT/PART.json once the part ends. Read the store with
 #
 #   cmarl-cd report --store results/field/study/store.sqlite --format json
 #
@@ -80,7 +81,8 @@ field() {  # field PART LEARNER [ARGS ...]: one learner on every task
   echo "$(date +%T) $part" >&2
   python -m cmarlcd field --tasks "$(IFS=,; echo "${tasks[*]}")" --learners "$learner" \
     "${protocol[@]}" "${inputs[@]}" ${batch[@]+"${batch[@]}"} --workers "$workers" --json "$@" \
-    --store "$out/store.sqlite" --figures "$out/figures" >"$out/$part.json"
+    --store "$out/store.sqlite" --figures "$out/figures" >"$out/$part.json.partial"
+  mv "$out/$part.json.partial" "$out/$part.json"  # a stopped part leaves the last whole one
 }
 # learner by learner, so that a partial store holds whole columns: deep CMARL-CD's best
 # measured design and VDN (the selection run's pair) first, the costliest gradient steps
