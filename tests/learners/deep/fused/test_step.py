@@ -329,6 +329,15 @@ def test_fused_step_runs_on_the_cpu_only() -> None:
 # ------------------------------------------------------------ deep CMARL-CD
 
 
+def degree_states(rng: np.random.Generator, index: bool, in_dim: int) -> torch.Tensor:
+    """A batch's states for deep CMARL-CD's models: (SEEDS, BATCH) integer states below
+    ``in_dim``, or (SEEDS, BATCH, in_dim) normal features."""
+    size = (SEEDS, BATCH)
+    if index:
+        return torch.as_tensor(rng.integers(0, in_dim, size))
+    return torch.as_tensor(rng.normal(size=(*size, in_dim)).astype(np.float32))
+
+
 def degree_pair(index: bool, unseen: str, own_dim: int | None = None):
     """Deep CMARL-CD's model twice (autograd's and the fused step's) and a maker of keyed
     batches: kept states, the memory's degrees there and its records; with ``own_dim``
@@ -354,10 +363,7 @@ def degree_pair(index: bool, unseen: str, own_dim: int | None = None):
 
     def batch() -> dict:
         size = (SEEDS, BATCH)
-        if index:
-            state = torch.as_tensor(rng.integers(0, in_dim, size))
-        else:
-            state = torch.as_tensor(rng.normal(size=(*size, in_dim)).astype(np.float32))
+        state = degree_states(rng, index, in_dim)
         target = rng.uniform(0.5, 3.0, (*size, len(COUNTS), max(COUNTS))).astype(np.float32)
         record = rng.normal(5.0, 3.0, size).astype(np.float32)
         return {
@@ -448,10 +454,7 @@ def shares_pair(model: str, expectile: float):
 
     def batch() -> dict:
         size = (SEEDS, BATCH)
-        if index:
-            state = torch.as_tensor(rng.integers(0, in_dim, size))
-        else:
-            state = torch.as_tensor(rng.normal(size=(*size, in_dim)).astype(np.float32))
+        state = degree_states(rng, index, in_dim)
         actions = np.stack([rng.integers(0, k, size) for k in COUNTS], axis=-1)
         returns = rng.normal(0.0, 2.0, size).astype(np.float32)
         actions, returns = torch.as_tensor(actions), torch.as_tensor(returns)
