@@ -137,16 +137,19 @@ def test_the_compiled_loop_bootstraps_from_the_target_copy_by_hand() -> None:
     assert replay.ring.reward[:3].tolist() == [4.0, 8.5, 5.875]
 
 
-def test_the_same_seed_learns_the_same_weights_on_lbf() -> None:
-    """End to end on LBF's features: the loop's copy that returns bootstrap from is the
-    degree networks' target copy (no target copy due within the budget: still the
-    initial weights, where the live networks have learned), and two runs of one seed
-    learn the same weights."""
+@pytest.mark.parametrize("step", ["autograd", "fused"])
+def test_the_same_seed_learns_the_same_weights_on_lbf(step: str) -> None:
+    """End to end on LBF's features, on either step: the loop's copy that returns
+    bootstrap from is the degree networks' target copy (no target copy due within the
+    budget: still the initial weights, where the live networks have learned), and two
+    runs of one seed learn the same weights."""
     from cmarlcd.experiments import games
     from cmarlcd.training.deep import DeepBatch
 
     spec = games.parse_game("foraging:5x5-2p-1f")[1].spec()
-    config = replace(SHARES_DEEP_CMARLCD, batch_size=64, buffer_size=2000, target_every=10**6)
+    config = replace(
+        SHARES_DEEP_CMARLCD, batch_size=64, buffer_size=2000, target_every=10**6, step=step
+    )
 
     def weights() -> list:
         run = DeepBatch(spec, config, [np.random.SeedSequence(3)], 60)
@@ -156,6 +159,7 @@ def test_the_same_seed_learns_the_same_weights_on_lbf() -> None:
         assert all(np.array_equal(a, b) for a, b in zip(copy, target, strict=True))
         live = model.agents.feature_weights()[2].detach().numpy()
         assert not np.array_equal(copy.w2, live)  # the live networks learned
+        assert (model.fused is not None) is (step == "fused")
         return [p.detach().clone() for p in model.parameters()]
 
     first, second = weights(), weights()
@@ -206,10 +210,11 @@ def test_the_command_line_runs_it(tmp_path) -> None:
 
 
 @pytest.mark.slow
-def test_the_design_passes_every_learner_check() -> None:
+@pytest.mark.parametrize("step", ["auto", "fused"])
+def test_the_design_passes_every_learner_check(step: str) -> None:
     from cmarlcd.testing import check_learner
 
-    check_learner(SHARES_DEEP_CMARLCD)
+    check_learner(replace(SHARES_DEEP_CMARLCD, step=step))
 
 
 def test_two_hidden_layers_act_in_the_loop_as_the_networks_compute() -> None:
