@@ -17,12 +17,20 @@ before any run (:data:`MARGINS`), by Schuirmann's TOST at α = 0.05
   which is zero in expectation when the two steps play alike; tested paired
   (:func:`cmarlcd.experiments.equivalence.paired_tost`) within the win rate's margin.
   Computed in this process (the command line plays a learner once per pairing).
+* ``field``: deep CMARL-CD at a named design (``--design``, the shares' fused step by
+  default: ``shares-range-shared``) on the field's tasks (``--tasks``), ``cmarl-cd
+  field`` at the study's evaluation (every 50k steps unless told) for ``--steps``: each run's
+  average return over its curve (the seeds' values the field's average return is the
+  mean of) and its final return, within margins of the task family's returns
+  (:data:`FIELD_MARGINS`).
 
 Usage:
     python benchmarks/fused_equivalence.py dsn --runs 50 --episodes 100k
     python benchmarks/fused_equivalence.py dsn --algorithms deep-cmarl-cd --runs 50
     python benchmarks/fused_equivalence.py tournament --runs 50 --learn-episodes 20k
     python benchmarks/fused_equivalence.py head-to-head --runs 200 --learn-episodes 20k
+    python benchmarks/fused_equivalence.py field --runs 30 --steps 500k \
+        --tasks foraging:8x8-2p-2f-coop,simple_spread --design shares-range-shared
 """
 
 from __future__ import annotations
@@ -42,32 +50,52 @@ from cmarlcd.experiments.equivalence import ALPHA, paired_tost, tost
 #: steps). [choice] ±2 points of DSN success, ±1 step of its mean steps (the tables print
 #: steps to two decimals, and runs differ by several), ±3 points of a match's win rate.
 MARGINS = {"success_rate": 2.0, "mean_steps": 1.0, "win_rate": 3.0}
+#: The field part's margins, by task family, for both its metrics (declared 2026-12-07
+#: before any of its runs; [choice]): 0.05 of LBF's return (an episode earns at most 1;
+#: the field study's seeds spread by 0.1-0.3 at a point), 3 of simple_spread's (its
+#: returns lie between about -40 and -120; the study's seeds spread by 3-10).
+FIELD_MARGINS = {"foraging": 0.05, "simple_spread": 3.0}
 #: The deep learners each part compares (``--algorithms`` chooses among them).
 DEEP = {
     "dsn": ("vdn", "qmix", "deep-cmarl-cd"),
     "tournament": ("vdn", "qmix"),
     "head-to-head": ("vdn", "qmix"),
+    "field": ("deep-cmarl-cd",),
 }
+#: Each part's greedy evaluation episodes where ``--eval-episodes`` is not given.
+EVAL_EPISODES = {"dsn": "10k", "tournament": "10k", "head-to-head": "10k", "field": "100"}
 
 
-def step_settings(algorithms: list[str], step: str) -> str:
+def step_settings(algorithms: list[str], step: str, design: str | None = None) -> str:
     """``--set``'s value that gives every learner of the study ``step`` (named, not left
-    to the default, which may change: the study compares the two steps themselves)."""
-    return ",".join(f"{name}.step={step}" for name in algorithms)
+    to the default, which may change: the study compares the two steps themselves), and
+    with ``design`` deep CMARL-CD's design at the field's discount."""
+    settings = [f"{name}.step={step}" for name in algorithms]
+    if design is not None:
+        settings += [f"deep-cmarl-cd.design={design}", "deep-cmarl-cd.gamma=0.99"]
+    return ",".join(settings)
 
 
 def command(part: str, args: argparse.Namespace, store: Path, fused: bool) -> list[str]:
     """The ``cmarl-cd`` command of one side of the study."""
     algorithms = ",".join(args.algorithms)
+    design = None
     if part == "dsn":
         line = ["dsn", "--algorithms", algorithms, "--runs", str(args.runs)]
         line += ["--episodes", args.episodes, "--eval-episodes", args.eval_episodes]
+    elif part == "field":
+        line = ["field", "--tasks", args.tasks, "--learners", algorithms]
+        line += ["--seeds", str(args.runs), "--steps", args.steps]
+        line += ["--eval-interval", args.eval_interval, "--eval-episodes", args.eval_episodes]
+        line += ["--inputs", "own-observations", "--no-progress"]
+        design = args.design
     else:
         line = ["tournament", "--algorithms", algorithms, "--rounds", str(args.runs)]
         line += ["--learn-episodes", args.learn_episodes, "--eval-episodes", args.eval_episodes]
     line += ["--store", str(store), "--figures", str(store.parent / "figures")]
     line += ["--workers", str(args.workers)]
-    return [*line, "--set", step_settings(args.algorithms, "fused" if fused else "autograd")]
+    step = "fused" if fused else "autograd"
+    return [*line, "--set", step_settings(args.algorithms, step, design)]
 
 
 def step_of(config: dict) -> str:
@@ -88,11 +116,17 @@ def samples(
     with sqlite3.connect(f"file:{store}?mode=ro", uri=True) as conn:
         rows = conn.execute(query).fetchall()
     for experiment, algorithm, config_text, metrics_text, run_index in rows:
-        if experiment != part or run_index < first_run:
-            continue
         config, metrics = json.loads(config_text), json.loads(metrics_text)
+        field = part == "field" and config.get("unit") == "steps"
+        if (experiment != part and not field) or run_index < first_run:
+            continue
         step = step_of(config)
-        if part == "dsn":
+        if field:  # the experiment is the task's family
+            returns = [point[2] for point in metrics["curve"]]
+            cell = f"{experiment}:{config['game']['task']}"
+            out[(cell, "average_return")][step].append(sum(returns) / len(returns))
+            out[(cell, "final_return")][step].append(returns[-1])
+        elif part == "dsn":
             for budget, values in metrics["checkpoints"].items():
                 cell = f"{algorithm} L={int(budget):,}"
                 out[(cell, "success_rate")][step].append(100 * values["success_rate"])
@@ -187,12 +221,13 @@ def report(part: str, store: Path, first_run: int = 0) -> list[dict]:
     for (cell, metric), by_step in sorted(samples(part, store, first_run).items()):
         if len(by_step.get("autograd", [])) < 2 or len(by_step.get("fused", [])) < 2:
             continue
-        result = tost(by_step["autograd"], by_step["fused"], MARGINS[metric])
+        margin = FIELD_MARGINS[cell.split(":")[0]] if part == "field" else MARGINS[metric]
+        result = tost(by_step["autograd"], by_step["fused"], margin)
         verdict = "equivalent" if result.equivalent else "NOT shown equivalent"
         print(
-            f"  {cell:18} {metric:12} autograd {result.reference_mean:8.2f} "
-            f"fused {result.candidate_mean:8.2f}  difference {result.difference:+6.2f} "
-            f"[{result.low:+6.2f}, {result.high:+6.2f}] within ±{result.margin:g}: "
+            f"  {cell:18} {metric:12} autograd {result.reference_mean:8.3f} "
+            f"fused {result.candidate_mean:8.3f}  difference {result.difference:+7.3f} "
+            f"[{result.low:+7.3f}, {result.high:+7.3f}] within ±{result.margin:g}: "
             f"{verdict} (p = {result.p_value:.3g}; {result.reference_runs} and "
             f"{result.candidate_runs} runs)"
         )
@@ -207,12 +242,14 @@ def markdown(part: str, results: list[dict]) -> str:
         f"| cell | metric | {sides} | difference [90 % interval] | margin | verdict |",
         "|---|---|---|---|---|---|---|",
     ]
+    d = 3 if part == "field" else 2  # LBF's returns are at most 1
     for r in results:
         verdict = "**equivalent**" if r["equivalent"] else "not shown equivalent"
         lines.append(
             f"| {part} {r['cell']} | {r['metric'].replace('_', ' ')} | "
-            f"{r['reference_mean']:.2f} | {r['candidate_mean']:.2f} | {r['difference']:+.2f} "
-            f"[{r['low']:+.2f}, {r['high']:+.2f}] | ±{r['margin']:g} | {verdict} |"
+            f"{r['reference_mean']:.{d}f} | {r['candidate_mean']:.{d}f} | "
+            f"{r['difference']:+.{d}f} [{r['low']:+.{d}f}, {r['high']:+.{d}f}] | "
+            f"±{r['margin']:g} | {verdict} |"
         )
     return "\n".join(lines)
 
@@ -223,12 +260,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--algorithms",
         default="vdn,qmix",
-        help="deep learners compared (DSN: vdn, qmix, deep-cmarl-cd; tournament: vdn, qmix)",
+        help="deep learners compared (DSN: vdn, qmix, deep-cmarl-cd; tournament: vdn, qmix; "
+        "field: deep-cmarl-cd)",
     )
     parser.add_argument("--runs", type=int, default=50, help="runs (DSN) or rounds per cell")
     parser.add_argument("--episodes", default="100k", help="DSN learning budgets L")
     parser.add_argument("--learn-episodes", default="20k", help="tournament learning episodes")
-    parser.add_argument("--eval-episodes", default="10k")
+    parser.add_argument(
+        "--eval-episodes", help="greedy evaluation episodes (field: 100 per point; else 10k)"
+    )
+    parser.add_argument("--tasks", default="foraging:8x8-2p-2f-coop,simple_spread",
+                        help="field: the compiled tasks")  # fmt: skip
+    parser.add_argument("--steps", default="500k", help="field: environment steps a run")
+    parser.add_argument("--eval-interval", default="50k",
+                        help="field: steps between evaluations (the study's)")  # fmt: skip
+    parser.add_argument("--design", default="shares-range-shared",
+                        help="field: deep CMARL-CD's design")  # fmt: skip
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("results/equivalence"))
     parser.add_argument("--report-only", action="store_true", help="test what is stored")
@@ -246,6 +293,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--runs: at least 2 runs a side")
     if not 0 <= args.first_run < args.runs:
         parser.error("--first-run: from 0 to --runs - 1")
+    if args.part == "field" and args.algorithms == parser.get_default("algorithms"):
+        args.algorithms = "deep-cmarl-cd"
+    if args.eval_episodes is None:
+        args.eval_episodes = EVAL_EPISODES[args.part]
     args.algorithms = [name.strip() for name in args.algorithms.split(",") if name.strip()]
     unknown = sorted(set(args.algorithms) - set(DEEP[args.part]))
     if unknown or not args.algorithms:
