@@ -67,6 +67,13 @@ def test_the_anchored_shared_designs_end_cut_episodes_in_what_they_collected() -
         assert replace(bootstrapped, truncation="terminal") == shared, kind
 
 
+def test_the_refresh_design_is_the_anchored_range_design_recomputing_its_returns() -> None:
+    refresh = settings(f"{D}.design=shares-range-shared-refresh")
+    assert refresh == settings(f"{D}.design=shares-range-shared,{D}.refresh_returns=true")
+    assert refresh.refresh_returns and refresh.truncation == "terminal"
+    assert (refresh.share, refresh.hidden_layers, refresh.return_lambda) == (True, 2, 0.9)
+
+
 def test_the_epymarl_design_replays_as_the_baselines_do_on_lbf() -> None:
     epymarl = settings(f"{D}.design=shares-range-bootstrap-shared-epymarl")
     # EPyMARL's 32-episode batches and 5,000-episode buffer of 50-step LBF episodes, VDN's

@@ -146,6 +146,19 @@ SHARES_RANGE_BOOTSTRAP_SHARED_SLOW_DEEP_CMARLCD = replace(
 SHARES_COLD_SHARED_DEEP_CMARLCD = replace(SHARES_COLD_DEEP_CMARLCD, **BASELINE_MODEL)
 #: ``shares-range`` in the baselines' model class (declared with the above).
 SHARES_RANGE_SHARED_DEEP_CMARLCD = replace(SHARES_RANGE_DEEP_CMARLCD, **BASELINE_MODEL)
+#: ``shares-range-shared`` with every stored λ-return recomputed at each target copy
+#: (``refresh_returns``; declared before its runs, 2026-12-07, the ninth round). With the
+#: time left as an input ``shares-range-shared`` reached the study's VDN but stayed below
+#: VDN with the same input on every LBF task measured both ways (0.550 against 0.847 on
+#: 2s-8x8-2p-2f-coop); the baselines' replay did not close that gap. Its returns are
+#: bootstrapped once, at their episode's end, where VDN's targets are recomputed at each
+#: draw; the fifth round's recomputation raised 2s-8x8-2p-2f-coop within the intervals
+#: for ``shares-cold``, with cut episodes whose returns no input explained. With the time
+#: left a cut episode's return is exact, so the recomputation is measured where nothing
+#: else is missing.
+SHARES_RANGE_SHARED_REFRESH_DEEP_CMARLCD = replace(
+    SHARES_RANGE_SHARED_DEEP_CMARLCD, refresh_returns=True
+)
 #: ``shares-range-bootstrap-shared-slow`` at the baselines' replay and learning rate
 #: (declared before its runs, 2026-12-07, the eighth round): EPyMARL's batch of 32
 #: episodes and buffer of 5,000, counted in LBF's 50-step episodes (1,600 and 250,000
@@ -240,6 +253,7 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-cold-shared": SHARES_COLD_SHARED_DEEP_CMARLCD,
     "shares-range-shared": SHARES_RANGE_SHARED_DEEP_CMARLCD,
     "shares-range-bootstrap-shared-epymarl": SHARES_RANGE_BOOTSTRAP_SHARED_EPYMARL_DEEP_CMARLCD,
+    "shares-range-shared-refresh": SHARES_RANGE_SHARED_REFRESH_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
