@@ -375,6 +375,22 @@ def degree_pair(index: bool, unseen: str, own_dim: int | None = None):
     return models[0], models[1], batch
 
 
+def assert_degree_steps_agree(auto, fused, batch, pairs) -> None:
+    """After one step of each (autograd's gradients left in ``.grad``): the fused step's
+    gradients ``pairs`` (autograd's parameter, the fused gradient) equal to float32
+    rounding, then three more steps of each giving the same losses and weights."""
+    for p, grad in pairs:
+        scale = float(p.grad.abs().max())
+        assert scale > 0
+        np.testing.assert_allclose(grad, p.grad.numpy(), rtol=0, atol=1e-5 * scale)
+    auto.optimizer.step()
+    for _ in range(3):
+        sample = batch()
+        assert auto.learn(sample) == pytest.approx(fused.learn(sample), rel=1e-4)
+    for a, b in zip(auto.parameters(), fused.parameters(), strict=True):
+        np.testing.assert_allclose(b.detach().numpy(), a.detach().numpy(), atol=1e-4)
+
+
 @pytest.mark.parametrize("unseen", ["estimate", "first-visit"])
 @pytest.mark.parametrize(
     ("index", "own_dim"),
@@ -399,16 +415,7 @@ def test_fused_degree_step_equals_autograd(index: bool, own_dim: int | None, uns
     pairs = list(zip(auto.agents.parameters(), fused.fused.agent_grads, strict=True))
     if unseen == "estimate":
         pairs += list(zip(auto.record.parameters(), fused.fused.record_grads, strict=True))
-    for p, grad in pairs:
-        scale = float(p.grad.abs().max())
-        assert scale > 0
-        np.testing.assert_allclose(grad, p.grad.numpy(), rtol=0, atol=1e-5 * scale)
-    auto.optimizer.step()
-    for _ in range(3):
-        sample = batch()
-        assert auto.learn(sample) == pytest.approx(fused.learn(sample), rel=1e-4)
-    for a, b in zip(auto.parameters(), fused.parameters(), strict=True):
-        np.testing.assert_allclose(b.detach().numpy(), a.detach().numpy(), atol=1e-4)
+    assert_degree_steps_agree(auto, fused, batch, pairs)
     if unseen == "first-visit":
         untouched = [
             torch.equal(a, b)
@@ -482,16 +489,8 @@ def test_fused_shares_step_equals_autograd(model: str, expectile: float) -> None
     grads = step.shared_grads if step.share else step.agent_grads
     from cmarlcd.learners.deep.fused.step import _in_order
 
-    for p, grad in zip(auto.agents.parameters(), _in_order(grads), strict=True):
-        scale = float(p.grad.abs().max())
-        assert scale > 0
-        np.testing.assert_allclose(grad, p.grad.numpy(), rtol=0, atol=1e-5 * scale)
-    auto.optimizer.step()
-    for _ in range(3):
-        sample = batch()
-        assert auto.learn(sample) == pytest.approx(fused.learn(sample), rel=1e-4)
-    for a, b in zip(auto.parameters(), fused.parameters(), strict=True):
-        np.testing.assert_allclose(b.detach().numpy(), a.detach().numpy(), atol=1e-4)
+    pairs = list(zip(auto.agents.parameters(), _in_order(grads), strict=True))
+    assert_degree_steps_agree(auto, fused, batch, pairs)
     for net in (auto, fused):
         assert all(
             torch.equal(p, q)
