@@ -52,8 +52,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from cmarlcd.errors import check_discount, require
-from cmarlcd.learners.deep.config import DEFAULT_STEP, STEP_BEFORE, STEPS, DeepLearnerConfig
+from cmarlcd.errors import require
+from cmarlcd.learners.deep.config import DEFAULT_STEP, STEP_BEFORE, DeepLearnerConfig
+from cmarlcd.learners.deep.coordination_checks import check_coordination_settings
 from cmarlcd.learners.deep.coordination_choices import (  # noqa: F401  (re-exported)
     ACT_FROM,
     AUTO_FUSED_UPDATES,
@@ -70,7 +71,6 @@ from cmarlcd.learners.deep.coordination_choices import (  # noqa: F401  (re-expo
     UNSEEN_SPREADS,
     UPDATES,
 )
-from cmarlcd.learners.degree_rules import check_degree_settings
 from cmarlcd.learners.policy import annealed
 from cmarlcd.runs import added_setting
 
@@ -323,92 +323,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     CMARL-CD page of the documentation)."""
 
     def __post_init__(self) -> None:
-        for name, choices in CHOICES.items():
-            value = getattr(self, name)
-            require(value in choices, name, f"must be one of {', '.join(choices)} (got {value!r})")
-        require(
-            self.keyed or self.record == "maximum",
-            "record",
-            "'expectile' is a record kept in the keyed memory (update='keyed'); "
-            "with a ring of visits the record network's expectile is the setting",
-        )
-        steps = ", ".join(STEPS)
-        require(self.step in STEPS, "step", f"must be one of {steps} (got {self.step!r})")
-        require(
-            self.step != "fused" or self.fused_covered,
-            "step",
-            "'fused' is the keyed update with one network per agent of one hidden layer "
-            "(update='keyed', share=false, hidden_layers=1) or the shares (update='critic', "
-            "critic_form='degrees'); the others take step=autograd (or auto, which falls "
-            "back to it)",
-        )
-        lam = self.return_lambda
-        require(0 <= lam <= 1, "return_lambda", f"must be in [0, 1] (got {lam})")
-        require(
-            lam == 1 or not self.keyed,
-            "return_lambda",
-            "the keyed memory folds the table's Monte-Carlo returns (1); λ-returns are for "
-            "a ring of visits (update='replayed', 'imitation' or 'critic')",
-        )
-        require(
-            self.bootstraps or not self.refresh_returns,
-            "refresh_returns",
-            "recomputes λ-returns: a ring of visits with return_lambda below 1",
-        )
-        require(
-            self.truncation == "terminal" or (self.bootstraps and not self.refresh_returns),
-            "truncation",
-            "'bootstrap' is for λ-returns (return_lambda below 1) not recomputed "
-            "(refresh_returns false)",
-        )
-        spread = self.unseen_tolerance
-        require(
-            bool(np.isfinite(spread)) and spread >= 0,
-            "unseen_tolerance",
-            f"must be >= 0 (got {spread})",
-        )
-        require(
-            spread == 0 or (self.keyed and self.estimates_unseen),
-            "unseen_tolerance",
-            "is the keyed memory's tolerance for a state not kept against the record "
-            "network's estimate (update='keyed', unseen_record other than 'first-visit')",
-        )
-        require(
-            self.critic_form == "joint" or self.critic_bootstrap == "greedy",
-            "critic_form",
-            f"'{self.critic_form}' bootstraps from the degrees' greedy joint action "
-            "(critic_bootstrap=greedy)",
-        )
-        step = self.record_step
-        in_range = bool(np.isfinite(step)) and 0 < step <= 1
-        require(in_range, "record_step", f"must be in (0, 1] (got {step})")
-        require(
-            self.keyed or self.act_from == "network",
-            "act_from",
-            "'memory' needs the keyed memory (update='keyed'); "
-            f"with update='{self.update}' set act_from=network",
-        )
-        for name in ("hidden", "hidden_layers", "record_hidden", "buffer_size", "batch_size",
-                     "train_every", "ways"):  # fmt: skip
-            value = getattr(self, name)
-            require(value >= 1, name, f"must be >= 1 (got {value})")
-        require(self.target_every >= 1, "target_every", f"must be >= 1 (got {self.target_every})")
-        require(self.batch_size <= self.buffer_size, "batch_size", "must be <= buffer_size")
-        require(self.ways <= self.buffer_size, "ways", "must be <= buffer_size")
-        for name in ("lr", "record_lr"):
-            value = getattr(self, name)
-            require(bool(np.isfinite(value)) and value > 0, name, f"must be > 0 (got {value})")
-        check_degree_settings(self)
-        check_discount(self.gamma)
-        tau = self.expectile
-        require(0 < tau < 1, "expectile", f"must be in (0, 1) (got {tau})")
-        end = self.temperature_end
-        require(bool(np.isfinite(end)) and end > 0, "temperature_end", f"must be > 0 (got {end})")
-        steps = self.temperature_steps
-        require(steps >= 0, "temperature_steps", f"must be >= 0 (got {steps})")
-        for name in ("margin", "tolerance"):
-            value = getattr(self, name)
-            require(bool(np.isfinite(value)) and value >= 0, name, f"must be >= 0 (got {value})")
+        check_coordination_settings(self)
 
     @property
     def keyed(self) -> bool:
