@@ -149,6 +149,17 @@ def test_a_design_runs_at_the_studys_protocol_on_its_tasks(tmp_path: Path) -> No
     assert design[design.index("--set") + 1] == study[study.index("--set") + 1]
 
 
+def script_refusal(script: str, args: list[str], **env: str) -> str:
+    """Run a study script as a user would with ``env`` set; it must refuse with status 2,
+    and its one line of error is returned."""
+    done = subprocess.run(
+        ["bash", script, *args], capture_output=True, text=True, check=False,
+        env={**os.environ, **env},
+    )  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    return done.stderr.strip()
+
+
 def test_a_design_reads_the_time_left_where_told(tmp_path: Path) -> None:
     script = str(ROOT / "benchmarks/deep_cmarlcd_design_field.sh")
     store = str(tmp_path / "d.sqlite")
@@ -156,12 +167,8 @@ def test_a_design_reads_the_time_left_where_told(tmp_path: Path) -> None:
     (timed,) = recorded_field_calls(tmp_path, script, "shares-cold-shared", store, TIME_LEFT="1")
     assert "--time-left" not in plain
     assert [w for w in timed if w != "--time-left"] == plain and "--time-left" in timed
-    done = subprocess.run(
-        ["bash", script, "shares-cold-shared", store], capture_output=True, text=True,
-        check=False, env={**os.environ, "TIME_LEFT": "yes"},
-    )  # fmt: skip
-    assert done.returncode == 2
-    assert done.stderr.strip() == "error: TIME_LEFT must be 0 or 1 (got 'yes')"
+    refused = script_refusal(script, ["shares-cold-shared", store], TIME_LEFT="yes")
+    assert refused == "error: TIME_LEFT must be 0 or 1 (got 'yes')"
 
 
 def test_a_design_takes_the_step_it_is_told(tmp_path: Path) -> None:
@@ -175,12 +182,8 @@ def test_a_design_takes_the_step_it_is_told(tmp_path: Path) -> None:
     assert "step" not in plain[at]
     assert fused[at] == plain[at] + ",deep-cmarl-cd.step=fused"
     assert fused[:at] + fused[at + 1 :] == plain[:at] + plain[at + 1 :]
-    done = subprocess.run(
-        ["bash", script, "shares-cold-shared", store], capture_output=True, text=True,
-        check=False, env={**os.environ, "STEP": "fast"},
-    )  # fmt: skip
-    assert done.returncode == 2
-    assert done.stderr.strip() == "error: STEP must be auto, fused or autograd (got 'fast')"
+    refused = script_refusal(script, ["shares-cold-shared", store], STEP="fast")
+    assert refused == "error: STEP must be auto, fused or autograd (got 'fast')"
 
 
 def test_the_study_reads_the_time_left_where_told(tmp_path: Path) -> None:
@@ -208,9 +211,5 @@ def test_the_study_trains_seeds_apart_where_told(tmp_path: Path) -> None:
         at = b.index("--seed-batch")
         assert b[at + 1] == "1" and b[:at] + b[at + 2 :] == a
     for bad in ("0", "one"):
-        done = subprocess.run(
-            ["bash", script, "full", out], capture_output=True, text=True, check=False,
-            env={**os.environ, "SEED_BATCH": bad},
-        )  # fmt: skip
-        assert done.returncode == 2
-        assert done.stderr.strip() == f"error: SEED_BATCH must be >= 1 (got '{bad}')"
+        refused = script_refusal(script, ["full", out], SEED_BATCH=bad)
+        assert refused == f"error: SEED_BATCH must be >= 1 (got '{bad}')"
