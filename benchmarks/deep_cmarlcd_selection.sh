@@ -60,6 +60,10 @@
 #              baselines' model class, their cut episodes ending in what they collected
 #   shares-range-bootstrap-shared-epymarl  shares-range-bootstrap-shared-slow with the
 #              baselines' batch (1,600 visits), buffer (250,000) and learning rate (5e-4)
+#   shares-range-shared-refresh  shares-range-shared with every stored λ-return
+#              recomputed at each target copy (refresh_returns)
+#   shares-range-shared-refresh-slow  that design with VDN's target interval (10,000
+#              steps): the returns recomputed at each of VDN's copies
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)

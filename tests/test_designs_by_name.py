@@ -74,6 +74,12 @@ def test_the_refresh_design_is_the_anchored_range_design_recomputing_its_returns
     assert (refresh.share, refresh.hidden_layers, refresh.return_lambda) == (True, 2, 0.9)
 
 
+def test_the_slow_refresh_design_recomputes_its_returns_at_vdns_copies() -> None:
+    slow = settings(f"{D}.design=shares-range-shared-refresh-slow")
+    assert slow == settings(f"{D}.design=shares-range-shared-refresh,{D}.target_every=10000")
+    assert slow.refresh_returns and slow.target_every == 200 * Foraging().max_steps
+
+
 def test_the_epymarl_design_replays_as_the_baselines_do_on_lbf() -> None:
     epymarl = settings(f"{D}.design=shares-range-bootstrap-shared-epymarl")
     # EPyMARL's 32-episode batches and 5,000-episode buffer of 50-step LBF episodes, VDN's

@@ -159,6 +159,17 @@ SHARES_RANGE_SHARED_DEEP_CMARLCD = replace(SHARES_RANGE_DEEP_CMARLCD, **BASELINE
 SHARES_RANGE_SHARED_REFRESH_DEEP_CMARLCD = replace(
     SHARES_RANGE_SHARED_DEEP_CMARLCD, refresh_returns=True
 )
+#: ``shares-range-shared-refresh`` with VDN's target interval (declared before its runs,
+#: 2026-12-07, the tenth round). VDN's targets are bootstrapped from a copy renewed every
+#: 10,000 steps; recomputing the ring's λ-returns at each of those copies bootstraps every
+#: stored return from the copy VDN would draw against, at a twentieth of the ninth
+#: round's recomputations (each passes the ring through the live and the copied
+#: networks, 0.9 s for 5 seeds on this machine: some 3 minutes a task, not an hour and a
+#: half). Measured with the time left, against ``shares-range-shared`` and VDN with the
+#: same input.
+SHARES_RANGE_SHARED_REFRESH_SLOW_DEEP_CMARLCD = replace(
+    SHARES_RANGE_SHARED_REFRESH_DEEP_CMARLCD, target_every=VDN_TARGET_EVERY
+)
 #: ``shares-range-bootstrap-shared-slow`` at the baselines' replay and learning rate
 #: (declared before its runs, 2026-12-07, the eighth round): EPyMARL's batch of 32
 #: episodes and buffer of 5,000, counted in LBF's 50-step episodes (1,600 and 250,000
@@ -254,6 +265,7 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-range-shared": SHARES_RANGE_SHARED_DEEP_CMARLCD,
     "shares-range-bootstrap-shared-epymarl": SHARES_RANGE_BOOTSTRAP_SHARED_EPYMARL_DEEP_CMARLCD,
     "shares-range-shared-refresh": SHARES_RANGE_SHARED_REFRESH_DEEP_CMARLCD,
+    "shares-range-shared-refresh-slow": SHARES_RANGE_SHARED_REFRESH_SLOW_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
