@@ -4,8 +4,9 @@ Reads what ``cmarl-cd report --store STORE --format json`` gives (the study's nu
 exactly the report's) and prints, per figure of the field (the maximum return and the
 average return over the curve, each with its 95 % interval over the seeds, EPyMARL's
 figures), one Markdown table with the tasks as rows and the learners as columns, the best
-of each row in bold, the random policy's mean return as the floor; then which tasks and
-learners the store does not hold yet. ``--figure`` draws every task's mean curves, one
+of each row in bold, the random policy's mean return as the floor, a cell of fewer seeds
+than the protocol's marked with how many it holds; then which tasks and learners the
+store does not hold yet, or not all of their seeds. ``--figure`` draws every task's mean curves, one
 panel a task; ``--page`` writes the tables and the list into the documentation page's
 marked blocks (``<!-- study-max -->`` ... ``<!-- /study-max -->``, ``study-average``,
 ``study-missing``).
@@ -49,6 +50,8 @@ LEARNERS = (
     ("deep CMARL-CD (shares)", "Deep CMARL-CD (critic_bootstrap='greedy'"),
 )
 RANDOM = "random policy"
+#: The study's seeds a task and learner (benchmarks/field_protocol.sh, full protocol).
+SEEDS = 5
 #: The two figures of a curve (field_metrics): the best point, the mean of every point.
 FIGURES = (("max_return", "maximum return"), ("average_return", "average return"))
 
@@ -66,7 +69,9 @@ def study(report: dict[str, Any]) -> dict[str, dict[str, Any]]:
     for doc in report.get("train", []):
         if doc["game"] not in short:
             continue
-        task = tasks.setdefault(short[doc["game"]], {"field": {}, "floor": None, "curves": {}})
+        task = tasks.setdefault(
+            short[doc["game"]], {"field": {}, "floor": None, "curves": {}, "seeds": {}}
+        )
         for row in doc["rows"]:
             if row["algorithm"] == "random":
                 task["floor"] = row["mean_return"]
@@ -75,22 +80,34 @@ def study(report: dict[str, Any]) -> dict[str, dict[str, Any]]:
                 task["field"][name] = figures
         for label, runs in doc["curves"].items():
             name = RANDOM if label == RANDOM else column(label)
+            if name is not None and name != RANDOM:
+                task["seeds"][name] = len(runs)
             if name is not None and runs:
                 points = zip(*runs, strict=True)
                 task["curves"][name] = [(p[0][0], sum(x[1] for x in p) / len(p)) for p in points]
     return tasks
 
 
-def cell(figures: dict[str, Any], key: str, best: bool) -> str:
+def partial(seeds: int | None, expected: int) -> str:
+    """`` (n of N seeds)`` where a learner holds fewer seeds than the protocol's, else
+    nothing (nor where the report shows no curves to count)."""
+    return "" if seeds is None or seeds >= expected else f" ({seeds} of {expected} seeds)"
+
+
+def cell(
+    figures: dict[str, Any], key: str, best: bool, seeds: int | None = None,
+    expected: int = SEEDS,
+) -> str:  # fmt: skip
     value = f"{figures[key]:.3f}"
     low, high = figures.get(f"{key}_low"), figures.get(f"{key}_high")
     interval = "" if low is None or math.isnan(low) else f" [{low:.3f}, {high:.3f}]"
-    return (f"**{value}**" if best else value) + interval
+    return (f"**{value}**" if best else value) + interval + partial(seeds, expected)
 
 
-def table(tasks: dict[str, dict[str, Any]], key: str) -> list[str]:
+def table(tasks: dict[str, dict[str, Any]], key: str, expected: int = SEEDS) -> list[str]:
     """One Markdown table of ``key`` (a field figure): tasks as rows, learners as
-    columns, the best of each row in bold (every learner at the row's best: ties)."""
+    columns, the best of each row in bold (every learner at the row's best: ties), a
+    cell of fewer than ``expected`` seeds marked with how many it holds."""
     names = [name for name, _ in LEARNERS]
     lines = [
         "| task | " + " | ".join(names) + " | random |",
@@ -99,21 +116,30 @@ def table(tasks: dict[str, dict[str, Any]], key: str) -> list[str]:
     for game in TASKS:
         if game not in tasks:
             continue
-        found = tasks[game]["field"]
+        found, seeds = tasks[game]["field"], tasks[game].get("seeds", {})
         top = max((found[n][key] for n in names if n in found), default=None)
-        cells = [cell(found[n], key, found[n][key] == top) if n in found else "–" for n in names]
+        cells = [
+            cell(found[n], key, found[n][key] == top, seeds.get(n), expected) if n in found else "–"
+            for n in names
+        ]
         floor = tasks[game]["floor"]
         cells.append("–" if floor is None else f"{floor:.3f}")
         lines.append(f"| {game.removeprefix('foraging:')} | " + " | ".join(cells) + " |")
     return lines
 
 
-def missing(tasks: dict[str, dict[str, Any]]) -> list[str]:
-    """``task: learner, ...`` for every pair the store does not hold yet."""
+def missing(tasks: dict[str, dict[str, Any]], expected: int = SEEDS) -> list[str]:
+    """``task: learner, ...`` for every pair the store does not hold yet, and
+    ``learner (n of N seeds)`` for one that holds fewer than ``expected`` seeds."""
     lines = []
     for game in TASKS:
         held = tasks.get(game, {}).get("field", {})
-        absent = [name for name, _ in LEARNERS if name not in held]
+        seeds = tasks.get(game, {}).get("seeds", {})
+        absent = [
+            name if name not in held else name + partial(seeds.get(name), expected)
+            for name, _ in LEARNERS
+            if name not in held or partial(seeds.get(name), expected)
+        ]
         if absent:
             lines.append(f"{game}: " + ", ".join(absent))
     return lines
@@ -220,7 +246,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--report", type=Path, help="or a report already written (JSON)")
     p.add_argument("--figure", type=Path, help="draw the curves into this PNG")
     p.add_argument("--page", type=Path, help="write the tables into this page's blocks")
+    p.add_argument("--seeds", type=int, default=SEEDS,
+                   help=f"the protocol's seeds; fewer are marked (default {SEEDS})")  # fmt: skip
     args = p.parse_args(argv)
+    if args.seeds < 1:
+        print(f"error: --seeds must be >= 1 (got {args.seeds})", file=sys.stderr)
+        return 2
     if (args.store is None) == (args.report is None):
         print("error: give one of --store and --report", file=sys.stderr)
         return 2
@@ -245,12 +276,12 @@ def main(argv: list[str] | None = None) -> int:
     tasks = study(report)
     for key, title in FIGURES:
         print(f"\n{title} (95 % interval over the seeds; bold: the row's best)\n")
-        print("\n".join(table(tasks, key)))
+        print("\n".join(table(tasks, key, args.seeds)))
     spent = hours(args.store) if args.store is not None else None
     if spent is not None:
         print("\nhours of one core (the runs' wall seconds)\n")
         print("\n".join(time_table(spent)))
-    absent = missing(tasks)
+    absent = missing(tasks, args.seeds)
     print("\nnot in the store yet:" if absent else "\nevery task and learner is in the store")
     print("\n".join(absent))
     if args.figure is not None:
@@ -260,7 +291,7 @@ def main(argv: list[str] | None = None) -> int:
         page = args.page.read_text()
         try:
             for key, _ in FIGURES:
-                page = fill(page, "study-" + key.split("_")[0], table(tasks, key))
+                page = fill(page, "study-" + key.split("_")[0], table(tasks, key, args.seeds))
             page = fill(page, "study-missing", [f"- {line}" for line in absent] or ["none"])
             if spent is not None:
                 page = fill(page, "study-hours", time_table(spent))

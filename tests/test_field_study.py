@@ -61,18 +61,29 @@ def test_cells_best_and_floor() -> None:
     best = tables.table(tasks, "max_return")
     row = best[2].split(" | ")
     # IQL, hysteretic DQN: absent; VDN and QMIX tie at the best; a label outside the
-    # study's columns (0.9) is not a column
+    # study's columns (0.9) is not a column; VDN's two curves are 2 of the study's 5
+    # seeds, QMIX shows no curves to count
     assert row[1:3] == ["–", "–"]
-    assert row[3] == "**0.400** [0.300, 0.500]" and row[4] == "**0.400** [0.300, 0.500]"
+    assert row[3] == "**0.400** [0.300, 0.500] (2 of 5 seeds)"
+    assert row[4] == "**0.400** [0.300, 0.500]"
     assert row[5] == "0.100 [0.000, 0.200]" and row[7] == "0.005 |"
     average = tables.table(tasks, "average_return")[2].split(" | ")
-    assert average[5] == "**0.300**" and average[3] == "0.200"  # no interval where NaN
+    assert average[5] == "**0.300**" and average[3] == "0.200 (2 of 5 seeds)"  # no interval
+    # at a protocol of two seeds VDN's cell holds them all
+    assert tables.table(tasks, "max_return", expected=2)[2].split(" | ")[3] == (
+        "**0.400** [0.300, 0.500]"
+    )
     assert tasks["foraging:8x8-2p-2f-coop"]["curves"]["VDN"] == [(0, 0.1), (50, 0.4)]
 
 
 def test_missing_pairs_are_listed() -> None:
     absent = tables.missing(tables.study(REPORT))
-    assert absent[0] == ("foraging:8x8-2p-2f-coop: IQL, hysteretic DQN, deep CMARL-CD (shares)")
+    assert absent[0] == (
+        "foraging:8x8-2p-2f-coop: IQL, hysteretic DQN, VDN (2 of 5 seeds), deep CMARL-CD (shares)"
+    )
+    assert tables.missing(tables.study(REPORT), expected=2)[0] == (
+        "foraging:8x8-2p-2f-coop: IQL, hysteretic DQN, deep CMARL-CD (shares)"
+    )
     assert len(absent) == len(tables.TASKS)
     assert absent[-1] == (
         "simple_spread: IQL, hysteretic DQN, QMIX, deep CMARL-CD, deep CMARL-CD (shares)"
@@ -106,7 +117,8 @@ def test_the_page_blocks_are_filled(tmp_path: Path) -> None:
     assert run("--report", str(report), "--page", str(doc)).returncode == 0
     text = doc.read_text()
     assert "| 8x8-2p-2f-coop | – | – | **0.400** [0.300, 0.500]" in text
-    assert "| 8x8-2p-2f-coop | – | – | 0.200 | 0.100 | **0.300** | – | 0.005 |" in text
+    average = "| 8x8-2p-2f-coop | – | – | 0.200 (2 of 5 seeds) | 0.100 | **0.300** | – | 0.005 |"
+    assert average in text
     assert "- simple_spread: IQL, hysteretic DQN, QMIX" in text
     assert "| simple_spread | – | – | **-50.000** [-50.100, -49.900]" in text
     doc.write_text("no blocks here\n")
@@ -160,6 +172,8 @@ def test_bad_input_is_one_line(tmp_path: Path) -> None:
     assert done.stderr.strip() == f"error: {text} is not a report (cmarl-cd report --format json)"
     done = run("--store", str(text))
     assert done.returncode == 2 and done.stderr.strip().startswith("error: --store:")
+    done = run("--report", str(text), "--seeds", "0")
+    assert done.returncode == 2 and done.stderr.strip() == "error: --seeds must be >= 1 (got 0)"
     shell = subprocess.run(
         ["bash", str(ROOT / "benchmarks/field_study.sh"), "fast", str(tmp_path)],
         capture_output=True, text=True, check=False,
