@@ -64,6 +64,8 @@
 #              recomputed at each target copy (refresh_returns)
 #   shares-range-shared-refresh-slow  that design with VDN's target interval (10,000
 #              steps): the returns recomputed at each of VDN's copies
+#   shares-range-shared-refresh-slow-td  that design on one-step returns (λ 0): VDN's
+#              double estimator targets, through the shares
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)

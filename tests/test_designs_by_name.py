@@ -78,6 +78,8 @@ def test_the_slow_refresh_design_recomputes_its_returns_at_vdns_copies() -> None
     slow = settings(f"{D}.design=shares-range-shared-refresh-slow")
     assert slow == settings(f"{D}.design=shares-range-shared-refresh,{D}.target_every=10000")
     assert slow.refresh_returns and slow.target_every == 200 * Foraging().max_steps
+    one_step = settings(f"{D}.design=shares-range-shared-refresh-slow-td")
+    assert one_step == replace(slow, return_lambda=0.0) and one_step.bootstraps
 
 
 def test_the_epymarl_design_replays_as_the_baselines_do_on_lbf() -> None:

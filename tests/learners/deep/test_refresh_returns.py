@@ -50,6 +50,19 @@ def test_one_episode_by_hand() -> None:
     assert by_step == {2: 4.0, 1: 8.5, 0: 5.875}
 
 
+def test_lambda_zero_gives_one_step_returns() -> None:
+    """λ 0 (the one-step form): rewards 1, 2, 4, γ 0.5, V(s_1) = 11, V(s_2) = 22: G_2 = 4
+    (the episode's end), G_1 = 2 + 0.5 · 22 = 13, G_0 = 1 + 0.5 · 11 = 6.5; no later
+    return reaches an earlier one."""
+    view, rewards = ring_of(8, [[1.0, 2.0, 4.0]])
+    values = np.zeros(8)
+    for p in range(3):
+        values[p] = {0: 0.0, 1: 11.0, 2: 22.0}[int(view.state[p])]
+    recompute_lambda_returns(view, rewards, values, 0.5, 0.0)
+    by_step = {int(view.state[p]): float(view.reward[p]) for p in range(3)}
+    assert by_step == {2: 4.0, 1: 13.0, 0: 6.5}
+
+
 def test_a_wrapped_ring_keeps_the_return_whose_successor_is_gone() -> None:
     """Capacity 4, two episodes of 3 visits: the second overwrites the first's last two
     steps, so the first's step 0 (the oldest visit) keeps its return (−1); the second

@@ -170,6 +170,16 @@ SHARES_RANGE_SHARED_REFRESH_DEEP_CMARLCD = replace(
 SHARES_RANGE_SHARED_REFRESH_SLOW_DEEP_CMARLCD = replace(
     SHARES_RANGE_SHARED_REFRESH_DEEP_CMARLCD, target_every=VDN_TARGET_EVERY
 )
+#: ``shares-range-shared-refresh-slow`` on one-step returns, λ 0 (declared with it, before
+#: either ran): each stored return is then ``r + γ V'(s')``, the shares' target copy at
+#: the live shares' greedy joint action, recomputed at each of VDN's copies: VDN's double
+#: estimator target, fitted through the same sum of per-agent values at τ 0.5 (a squared
+#: error). What is left between it and VDN is eq. (17)'s behaviour in ranges rather than
+#: ε-greedy, a ring of visits drawn one by one rather than whole episodes, and the
+#: batch, ring and learning rate of the other designs.
+SHARES_RANGE_SHARED_REFRESH_SLOW_TD_DEEP_CMARLCD = replace(
+    SHARES_RANGE_SHARED_REFRESH_SLOW_DEEP_CMARLCD, return_lambda=0.0
+)
 #: ``shares-range-bootstrap-shared-slow`` at the baselines' replay and learning rate
 #: (declared before its runs, 2026-12-07, the eighth round): EPyMARL's batch of 32
 #: episodes and buffer of 5,000, counted in LBF's 50-step episodes (1,600 and 250,000
@@ -266,6 +276,7 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-range-bootstrap-shared-epymarl": SHARES_RANGE_BOOTSTRAP_SHARED_EPYMARL_DEEP_CMARLCD,
     "shares-range-shared-refresh": SHARES_RANGE_SHARED_REFRESH_DEEP_CMARLCD,
     "shares-range-shared-refresh-slow": SHARES_RANGE_SHARED_REFRESH_SLOW_DEEP_CMARLCD,
+    "shares-range-shared-refresh-slow-td": SHARES_RANGE_SHARED_REFRESH_SLOW_TD_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
