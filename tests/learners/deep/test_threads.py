@@ -72,3 +72,23 @@ def test_the_agents_step_with_the_chosen_threads(four_threads) -> None:
         agent.end_episode(2, terminated=True)
     assert seen and set(seen) == {agent.model.step_threads()} == {1}
     assert torch.get_num_threads() == 4
+
+
+def test_a_model_steps_with_its_threads_whoever_calls_it(four_threads) -> None:
+    """A step called on the model itself, outside any learner, runs its backward pass and
+    Adam on the model's threads (one for a small model); the process keeps its four."""
+    config = DeepConfig(batch_size=4, buffer_size=8, step="autograd")
+    model = ValueDecomposition([2, 2], 3, config, [np.random.SeedSequence(0)])
+    seen = []
+    step = model.optimizer.step
+    model.optimizer.step = lambda: seen.append(torch.get_num_threads()) or step()
+    batch = {
+        "state": torch.zeros((1, 4), dtype=torch.int64),
+        "actions": torch.zeros((1, 4, 2), dtype=torch.int64),
+        "reward": torch.ones((1, 4)),
+        "next_state": torch.ones((1, 4), dtype=torch.int64),
+        "terminal": torch.ones((1, 4), dtype=torch.bool),
+    }
+    model.learn(batch)
+    assert seen == [model.step_threads()] == [1]
+    assert torch.get_num_threads() == 4
