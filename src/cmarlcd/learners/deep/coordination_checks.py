@@ -20,6 +20,12 @@ def check_coordination_settings(config: DeepLearnerConfig) -> None:
     for name, choices in CHOICES.items():
         value = getattr(config, name)
         require(value in choices, name, f"must be one of {', '.join(choices)} (got {value!r})")
+    check_combinations(config)
+    check_ranges(config)
+
+
+def check_combinations(config: DeepLearnerConfig) -> None:
+    """Refuse the settings that do not go together (each named with what it needs)."""
     require(
         config.keyed or config.record == "maximum",
         "record",
@@ -82,6 +88,11 @@ def check_coordination_settings(config: DeepLearnerConfig) -> None:
         "'memory' needs the keyed memory (update='keyed'); "
         f"with update='{config.update}' set act_from=network",
     )
+
+
+def check_ranges(config: DeepLearnerConfig) -> None:
+    """Refuse a setting outside its own range (a count below 1, a rate not above 0, a
+    batch larger than its memory, the degrees' and the discount's rules)."""
     for name in ("hidden", "hidden_layers", "record_hidden", "buffer_size", "batch_size",
                  "train_every", "ways"):  # fmt: skip
         value = getattr(config, name)
