@@ -135,11 +135,11 @@ def missing(tasks: dict[str, dict[str, Any]], expected: int = SEEDS) -> list[str
     for game in TASKS:
         held = tasks.get(game, {}).get("field", {})
         seeds = tasks.get(game, {}).get("seeds", {})
-        absent = [
-            name if name not in held else name + partial(seeds.get(name), expected)
-            for name, _ in LEARNERS
-            if name not in held or partial(seeds.get(name), expected)
-        ]
+        absent = []
+        for name, _ in LEARNERS:
+            mark = partial(seeds.get(name), expected) if name in held else ""
+            if name not in held or mark:
+                absent.append(name + mark)
         if absent:
             lines.append(f"{game}: " + ", ".join(absent))
     return lines
