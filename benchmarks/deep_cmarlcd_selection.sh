@@ -66,6 +66,8 @@
 #              steps): the returns recomputed at each of VDN's copies
 #   shares-range-shared-refresh-slow-td  that design on one-step returns (λ 0): VDN's
 #              double estimator targets, through the shares
+#   shares-epsilon-shared-refresh-slow-td  that design acting as VDN does: ε-greedy on
+#              the shares, ε from 1 to 0.05 over 50,000 steps (behaviour=epsilon-greedy)
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)

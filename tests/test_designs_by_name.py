@@ -82,6 +82,16 @@ def test_the_slow_refresh_design_recomputes_its_returns_at_vdns_copies() -> None
     assert one_step == replace(slow, return_lambda=0.0) and one_step.bootstraps
 
 
+def test_the_epsilon_design_is_the_one_step_design_acting_as_vdn() -> None:
+    one_step = settings(f"{D}.design=shares-range-shared-refresh-slow-td")
+    epsilon = settings(f"{D}.design=shares-epsilon-shared-refresh-slow-td")
+    # EPyMARL's VDN: ε from 1 to 0.05 over 50,000 steps; nothing else differs
+    vdn = {"behaviour": "epsilon-greedy", "epsilon_start": 1.0, "epsilon_end": 0.05,
+           "epsilon_steps": 50_000}  # fmt: skip
+    assert epsilon == replace(one_step, **vdn)
+    assert one_step.behaviour == "softmax"
+
+
 def test_the_epymarl_design_replays_as_the_baselines_do_on_lbf() -> None:
     epymarl = settings(f"{D}.design=shares-range-bootstrap-shared-epymarl")
     # EPyMARL's 32-episode batches and 5,000-episode buffer of 50-step LBF episodes, VDN's

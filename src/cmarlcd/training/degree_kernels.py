@@ -5,13 +5,14 @@ the loop of :mod:`cmarlcd.training.loop` calls on its side
 shares).
 
 Acting samples each agent's action from ``softmax(c / T)`` of its clipped degrees over
-the legal actions (eq. 17), one uniform per agent in agent order, as the tabular
-learner does; greedy execution takes the legal action of largest clipped degree (lowest
-index on ties). After each episode the keyed update folds the episode into the keyed
-memory (:func:`keyed_index_store`, :func:`keyed_features_store`: each visit keyed by its
-state index or the hash of its features, the network's degrees and record estimate read
-for the states not kept); the replayed update stores every visit with its discounted
-return (eq. 1, computed backwards) in the ring.
+the legal actions (eq. 17), one uniform per agent in agent order, as the tabular learner
+does (or, with ``behaviour="epsilon-greedy"``, ε-greedy on them); greedy execution takes
+the legal action of largest clipped degree (lowest index on ties). After each episode
+the keyed update folds the episode into the keyed memory (:func:`keyed_index_store`,
+:func:`keyed_features_store`: each visit keyed by its state index or the hash of its
+features, the network's degrees and record estimate read for the states not kept); the
+replayed update stores every visit with its discounted return (eq. 1, computed
+backwards) in the ring.
 
 With ``act_from="memory"`` the side acts (and executes greedily) with the keyed memory's
 degrees where it keeps the state, found by the state's key as the fold finds it, and with
@@ -28,7 +29,13 @@ from cmarlcd.games.spec import GameSpec
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.learners.deep.degree_memory import features_key, find, fold_episode, may_be_missing
 from cmarlcd.learners.deep.replay import push_visit, push_visit_row
-from cmarlcd.learners.policy import annealed, greedy_action, sample_action, softmax_strategy
+from cmarlcd.learners.policy import (
+    annealed,
+    greedy_action,
+    sample_action,
+    softmax_strategy,
+    uniform_legal_action,
+)
 from cmarlcd.training.deep_kernels import (
     ENDED_TERMINAL,
     EPISODES,
@@ -47,6 +54,7 @@ from cmarlcd.training.protocol import SideKernels
 #: Entries of deep CMARL-CD's ``schedule`` (``DeepCMARLCDConfig.schedule``).
 TEMPERATURE, C_MIN, C_MAX, GAMMA = range(4)
 TEMPERATURE_END, TEMPERATURE_STEPS, TEMPERATURE_UNIT, TRUNCATION_BOOTSTRAP = 6, 7, 8, 9
+BEHAVIOUR, EPSILON_START, EPSILON_END, EPSILON_STEPS = 10, 11, 12, 13
 
 
 @kernel
@@ -80,9 +88,16 @@ def legal_range(row, legal_row, count: int) -> float:
 def sample_degrees(side, raw, legal_row, count: int, rng) -> int:
     """An action from ``softmax(clip(raw) / T)`` over the legal actions (eq. 17), T
     annealed over the side's steps where the schedule anneals it, and in the range of
-    the legal degrees with ``temperature_unit="range"``."""
+    the legal degrees with ``temperature_unit="range"``; with
+    ``behaviour="epsilon-greedy"``, a uniform legal action with probability ε (one
+    uniform, then a second for the action), else the greedy one."""
     s, row, probs = side.schedule, side.scratch[0], side.scratch[1]
     clip_row(raw, count, s[C_MIN], s[C_MAX], row)
+    if s[BEHAVIOUR] == 1.0:  # "epsilon-greedy"
+        eps = annealed(s[EPSILON_START], s[EPSILON_END], s[EPSILON_STEPS], side.counters[TURNS])
+        if rng.random() < eps:
+            return uniform_legal_action(legal_row, count, rng.random())
+        return greedy_action(row, legal_row, count)
     t = annealed(s[TEMPERATURE], s[TEMPERATURE_END], s[TEMPERATURE_STEPS], side.counters[TURNS])
     if s[TEMPERATURE_UNIT] == 1.0:  # "range": T in the range of the legal degrees
         t *= legal_range(row, legal_row, count)

@@ -58,6 +58,7 @@ from cmarlcd.learners.deep.coordination_checks import check_coordination_setting
 from cmarlcd.learners.deep.coordination_choices import (  # noqa: F401  (re-exported)
     ACT_FROM,
     AUTO_FUSED_UPDATES,
+    BEHAVIOURS,
     CHOICES,
     CRITIC_BOOTSTRAPS,
     CRITIC_FITS,
@@ -259,6 +260,23 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     the documentation measures it). Where an agent's legal degrees are all equal it
     acts uniformly, as at any T. Greedy execution and the self-imitation loss do not
     read it."""
+    behaviour: str = added_setting("softmax", "0.7.0")
+    """[choice] How the behaviour draws each agent's action from its clipped degrees:
+    ``"softmax"``, eq. (17)'s ``softmax(c / T)`` (the paper's, with the T settings above);
+    ``"epsilon-greedy"`` (beyond the paper, a diagnostic), the baselines' rule: with
+    probability ε a uniform legal action, else the legal action of largest degree (lowest
+    index on ties), ε annealed linearly from ``epsilon_start`` to ``epsilon_end`` over
+    ``epsilon_steps`` environment steps. It puts VDN's behaviour on the shares, so that a
+    gap left between them and VDN is measured without eq. (17); the T settings then shape
+    only the self-imitation loss. Greedy execution does not read it."""
+    epsilon_start: float = added_setting(1.0, "0.7.0")
+    """[choice] (``behaviour="epsilon-greedy"``) ε at the first step, in [0, 1] (VDN's)."""
+    epsilon_end: float = added_setting(0.05, "0.7.0")
+    """[choice] (``behaviour="epsilon-greedy"``) ε after its anneal, in [0, 1] (VDN's)."""
+    epsilon_steps: int = added_setting(50_000, "0.7.0")
+    """[choice] (``behaviour="epsilon-greedy"``) Over how many environment steps ε anneals
+    (a seed's own steps, counted over its whole learning; VDN's 50,000 at the field's
+    protocol); 0 keeps ``epsilon_start``."""
     c_min: float = 0.5
     """Lower clip of the degrees (positive, Section IV-D)."""
     c_max: float = 3.0
@@ -406,8 +424,9 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
 
     def schedule(self, learn_episodes: int) -> list[float]:
         """T, the clip (:attr:`degree_bounds`), γ, L, ``train_every``, the end of T's
-        anneal, its steps and its unit (the index in :data:`TEMPERATURE_UNITS`), and whether
-        a cut episode's λ-returns bootstrap (``truncation``)."""
+        anneal, its steps and its unit (the index in :data:`TEMPERATURE_UNITS`), whether
+        a cut episode's λ-returns bootstrap (``truncation``), the behaviour (the index in
+        :data:`BEHAVIOURS`) and ε's start, end and steps."""
         lo, hi = self.degree_bounds
         return [
             self.temperature,
@@ -420,8 +439,16 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.temperature_steps,
             float(TEMPERATURE_UNITS.index(self.temperature_unit)),
             float(self.truncation == "bootstrap"),
+            float(BEHAVIOURS.index(self.behaviour)),
+            self.epsilon_start,
+            self.epsilon_end,
+            self.epsilon_steps,
         ]
 
     def behaviour_temperature(self, steps: int) -> float:
         """The behaviour's T of eq. (17) after ``steps`` environment steps."""
         return annealed(self.temperature, self.temperature_end, self.temperature_steps, steps)
+
+    def behaviour_epsilon(self, steps: int) -> float:
+        """ε of the ε-greedy behaviour after ``steps`` environment steps."""
+        return annealed(self.epsilon_start, self.epsilon_end, self.epsilon_steps, steps)

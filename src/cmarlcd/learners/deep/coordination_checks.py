@@ -111,6 +111,11 @@ def check_ranges(config: DeepLearnerConfig) -> None:
     require(bool(np.isfinite(end)) and end > 0, "temperature_end", f"must be > 0 (got {end})")
     steps = config.temperature_steps
     require(steps >= 0, "temperature_steps", f"must be >= 0 (got {steps})")
+    for name in ("epsilon_start", "epsilon_end"):
+        value = getattr(config, name)
+        require(0 <= value <= 1, name, f"must be in [0, 1] (got {value})")
+    steps = config.epsilon_steps
+    require(steps >= 0, "epsilon_steps", f"must be >= 0 (got {steps})")
     for name in ("margin", "tolerance"):
         value = getattr(config, name)
         require(bool(np.isfinite(value)) and value >= 0, name, f"must be >= 0 (got {value})")

@@ -35,6 +35,8 @@ UNSEEN_SPREADS = ("std", "range")
 RECORDS = ("maximum", "expectile")
 #: What the behaviour's T is measured in (``temperature_unit``).
 TEMPERATURE_UNITS = ("fixed", "range")
+#: How the behaviour draws its actions from the degrees (``behaviour``).
+BEHAVIOURS = ("softmax", "epsilon-greedy")
 #: What an episode cut at ``max_steps`` ends in for λ-returns (``truncation``).
 TRUNCATIONS = ("terminal", "bootstrap")
 #: The settings that take one of a few names, and those names.
@@ -48,5 +50,6 @@ CHOICES = {
     "critic_bootstrap": CRITIC_BOOTSTRAPS,
     "unseen_spread": UNSEEN_SPREADS,
     "temperature_unit": TEMPERATURE_UNITS,
+    "behaviour": BEHAVIOURS,
     "truncation": TRUNCATIONS,
 }

@@ -121,8 +121,11 @@ class DegreeAgent(StepAgent):
         """A draw from softmax(c/T) over each agent's legal actions (eq. 17) at each
         state, with one forward pass; the draws go state by state, agent by agent. T is
         annealed over the steps observed where ``temperature_steps`` > 0, and measured
-        in the range of the legal degrees with ``temperature_unit="range"``."""
+        in the range of the legal degrees with ``temperature_unit="range"``; with
+        ``behaviour="epsilon-greedy"`` each agent is ε-greedy on its degrees instead."""
         all_degrees, all_legal = self._degrees(states, masks)
+        if self.config.behaviour == "epsilon-greedy":
+            return self._epsilon_greedy_many(all_degrees, all_legal)
         temperature = self.config.behaviour_temperature(self.steps)
         joints = []
         for degrees, legal in zip(all_degrees, all_legal, strict=True):
@@ -131,6 +134,22 @@ class DegreeAgent(StepAgent):
                 logits = np.where(row, d / (temperature * self._unit(d, row)), -np.inf)
                 p = np.exp(logits - logits.max())
                 joint.append(int(self.act_rng.choice(self.width, p=p / p.sum())))
+            joints.append(tuple(joint))
+        return joints
+
+    def _epsilon_greedy_many(self, all_degrees, all_legal) -> list:
+        """``behaviour="epsilon-greedy"``: each agent a uniform legal action with
+        probability ε (annealed over the steps observed), else its legal action of
+        largest clipped degree (lowest index on ties)."""
+        epsilon = self.config.behaviour_epsilon(self.steps)
+        joints = []
+        for degrees, legal in zip(all_degrees, all_legal, strict=True):
+            joint = []
+            for d, row in zip(degrees, legal, strict=True):
+                if self.act_rng.random() < epsilon:
+                    joint.append(int(self.act_rng.choice(np.flatnonzero(row))))
+                else:
+                    joint.append(int(np.argmax(np.where(row, d, -np.inf))))
             joints.append(tuple(joint))
         return joints
 

@@ -13,6 +13,8 @@ from cmarlcd.learners.deep.epymarl import (
     BATCH_EPISODES,
     BUFFER_EPISODES,
     BY_ALGORITHM,
+    EPS_END,
+    EPS_START,
     TARGET_EPISODES,
 )
 
@@ -180,6 +182,21 @@ SHARES_RANGE_SHARED_REFRESH_SLOW_DEEP_CMARLCD = replace(
 SHARES_RANGE_SHARED_REFRESH_SLOW_TD_DEEP_CMARLCD = replace(
     SHARES_RANGE_SHARED_REFRESH_SLOW_DEEP_CMARLCD, return_lambda=0.0
 )
+#: ``shares-range-shared-refresh-slow-td`` with VDN's behaviour (declared before its runs,
+#: 2026-12-07, the eleventh round; a diagnostic, not a candidate default): each agent
+#: ε-greedy on its shares, ε from 1 to 0.05 over VDN's 50,000 steps
+#: (``behaviour="epsilon-greedy"``), in place of eq. (17)'s ``softmax(c / T)`` with T in
+#: ranges. With λ 0 and its returns recomputed at VDN's copies, the one-step design's
+#: target is VDN's; it stayed below VDN on the five tasks it had measured. What is then
+#: left between the two is the behaviour, visits drawn one by one rather than whole
+#: episodes, and the batch, ring and learning rate: this removes the first.
+SHARES_EPSILON_SHARED_REFRESH_SLOW_TD_DEEP_CMARLCD = replace(
+    SHARES_RANGE_SHARED_REFRESH_SLOW_TD_DEEP_CMARLCD,
+    behaviour="epsilon-greedy",
+    epsilon_start=EPS_START,
+    epsilon_end=EPS_END,
+    epsilon_steps=BY_ALGORITHM["vdn"][2],
+)
 #: ``shares-range-bootstrap-shared-slow`` at the baselines' replay and learning rate
 #: (declared before its runs, 2026-12-07, the eighth round): EPyMARL's batch of 32
 #: episodes and buffer of 5,000, counted in LBF's 50-step episodes (1,600 and 250,000
@@ -277,6 +294,7 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-range-shared-refresh": SHARES_RANGE_SHARED_REFRESH_DEEP_CMARLCD,
     "shares-range-shared-refresh-slow": SHARES_RANGE_SHARED_REFRESH_SLOW_DEEP_CMARLCD,
     "shares-range-shared-refresh-slow-td": SHARES_RANGE_SHARED_REFRESH_SLOW_TD_DEEP_CMARLCD,
+    "shares-epsilon-shared-refresh-slow-td": SHARES_EPSILON_SHARED_REFRESH_SLOW_TD_DEEP_CMARLCD,
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
 DESIGNS_BY_LEARNER: dict[str, dict[str, DeepCMARLCDConfig]] = {DeepCMARLCDConfig.name: DESIGNS}
