@@ -181,7 +181,7 @@ def test_a_gpu_that_is_not_there_is_refused_before_anything_runs(
 ) -> None:
     """Every command that trains deep learners takes ``--device``; a GPU torch does not
     see, or a device misspelt: one line, exit 2, no store and no figures."""
-    from tests.test_cli import assert_rejected_cleanly, invoke
+    from tests.cli.common import assert_rejected_cleanly, invoke
 
     gpus(0)
     store, figures = tmp_path / "store.sqlite", tmp_path / "figures"
@@ -194,7 +194,7 @@ def test_a_gpu_that_is_not_there_is_refused_before_anything_runs(
 @pytest.mark.parametrize("command", ["dsn", "tournament", "train"])
 @pytest.mark.parametrize(("count", "says"), [("0", "must be >= 1"), ("257", "must be <= 256")])
 def test_gpu_tasks_out_of_range_are_refused(tmp_path, command: str, count: str, says: str) -> None:
-    from tests.test_cli import assert_rejected_cleanly, invoke
+    from tests.cli.common import assert_rejected_cleanly, invoke
 
     store, figures = tmp_path / "store.sqlite", tmp_path / "figures"
     where = ["--store", str(store), "--figures", str(figures), "--no-progress"]
@@ -204,14 +204,14 @@ def test_gpu_tasks_out_of_range_are_refused(tmp_path, command: str, count: str, 
 
 
 def test_a_tabular_command_has_no_device_option() -> None:
-    from tests.test_cli import invoke
+    from tests.cli.common import invoke
 
     result = invoke("repeated", "--device", "cpu")
     assert result.exit_code == 2 and "No such option" in result.output + result.stderr
 
 
 def test_a_deep_run_records_its_device_and_a_tabular_one_none(tmp_path) -> None:
-    from tests.test_cli import invoke
+    from tests.cli.common import invoke
 
     store = tmp_path / "store.sqlite"
     args = ["dsn", "--algorithms", "vdn,cmarl-cd", "--runs", "1", "--episodes", "30"]
@@ -255,7 +255,7 @@ def test_one_gradient_step_agrees_on_cpu_and_gpu(learner: str, integer: bool) ->
 
 @gpu
 def test_a_tiny_tournament_runs_on_the_gpu(tmp_path) -> None:
-    from tests.test_cli import invoke
+    from tests.cli.common import invoke
 
     store = tmp_path / "store.sqlite"
     args = ["tournament", "--algorithms", "vdn,qmix,deep-cmarl-cd", "--rounds", "2"]

@@ -12,7 +12,7 @@ from cmarlcd.experiments import environment as envs
 from cmarlcd.experiments import settings_of
 from cmarlcd.experiments.env_inputs import StateShape
 from cmarlcd.sweeps.store import ResultStore
-from tests.test_cli import assert_rejected_cleanly, invoke, paths  # noqa: F401
+from tests.cli.common import assert_rejected_cleanly, invoke
 from tests.tiny_env import TinyEnv
 
 TINY = "tests.tiny_env:make"
@@ -50,7 +50,7 @@ def test_only_the_deep_learners_read_their_own_observations() -> None:
         envs.check_reads_own_observations(registry.require_learner("cmarl-cd"), "own-observations")
 
 
-def test_each_agent_reads_its_own_observation_end_to_end(paths) -> None:  # noqa: F811
+def test_each_agent_reads_its_own_observation_end_to_end(paths) -> None:
     """``--inputs own-observations``: VDN and QMIX learn the tiny game's optimum from
     their own observations, and the report names the inputs."""
     pytest.importorskip("torch")
@@ -67,7 +67,7 @@ def test_each_agent_reads_its_own_observation_end_to_end(paths) -> None:  # noqa
     assert "inputs: own-observations" in invoke("report", *where).stdout
 
 
-def test_the_learners_end_to_end(paths) -> None:  # noqa: F811
+def test_the_learners_end_to_end(paths) -> None:
     """Deep CMARL-CD, VDN and the random baseline on the tiny env: stored curves, the
     greedy deep CMARL-CD finds the optimum 3, the baseline earns about 3/4; a second call
     computes nothing; report has the section."""
@@ -96,7 +96,7 @@ def test_the_learners_end_to_end(paths) -> None:  # noqa: F811
     assert report["train"][0]["rows"] == doc["rows"]
 
 
-def test_a_tabular_learner_on_the_dsn_environment(paths) -> None:  # noqa: F811
+def test_a_tabular_learner_on_the_dsn_environment(paths) -> None:
     """The DSN's own ParallelEnv has integer states: CMARL-CD learns from them."""
     _, _, where = paths
     result = invoke(
@@ -138,13 +138,13 @@ def test_a_tabular_learner_on_the_dsn_environment(paths) -> None:  # noqa: F811
         ),  # a one-hot state of unknown count
     ],
 )
-def test_bad_input_is_one_line(paths, args, option) -> None:  # noqa: F811
+def test_bad_input_is_one_line(paths, args, option) -> None:
     store, figures, where = paths
     result = invoke("train", "--algorithms", "cmarl-cd", *where, *args)
     assert_rejected_cleanly(result, option, store, figures)
 
 
-def test_list_arguments_are_stored_and_reported(paths) -> None:  # noqa: F811
+def test_list_arguments_are_stored_and_reported(paths) -> None:
     """A factory argument that is a list reads back (as a tuple) and ``report`` groups it."""
     _, _, where = paths
     args = ("--env", TINY, "--env-kwargs", '{"labels": [1, 2], "state": "integer"}',
@@ -182,7 +182,7 @@ def test_settings_read_back_to_themselves(copies: int) -> None:
         assert ("envs" in json.loads(spec.config_json)) == (copies > 1)
 
 
-def test_copies_played_at_once_end_to_end(paths) -> None:  # noqa: F811
+def test_copies_played_at_once_end_to_end(paths) -> None:
     """``--envs 3``: deep CMARL-CD still finds the optimum, the runs are stored with their
     copies (apart from one-copy runs), the report says how many, a second call computes
     nothing."""
@@ -223,7 +223,7 @@ GOLDEN_TRAIN_RUNS = {
         "train-step-auto.json",
     ],
 )
-def test_one_copy_plays_the_stored_fixed_seed_runs(paths, golden_file: str) -> None:  # noqa: F811
+def test_one_copy_plays_the_stored_fixed_seed_runs(paths, golden_file: str) -> None:
     """The same command at ``--envs 1`` gives the stored runs (the same config, so the
     same seeds, and the same learning curve, number for number): those of the version
     before copies were played, and those of the fused step (``auto`` on the CPU)."""
@@ -245,7 +245,7 @@ def test_one_copy_plays_the_stored_fixed_seed_runs(paths, golden_file: str) -> N
         assert stored[algorithm].metrics["curve"] == run["curve"]
 
 
-def test_a_deep_cmarl_cd_that_kept_nothing_is_named_in_the_report(paths) -> None:  # noqa: F811
+def test_a_deep_cmarl_cd_that_kept_nothing_is_named_in_the_report(paths) -> None:
     """Every reward negative: under ``estimate`` the memory stays empty and the report
     says so; under ``estimate-once-kept`` it learns, and nothing is said."""
     pytest.importorskip("torch")
@@ -261,7 +261,7 @@ def test_a_deep_cmarl_cd_that_kept_nothing_is_named_in_the_report(paths) -> None
     assert "kept nothing" not in fixed.stdout
 
 
-def test_a_budget_of_steps_end_to_end(paths) -> None:  # noqa: F811
+def test_a_budget_of_steps_end_to_end(paths) -> None:
     """``--steps``: the curve's points at steps 300, 600 and 900 (the tiny game's
     episodes last 3 steps, so each budget is met exactly), the runs stored with their
     unit, the report in steps; ε of a deep learner read per step of the budget."""

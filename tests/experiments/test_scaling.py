@@ -12,7 +12,7 @@ from cmarlcd.errors import ConfigError
 from cmarlcd.experiments import scaling, settings_of
 from cmarlcd.games.sensor_network import layout
 from cmarlcd.sweeps.store import ResultStore
-from tests.test_cli import assert_rejected_cleanly, invoke, paths, without_torch  # noqa: F401
+from tests.cli.common import assert_rejected_cleanly, invoke, without_torch
 
 TABULAR = tuple(registry.require_learner(n) for n in ("cmarl-cd", "iql"))
 
@@ -52,7 +52,7 @@ def test_the_paper_success_is_stored_at_the_papers_size_only() -> None:
 
 
 @pytest.mark.slow
-def test_the_study_end_to_end(paths) -> None:  # noqa: F811
+def test_the_study_end_to_end(paths) -> None:
     """Rows from the stored runs: one per size and learner, smallest network first; the
     return per target is the runs' mean return over the targets; a second call computes
     nothing."""
@@ -108,14 +108,14 @@ def test_the_study_end_to_end(paths) -> None:  # noqa: F811
         (["--set", "cmarl-cd.delta=-1"], "--set"),
     ],
 )
-def test_bad_input_is_one_line(paths, args, option) -> None:  # noqa: F811
+def test_bad_input_is_one_line(paths, args, option) -> None:
     store, figures, where = paths
     result = invoke("scaling", "--sizes", "2x2/1", "--episodes", "10", *where, *args)
     assert_rejected_cleanly(result, option, store, figures)
 
 
 @pytest.mark.slow
-def test_without_torch_the_deep_learners_are_left_out_with_a_note(paths, monkeypatch) -> None:  # noqa: F811
+def test_without_torch_the_deep_learners_are_left_out_with_a_note(paths, monkeypatch) -> None:
     without_torch(monkeypatch)
     _, _, where = paths
     args = ("--sizes", "2x2/1", "--episodes", "50", "--runs", "1", "--eval-episodes", "20")

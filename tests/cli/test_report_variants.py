@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_cli import invoke
+from tests.cli.common import invoke
 
 pytestmark = pytest.mark.slow  # two sweeps and four reports per experiment
 
