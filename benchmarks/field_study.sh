@@ -28,7 +28,7 @@
 #
 #   cmarl-cd report --store results/field/study/store.sqlite --format json
 #
-# Usage: [PARTS="vdn qmix"] [WORKERS=2] [TIME_LEFT=1] [SEED_BATCH=1] bash benchmarks/field_study.sh [full|quick] [OUT] [TASK ...]
+# Usage: [PARTS="vdn qmix"] [WORKERS=2] [TIME_LEFT=1] [SEED_BATCH=1] [SET=...] bash benchmarks/field_study.sh [full|quick] [OUT] [TASK ...]
 #   PARTS: which learners' parts to run, in the study's order unless told (shares, vdn,
 #   deep-cmarl-cd, qmix, deep-iql, hysteretic-dqn; default all); WORKERS: worker
 #   processes, each a task at a time (default 1, so that the machine's other core stays
@@ -39,8 +39,10 @@
 #   keeps none of them; 1 trains and stores each seed on its own, so a stop loses one
 #   seed's run at most, at the cost of the per-call overhead of unstacked steps; the
 #   same numbers: deep IQL's and VDN's fused runs, 3 seeds on 8x8-2p-2f-coop and
-#   simple_spread, stored batched and apart, are equal bit for bit). Needs the [deep]
-#   extra.
+#   simple_spread, stored batched and apart, are equal bit for bit); SET: settings
+#   appended to each part's `--set` (a diagnostic beside the study, into its own OUT:
+#   `PARTS=vdn SET=vdn.standardise_rewards=false`; `cmarl-cd field` refuses a setting of
+#   a learner the part does not run). Needs the [deep] extra.
 set -euo pipefail
 # the tasks and the protocol, shared with the design runs
 source "$(dirname "${BASH_SOURCE[0]}")/field_protocol.sh"
@@ -67,6 +69,7 @@ tasks=("$@")
 [ ${#tasks[@]} -eq 0 ] && tasks=("${field_tasks[@]}")
 mkdir -p "$out"
 
+extra="${SET:+,$SET}"  # SET's settings, after each part's own
 d=deep-cmarl-cd
 shares="$d.design=shares-cold"  # the same runs as its ten settings written out
 model() {  # model LEARNER: the anchor's model class at EPyMARL's settings
@@ -89,9 +92,9 @@ field() {  # field PART LEARNER [ARGS ...]: one learner on every task
 # (IQL's and hysteretic DQN's 128 hidden units) last
 for part in "${parts[@]}"; do
   case "$part" in
-    shares) field deep-cmarl-cd-shares "$d" --set "$shares,$d.gamma=0.99" ;;
-    deep-cmarl-cd) field deep-cmarl-cd "$d" --set "$d.gamma=0.99" ;;
-    *) field "$part" "$part" --preset epymarl --set "$(model "$part")" ;;
+    shares) field deep-cmarl-cd-shares "$d" --set "$shares,$d.gamma=0.99$extra" ;;
+    deep-cmarl-cd) field deep-cmarl-cd "$d" --set "$d.gamma=0.99$extra" ;;
+    *) field "$part" "$part" --preset epymarl --set "$(model "$part")$extra" ;;
   esac
 done
 echo "$(date +%T) done" >&2

@@ -191,3 +191,17 @@ def test_bad_input_is_one_line(tmp_path: Path) -> None:
         )  # fmt: skip
         assert shell.returncode == 2 and shell.stderr.strip() == line
     assert not (tmp_path / "store.sqlite").exists()  # refused before anything ran
+
+
+def test_the_study_s_extra_settings_reach_the_learner(tmp_path: Path) -> None:
+    """``SET`` is appended to the part's own settings: a setting the learner lacks is
+    refused by ``cmarl-cd field`` in one line, before anything is stored."""
+    shell = subprocess.run(
+        ["bash", str(ROOT / "benchmarks/field_study.sh"), "quick", str(tmp_path), "simple_spread"],
+        capture_output=True, text=True, check=False,
+        env={**os.environ, "PARTS": "vdn", "SET": "vdn.standardise=false"},
+    )  # fmt: skip
+    assert shell.returncode == 2
+    last = shell.stderr.strip().splitlines()[-1]
+    assert last.startswith("error: --set: vdn has no setting 'standardise'"), shell.stderr
+    assert not (tmp_path / "store.sqlite").exists()
