@@ -33,7 +33,14 @@ from cmarlcd.learners.deep.degree_memory import (
     new_memory,
     sample_memory,
 )
-from cmarlcd.learners.deep.replay import new_ring, recompute_lambda_returns, sample, seed_view
+from cmarlcd.learners.deep.replay import (
+    draw,
+    new_ring,
+    recompute_lambda_returns,
+    rows_of,
+    sample,
+    seed_view,
+)
 from cmarlcd.training.deep_kernels import Weights
 
 
@@ -250,7 +257,12 @@ class BootstrappedKind:
         return int(replay.ring.size[b])
 
     def draw(self, replay: BootstrappedRing, rngs: Sequence[np.random.Generator], size: int):
-        return sample(replay.ring, rngs, size)
+        """A batch of visits (:func:`~cmarlcd.learners.deep.replay.sample`), each with its
+        own reward (``step_reward``), which ``standardise_rewards`` reads."""
+        picks = draw(replay.ring, rngs, size)
+        out = rows_of(replay.ring, picks)
+        out["step_reward"] = np.take_along_axis(replay.step_reward, picks, axis=1)
+        return out
 
     def refresh(self, replay: BootstrappedRing, model: Any, inputs: str) -> None:
         """Copy the record network, which the next episodes' returns bootstrap from."""

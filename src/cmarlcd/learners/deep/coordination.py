@@ -165,6 +165,16 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
     degree_model.DegreeModel.estimate`), so that a return bootstraps from estimates at
     most ``target_every`` steps old, not from those of its episode's end, kept for as
     long as the ring keeps the visit (measured: the deep CMARL-CD page)."""
+    standardise_rewards: bool = added_setting(False, "0.7.0")
+    """[choice] (one-step returns: ``return_lambda`` 0, an update other than ``keyed``;
+    compiled loop) Each replay batch's rewards standardised as EPyMARL's VDN standardises
+    them (``RewardStatistics``: running mean and variance of every batch's rewards so far,
+    per seed), and each visit's target ``r + γ V'(s')`` taken with the standardised
+    reward in place of ``r``. On LBF most steps pay nothing, so a standardised step costs
+    about ``-mean / std`` until the food is collected, and the targets sit at a scale
+    where Adam's steps are small against them; the shares learn from the rewards as paid
+    otherwise. With λ above 0 a return sums rewards the batch does not standardise,
+    so it needs λ 0."""
     truncation: str = added_setting("terminal", "0.7.0")
     """[choice] (``return_lambda`` below 1) What an episode cut at the game's
     ``max_steps`` ends in: ``"terminal"``, nothing (its last visit's return is its reward,

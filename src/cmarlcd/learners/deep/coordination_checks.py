@@ -61,6 +61,12 @@ def check_combinations(config: DeepLearnerConfig) -> None:
         "'bootstrap' is for λ-returns (return_lambda below 1) not recomputed "
         "(refresh_returns false)",
     )
+    require(
+        not config.standardise_rewards or (config.bootstraps and config.return_lambda == 0),
+        "standardise_rewards",
+        "standardises the reward of one-step returns (return_lambda 0, update other than "
+        f"'keyed'; got return_lambda {config.return_lambda}, update '{config.update}')",
+    )
     spread = config.unseen_tolerance
     require(
         bool(np.isfinite(spread)) and spread >= 0,

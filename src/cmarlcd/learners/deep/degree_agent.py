@@ -19,6 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
+from cmarlcd.errors import require
 from cmarlcd.learners.deep.agent import StepAgent, check_own_dim
 from cmarlcd.learners.deep.config import scheduled_work
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
@@ -34,6 +35,10 @@ from cmarlcd.learners.deep.degree_memory import (
 from cmarlcd.learners.deep.degree_model import DegreeModel
 from cmarlcd.learners.deep.replay import new_ring, push_visit, push_visit_row, seed_view
 from cmarlcd.learners.deep.threads import intra_op_threads
+
+#: Settings only the compiled loop runs (:mod:`cmarlcd.training.deep_replay`): the ring's
+#: returns recomputed at each target copy, and the batch's rewards standardised.
+COMPILED_ONLY = ("refresh_returns", "standardise_rewards")
 
 
 class DegreeAgent(StepAgent):
@@ -57,6 +62,13 @@ class DegreeAgent(StepAgent):
     ) -> None:
         super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device, unit)
         check_own_dim(own_dim, state_dim, len(self.counts))
+        for name in COMPILED_ONLY:
+            require(
+                not getattr(config, name),
+                name,
+                "is run by the compiled loop only (cmarl-cd field, or a compiled game); "
+                "this agent, which plays any ParallelEnv, would learn without it",
+            )
         self.config = config
         self.model = DegreeModel(
             self.counts, self.in_dim, config, [self.init_seed], self.device, own_dim

@@ -27,6 +27,7 @@ from cmarlcd.learners.deep.agent_networks import (
 from cmarlcd.learners.deep.config import takes_fused_step
 from cmarlcd.learners.deep.coordination import RANGE_WEIGHT, DeepCMARLCDConfig
 from cmarlcd.learners.deep.fused.step import FusedDegreeStep, FusedSharesStep
+from cmarlcd.learners.deep.td_options import RewardStatistics
 from cmarlcd.learners.deep.value_decomposition import StackedModel
 
 
@@ -49,6 +50,15 @@ class RecordNetwork(nn.Module):
     def forward(self, state: torch.Tensor) -> torch.Tensor:
         """The state's record, (B, N[, in]) -> (B, N): the best of the outputs."""
         return self.values(state).amax(dim=-1)
+
+
+def standardised_returns(batch: dict[str, torch.Tensor], rewards: RewardStatistics):
+    """Each visit's one-step return ``r + γ V'(s')`` (``batch["reward"]``, (B, N)) with
+    its own reward ``r`` (``batch["step_reward"]``) replaced by the reward standardised
+    by ``rewards`` after they take the batch's: ``G - r + (r - mean) / std`` (EPyMARL's
+    ``standardise_rewards`` on a TD target)."""
+    own = batch["step_reward"]
+    return batch["reward"] - own + rewards.standardise(own)
 
 
 class DegreeModel(StackedModel):
@@ -114,6 +124,7 @@ class DegreeModel(StackedModel):
         fused = takes_fused_step(config.step, self.device, config.auto_fuses)
         step = FusedSharesStep if config.shares else FusedDegreeStep
         self.fused = step(self) if fused else None
+        self.rewards = RewardStatistics(self.n_seeds, self.device)
 
     def targets(
         self, degrees: torch.Tensor, actions: torch.Tensor, returns: torch.Tensor,
@@ -139,7 +150,11 @@ class DegreeModel(StackedModel):
 
     def learn(self, batch: dict[str, torch.Tensor]) -> float:
         """One Adam step on :meth:`loss` (by autograd, or the fused step of
-        ``config.step``); returns the mean loss per seed."""
+        ``config.step``), on each visit's target with its reward standardised first where
+        ``standardise_rewards`` says so (:func:`standardised_returns`); returns the mean
+        loss per seed."""
+        if self.config.standardise_rewards:
+            batch = {**batch, "reward": standardised_returns(batch, self.rewards)}
         if self.fused is not None:
             return self.fused(batch)
         return self.optimise(self.loss(batch))

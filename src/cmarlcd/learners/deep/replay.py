@@ -204,8 +204,13 @@ BATCH_FIELDS = ("state", "actions", "reward", "next_state", "next_legal", "termi
 def sample(ring: Replay, rngs: Sequence[np.random.Generator], batch_size: int) -> dict:
     """A batch of ``batch_size`` stored transitions per seed (:func:`draw`, :func:`gather`),
     keyed as the TD step reads them (``next_legal`` only where the ring stores masks)."""
-    out = new_batch(ring, batch_size)
-    gather(ring, draw(ring, rngs, batch_size), out)
+    return rows_of(ring, draw(ring, rngs, batch_size))
+
+
+def rows_of(ring: Replay, picks: np.ndarray) -> dict:
+    """Rows ``picks`` (B, N) of each seed's ring, keyed as the TD step reads them."""
+    out = new_batch(ring, picks.shape[1])
+    gather(ring, picks, out)
     batch = dict(zip(BATCH_FIELDS, out[:6], strict=True))
     if not ring.next_legal.shape[1]:
         del batch["next_legal"]
