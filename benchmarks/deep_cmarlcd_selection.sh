@@ -68,6 +68,8 @@
 #              double estimator targets, through the shares
 #   shares-epsilon-shared-refresh-slow-td  that design acting as VDN does: ε-greedy on
 #              the shares, ε from 1 to 0.05 over 50,000 steps (behaviour=epsilon-greedy)
+#   shares-range-shared-refresh-slow-td-standardised  the one-step design with EPyMARL's
+#              standardised rewards (standardise_rewards), as the study's VDN
 #
 # Usage: bash benchmarks/deep_cmarlcd_selection.sh [OUT] [DESIGN ...]
 #   (about 20 minutes a design on one quiet core; needs the [deep] extra)

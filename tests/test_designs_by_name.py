@@ -92,6 +92,13 @@ def test_the_epsilon_design_is_the_one_step_design_acting_as_vdn() -> None:
     assert one_step.behaviour == "softmax"
 
 
+def test_the_standardised_design_is_the_one_step_design_with_vdns_rewards() -> None:
+    one_step = settings(f"{D}.design=shares-range-shared-refresh-slow-td")
+    chosen = settings(f"{D}.design=shares-range-shared-refresh-slow-td-standardised")
+    assert chosen == replace(one_step, standardise_rewards=True)
+    assert not one_step.standardise_rewards
+
+
 def test_the_epymarl_design_replays_as_the_baselines_do_on_lbf() -> None:
     epymarl = settings(f"{D}.design=shares-range-bootstrap-shared-epymarl")
     # EPyMARL's 32-episode batches and 5,000-episode buffer of 50-step LBF episodes, VDN's
