@@ -144,6 +144,20 @@ def test_bad_input_is_one_line(paths, args, option) -> None:
     assert_rejected_cleanly(result, option, store, figures)
 
 
+@pytest.mark.parametrize(
+    "design", ["shares-range-shared-refresh", "shares-range-shared-refresh-slow-td-standardised"]
+)
+def test_settings_only_the_compiled_loop_runs_are_refused_on_any_env(paths, design) -> None:
+    """``--env`` plays through the object API, which runs neither the returns recomputed
+    at each target copy nor the standardised rewards: one line, nothing stored."""
+    pytest.importorskip("torch")
+    store, figures, where = paths
+    args = ("--env", TINY, "--set", f"deep-cmarl-cd.design={design}")
+    result = invoke("train", "--algorithms", "deep-cmarl-cd", *where, *args)
+    assert_rejected_cleanly(result, "--set", store, figures)
+    assert "is run by the compiled loop only (--game NAME:TASK)" in result.stderr
+
+
 def test_list_arguments_are_stored_and_reported(paths) -> None:
     """A factory argument that is a list reads back (as a tuple) and ``report`` groups it."""
     _, _, where = paths

@@ -182,9 +182,17 @@ def train(
         print_results(run, lambda console: run_game_training(game_sweep, run, console, seed_batch))
         return
     assert env is not None
+    learners = apply_settings(settings, configs)
+    for config in learners:
+        if compiled := getattr(config, "compiled_only", tuple)():
+            raise ConfigError(
+                "set",
+                f"{config.name}.{compiled[0]} is run by the compiled loop only (--game NAME:TASK); "
+                "--env plays any ParallelEnv, where the learner would run without it",
+            )
     sweep = envs.EnvSweep(
         env=env,
-        learners=apply_settings(settings, configs),
+        learners=learners,
         episodes=parse_count(episodes, "episodes")
         if steps is None
         else parse_count(steps, "steps"),

@@ -60,6 +60,7 @@ from cmarlcd.learners.deep.coordination_choices import (  # noqa: F401  (re-expo
     AUTO_FUSED_UPDATES,
     BEHAVIOURS,
     CHOICES,
+    COMPILED_ONLY,
     CRITIC_BOOTSTRAPS,
     CRITIC_FITS,
     CRITIC_FORMS,
@@ -454,6 +455,10 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
             self.epsilon_end,
             self.epsilon_steps,
         ]
+
+    def compiled_only(self) -> tuple[str, ...]:
+        """The settings on that only the compiled loop runs (:data:`COMPILED_ONLY`)."""
+        return tuple(name for name in COMPILED_ONLY if getattr(self, name))
 
     def behaviour_temperature(self, steps: int) -> float:
         """The behaviour's T of eq. (17) after ``steps`` environment steps."""

@@ -39,6 +39,10 @@ TEMPERATURE_UNITS = ("fixed", "range")
 BEHAVIOURS = ("softmax", "epsilon-greedy")
 #: What an episode cut at ``max_steps`` ends in for λ-returns (``truncation``).
 TRUNCATIONS = ("terminal", "bootstrap")
+#: Settings only the compiled loop runs (:mod:`cmarlcd.training.deep_replay`), which the
+#: object API (``DegreeAgent``, any PettingZoo environment) refuses: the ring's returns
+#: recomputed at each target copy, and the batch's rewards standardised.
+COMPILED_ONLY = ("refresh_returns", "standardise_rewards")
 #: The settings that take one of a few names, and those names.
 CHOICES = {
     "update": UPDATES,

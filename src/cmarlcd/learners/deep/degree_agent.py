@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from cmarlcd.errors import require
+from cmarlcd.errors import ConfigError
 from cmarlcd.learners.deep.agent import StepAgent, check_own_dim
 from cmarlcd.learners.deep.config import scheduled_work
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
@@ -35,10 +35,6 @@ from cmarlcd.learners.deep.degree_memory import (
 from cmarlcd.learners.deep.degree_model import DegreeModel
 from cmarlcd.learners.deep.replay import new_ring, push_visit, push_visit_row, seed_view
 from cmarlcd.learners.deep.threads import intra_op_threads
-
-#: Settings only the compiled loop runs (:mod:`cmarlcd.training.deep_replay`): the ring's
-#: returns recomputed at each target copy, and the batch's rewards standardised.
-COMPILED_ONLY = ("refresh_returns", "standardise_rewards")
 
 
 class DegreeAgent(StepAgent):
@@ -62,10 +58,9 @@ class DegreeAgent(StepAgent):
     ) -> None:
         super().__init__(action_counts, total_episodes, n_states, state_dim, seed, device, unit)
         check_own_dim(own_dim, state_dim, len(self.counts))
-        for name in COMPILED_ONLY:
-            require(
-                not getattr(config, name),
-                name,
+        if compiled := config.compiled_only():
+            raise ConfigError(
+                compiled[0],
                 "is run by the compiled loop only (cmarl-cd field, or a compiled game); "
                 "this agent, which plays any ParallelEnv, would learn without it",
             )
