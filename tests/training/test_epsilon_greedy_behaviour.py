@@ -12,13 +12,7 @@ pytest.importorskip("torch")
 from cmarlcd.errors import ConfigError
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.learners.deep.degree_agent import DegreeAgent
-from cmarlcd.testing import CHAIN
-from cmarlcd.training.deep import DeepBatch
-from cmarlcd.training.deep_kernels import TURNS
-
-#: Acting from the memory's degrees at CHAIN's state 2, which the tests set by hand.
-MEMORY = {"act_from": "memory", "unseen_record": "first-visit", "buffer_size": 64,
-          "batch_size": 8, "train_every": 4}  # fmt: skip
+from tests.training.memory_draws import MEMORY, draws_at_state_2
 
 
 def epsilon_greedy(start: float, end: float = 0.05, steps: int = 0) -> DeepCMARLCDConfig:
@@ -37,20 +31,8 @@ def test_epsilon_anneals_linearly_then_stays() -> None:
 
 
 def compiled_draws(config: DeepCMARLCDConfig, times: int, turns: int = 0) -> list:
-    """``times`` joint actions drawn at CHAIN's state 2 after ``turns`` steps, whose
-    memory holds degrees (0.5, 3, 0.5) for agent 0 and (0.5, 0.5, 3) for agent 1."""
-    batch = DeepBatch(CHAIN, config, [np.random.SeedSequence(3)], 300)
-    view = batch.group.views[0]
-    data, memory = view.data, view.data.replay.memory
-    memory.filled[2], memory.key[2] = True, np.uint64(2)
-    memory.target[2] = [[0.5, 3.0, 0.5], [0.5, 0.5, 3.0]]
-    data.counters[TURNS] = turns
-    rng, joint = np.random.default_rng(0), np.zeros(2, np.int64)
-    out = []
-    for _ in range(times):
-        view.kernels.act(data, 2, rng, joint)
-        out.append((int(joint[0]), int(joint[1])))
-    return out
+    """Joint actions at CHAIN's state 2, degrees (0.5, 3, 0.5) and (0.5, 0.5, 3)."""
+    return draws_at_state_2(config, 3.0, times, turns)
 
 
 def test_the_compiled_loop_draws_epsilon_greedy_by_hand() -> None:

@@ -15,13 +15,9 @@ pytest.importorskip("torch")
 from cmarlcd.errors import ConfigError
 from cmarlcd.learners.deep.coordination import DeepCMARLCDConfig
 from cmarlcd.learners.deep.degree_agent import DegreeAgent
-from cmarlcd.testing import CHAIN
-from cmarlcd.training.deep import DeepBatch
 from cmarlcd.training.degree_kernels import legal_range
+from tests.training.memory_draws import MEMORY, draws_at_state_2
 
-#: Acting from the memory's degrees at CHAIN's state 2, which the tests set by hand.
-MEMORY = {"act_from": "memory", "unseen_record": "first-visit", "buffer_size": 64,
-          "batch_size": 8, "train_every": 4}  # fmt: skip
 #: The strategy of degrees (a, b, a), b > a, at T = 0.5 ranges: softmax of (-2, 0, -2).
 P_BEST = 1 / (1 + 2 * math.exp(-2))
 
@@ -38,17 +34,7 @@ def compiled_draws(unit: str, best: float, times: int) -> list[tuple[int, int]]:
     """``times`` joint actions drawn at CHAIN's state 2, whose memory holds degrees
     (0.5, best, 0.5) for agent 0 and (0.5, 0.5, best) for agent 1, at T = 0.5."""
     config = DeepCMARLCDConfig(temperature=0.5, temperature_unit=unit, **MEMORY)
-    batch = DeepBatch(CHAIN, config, [np.random.SeedSequence(3)], 300)
-    view = batch.group.views[0]
-    data, memory = view.data, view.data.replay.memory
-    memory.filled[2], memory.key[2] = True, np.uint64(2)
-    memory.target[2] = [[0.5, best, 0.5], [0.5, 0.5, best]]
-    rng, joint = np.random.default_rng(0), np.zeros(2, np.int64)
-    out = []
-    for _ in range(times):
-        view.kernels.act(data, 2, rng, joint)
-        out.append((int(joint[0]), int(joint[1])))
-    return out
+    return draws_at_state_2(config, best, times)
 
 
 def test_the_compiled_loop_draws_from_the_strategy_by_hand() -> None:
