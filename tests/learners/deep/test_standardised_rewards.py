@@ -72,13 +72,15 @@ def test_each_drawn_visit_carries_its_own_reward() -> None:
     assert np.array_equal(drawn["step_reward"][0][last], drawn["reward"][0][last])
 
 
-def test_the_model_learns_on_the_standardised_targets() -> None:
+@pytest.mark.parametrize("step", ["autograd", "fused"])
+def test_the_model_learns_on_the_standardised_targets(step: str) -> None:
     """One step of a model with the setting equals one step of the same model without it
-    fed the targets standardised by hand: same loss, same weights."""
+    fed the targets standardised by hand: same loss, same weights (by autograd and by
+    the shares' fused step)."""
     from cmarlcd.learners.deep.degree_model import DegreeModel, standardised_returns
 
     def model(standardise: bool) -> DegreeModel:
-        config = replace(ONE_STEP, standardise_rewards=standardise)
+        config = replace(ONE_STEP, standardise_rewards=standardise, step=step)
         return DegreeModel([3, 3], 4, config, [np.random.SeedSequence(5)])
 
     gen = torch.Generator().manual_seed(0)
@@ -89,6 +91,7 @@ def test_the_model_learns_on_the_standardised_targets() -> None:
         "step_reward": (torch.rand(1, 16, generator=gen) > 0.8).float(),
     }
     on, off = model(True), model(False)
+    assert (on.fused is not None) == (step == "fused")
     by_hand = standardised_returns(batch, RewardStatistics(1, torch.device("cpu")))
     assert not torch.allclose(by_hand, batch["reward"])
     assert on.learn(batch) == pytest.approx(off.learn({**batch, "reward": by_hand}))
