@@ -457,7 +457,7 @@ class DeepCMARLCDConfig(DeepLearnerConfig):
         ]
 
     def compiled_only(self) -> tuple[str, ...]:
-        """The settings on that only the compiled loop runs (:data:`COMPILED_ONLY`)."""
+        """The settings switched on that only the compiled loop runs (:data:`COMPILED_ONLY`)."""
         return tuple(name for name in COMPILED_ONLY if getattr(self, name))
 
     def behaviour_temperature(self, steps: int) -> float:

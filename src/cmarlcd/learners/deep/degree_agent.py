@@ -35,6 +35,7 @@ from cmarlcd.learners.deep.degree_memory import (
 from cmarlcd.learners.deep.degree_model import DegreeModel
 from cmarlcd.learners.deep.replay import new_ring, push_visit, push_visit_row, seed_view
 from cmarlcd.learners.deep.threads import intra_op_threads
+from cmarlcd.learners.policy import greedy_action, uniform_legal_action
 
 
 class DegreeAgent(StepAgent):
@@ -153,10 +154,10 @@ class DegreeAgent(StepAgent):
         for degrees, legal in zip(all_degrees, all_legal, strict=True):
             joint = []
             for d, row in zip(degrees, legal, strict=True):
-                if self.act_rng.random() < epsilon:
-                    joint.append(int(self.act_rng.choice(np.flatnonzero(row))))
+                if self.act_rng.random() < epsilon:  # the compiled loop's rule and draws
+                    joint.append(uniform_legal_action(row, self.width, self.act_rng.random()))
                 else:
-                    joint.append(int(np.argmax(np.where(row, d, -np.inf))))
+                    joint.append(greedy_action(d, row, self.width))
             joints.append(tuple(joint))
         return joints
 
