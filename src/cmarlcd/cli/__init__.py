@@ -1,7 +1,7 @@
 """The ``cmarl-cd`` command line: one module per command (:mod:`~.repeated`, :mod:`~.dsn`,
 :mod:`~.tournament`, :mod:`~.readings`, :mod:`~.reproduce`, :mod:`~.compare`,
 :mod:`~.scaling`, :mod:`~.train`, :mod:`~.field`, :mod:`~.evaluate`, :mod:`~.report`,
-:mod:`~.play`, :mod:`~.theory`),
+:mod:`~.merge`, :mod:`~.play`, :mod:`~.theory`),
 each registering with the app of :mod:`~.app`; :mod:`~.sweeps` (the options and sweep
 every computing command shares), :mod:`~.options` (parsing and clean failures) and
 :mod:`~.progress` (the progress bar)."""
@@ -11,6 +11,7 @@ from cmarlcd.cli import (  # noqa: F401  (each registers its command)
     dsn,
     evaluate,
     field,
+    merge,
     play,
     readings,
     repeated,
@@ -41,6 +42,7 @@ ORDER = (
     "evaluate",
     "play",
     "report",
+    "merge",
 )
 app.registered_commands.sort(key=lambda c: ORDER.index(c.name or c.callback.__name__))
 

@@ -34,6 +34,7 @@ import sqlite3
 import threading
 import time
 from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -259,6 +260,16 @@ class StoreWriteError(ConfigError):
 Claims = tuple[list[RunKey], list[RunKey]]
 
 
+@dataclass(frozen=True)
+class MergeCount:
+    """What :meth:`ResultStore.merge` did: runs copied, runs the store already held, and
+    how many of those it holds with other metrics than the source's."""
+
+    added: int
+    already: int
+    differing: int
+
+
 class ResultStore:
     """Read and append runs; safe to open from several processes (SQLite WAL).
 
@@ -476,3 +487,48 @@ class ResultStore:
 
     def count(self) -> int:
         return int(self._conn.execute("SELECT COUNT(*) FROM runs").fetchone()[0])
+
+    # ----------------------------------------------------------------- merge
+
+    def _rows_with_provenance(self) -> list[tuple[Any, ...]]:
+        """Every stored run as its row (:data:`COLUMNS`) and where it was computed (the
+        provenance's JSON text, None where the store has none)."""
+        query = (
+            f"SELECT {', '.join('r.' + c for c in COLUMNS)}, p.info FROM runs r "
+            "LEFT JOIN run_provenance rp USING (experiment, algorithm, config, root_seed, "
+            "run_index) LEFT JOIN provenances p ON p.id = rp.provenance"
+        )
+        return self._conn.execute(query).fetchall()
+
+    def merge(self, source: ResultStore) -> MergeCount:
+        """Copy into this store every run of ``source`` it does not hold, as ``source``
+        stored it (metrics, wall time, version, finish time, where it was computed), in
+        one transaction: a store computed on another machine, or by another command
+        under the same settings, joins this one as if its runs had been computed here.
+        A run both hold stays as this store has it (a stored run is never changed);
+        those whose metrics differ are counted. ``source`` is only read."""
+        require(
+            source.path.resolve() != self.path.resolve(),
+            "store",
+            f"{source.path} is the store itself; name another store to merge into it",
+        )
+        rows = source._rows_with_provenance()
+        added = differing = 0
+        with self._writing() as conn:
+            for row in rows:
+                key, metrics, info = row[:5], row[5], row[-1]
+                if conn.execute("INSERT INTO runs VALUES (?,?,?,?,?,?,?,?,?) ON CONFLICT DO "
+                                "NOTHING", row[:-1]).rowcount:  # fmt: skip
+                    added += 1
+                    conn.execute(f"DELETE FROM claims WHERE {KEY}", key)
+                    if info is not None:
+                        conn.execute("INSERT INTO provenances (info) VALUES (?) ON CONFLICT "
+                                     "DO NOTHING", (info,))  # fmt: skip
+                        conn.execute(
+                            "INSERT INTO run_provenance SELECT ?,?,?,?,?, id FROM provenances "
+                            "WHERE info = ?", (*key, info),
+                        )  # fmt: skip
+                    continue
+                (kept,) = conn.execute(f"SELECT metrics FROM runs WHERE {KEY}", key).fetchone()
+                differing += json.loads(kept) != json.loads(metrics)
+        return MergeCount(added=added, already=len(rows) - added, differing=differing)
