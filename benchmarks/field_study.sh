@@ -11,7 +11,10 @@
 #             QMIX's two-layer hypernetworks, the fused step: the anchor's form, the
 #             EPyMARL anchor page of the documentation); deep CMARL-CD at its default
 #             (the field's discount 0.99) and at its best measured design for states that
-#             do not recur (shares-cold of benchmarks/deep_cmarlcd_selection.sh); the
+#             do not recur (shares-range-shared-refresh-slow-td-standardised on the
+#             shares' fused step, the twelfth round of the deep CMARL-CD page, the same
+#             runs as benchmarks/deep_cmarlcd_design_field.sh with STEP=fused stores; it
+#             replaced shares-cold, whose runs stay in the store, in no column); the
 #             uniform random policy as each task's floor. Every learner reads its own
 #             agent's observation (--inputs own-observations). Tabular CMARL-CD is not in
 #             it: its table of one task's states does not fit in memory on any of them
@@ -71,7 +74,9 @@ mkdir -p "$out"
 
 extra="${SET:+,$SET}"  # SET's settings, after each part's own
 d=deep-cmarl-cd
-shares="$d.design=shares-cold"  # the same runs as its ten settings written out
+# the design's runs as the design script stores them (the settings' order is not part
+# of a run's identity), so `cmarl-cd merge` joins that store's runs to the study's
+shares="$d.design=shares-range-shared-refresh-slow-td-standardised,$d.step=fused"
 model() {  # model LEARNER: the anchor's model class at EPyMARL's settings
   local m="$1.share=true,$1.hidden_layers=2,$1.step=fused"
   [ "$1" = qmix ] && m="$m,qmix.hypernet_layers=2"

@@ -40,14 +40,21 @@ TASKS = (
 #: How the store names a task given by its short name (simple_spread's defaults spelled
 #: out).
 STORED = {"simple_spread": "simple_spread:N=3,local_ratio=0.5,max_cycles=25"}
-#: The study's learners: the column's name and how its label in the store begins.
+#: The setting that tells the study's design of deep CMARL-CD where states do not recur
+#: (field_study.sh's ``shares`` part, the shares with standardised rewards) from the
+#: design it replaced (``shares-cold``, whose runs stay in the store, in no column): as
+#: its label in the store writes it, and as its stored settings do.
+DESIGN_LABEL = "standardise_rewards=True"
+DESIGN_CONFIG = '"standardise_rewards":true'
+#: The study's learners: the column's name, how its label in the store begins and what
+#: else it must hold.
 LEARNERS = (
-    ("IQL", "Deep IQL (EPyMARL"),
-    ("hysteretic DQN", "Hysteretic DQN (EPyMARL"),
-    ("VDN", "VDN (EPyMARL"),
-    ("QMIX", "QMIX (EPyMARL"),
-    ("deep CMARL-CD", "Deep CMARL-CD (gamma=0.99)"),
-    ("deep CMARL-CD (shares)", "Deep CMARL-CD (critic_bootstrap='greedy'"),
+    ("IQL", "Deep IQL (EPyMARL", ""),
+    ("hysteretic DQN", "Hysteretic DQN (EPyMARL", ""),
+    ("VDN", "VDN (EPyMARL", ""),
+    ("QMIX", "QMIX (EPyMARL", ""),
+    ("deep CMARL-CD", "Deep CMARL-CD (gamma=0.99)", ""),
+    ("deep CMARL-CD (shares)", "Deep CMARL-CD (critic_bootstrap='greedy'", DESIGN_LABEL),
 )
 RANDOM = "random policy"
 #: The study's seeds a task and learner (benchmarks/field_protocol.sh, full protocol).
@@ -58,7 +65,8 @@ FIGURES = (("max_return", "maximum return"), ("average_return", "average return"
 
 def column(label: str) -> str | None:
     """The study's column of a learner's label in the store (None: not the study's)."""
-    return next((name for name, start in LEARNERS if label.startswith(start)), None)
+    found = (name for name, start, held in LEARNERS if label.startswith(start) and held in label)
+    return next(found, None)
 
 
 def study(report: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -108,7 +116,7 @@ def table(tasks: dict[str, dict[str, Any]], key: str, expected: int = SEEDS) -> 
     """One Markdown table of ``key`` (a field figure): tasks as rows, learners as
     columns, the best of each row in bold (every learner at the row's best: ties), a
     cell of fewer than ``expected`` seeds marked with how many it holds."""
-    names = [name for name, _ in LEARNERS]
+    names = [name for name, *_ in LEARNERS]
     lines = [
         "| task | " + " | ".join(names) + " | random |",
         "|---|" + "---|" * (len(names) + 1),
@@ -136,7 +144,7 @@ def missing(tasks: dict[str, dict[str, Any]], expected: int = SEEDS) -> list[str
         held = tasks.get(game, {}).get("field", {})
         seeds = tasks.get(game, {}).get("seeds", {})
         absent = []
-        for name, _ in LEARNERS:
+        for name, *_ in LEARNERS:
             mark = partial(seeds.get(name), expected) if name in held else ""
             if name not in held or mark:
                 absent.append(name + mark)
@@ -173,8 +181,13 @@ def hours(store: Path) -> dict[str, dict[str, float]]:
             task = f"{experiment}:{game.get('task')}" if isinstance(game, dict) else None
             task = "simple_spread" if task == STORED["simple_spread"] else task
             if algorithm == "deep-cmarl-cd":
-                shares = '"critic_form":"degrees"' in config.replace(" ", "")
-                name = "deep CMARL-CD (shares)" if shares else "deep CMARL-CD"
+                settings = config.replace(" ", "")
+                if '"critic_form":"degrees"' not in settings:
+                    name = "deep CMARL-CD"
+                elif DESIGN_CONFIG in settings:
+                    name = "deep CMARL-CD (shares)"
+                else:  # the design the study's replaced
+                    name = None
             else:
                 name = ALGORITHMS.get(algorithm)
             if task in TASKS and name is not None:
@@ -185,7 +198,7 @@ def hours(store: Path) -> dict[str, dict[str, float]]:
 
 def time_table(spent: dict[str, dict[str, float]]) -> list[str]:
     """Hours per task (rows) and learner (columns), with each row's and column's sum."""
-    names = [name for name, _ in LEARNERS]
+    names = [name for name, *_ in LEARNERS]
     lines = ["| task | " + " | ".join(names) + " | all |", "|---|" + "---|" * (len(names) + 1)]
     for game in TASKS:
         if game in spent:

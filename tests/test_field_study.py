@@ -37,6 +37,9 @@ REPORT = {
                 "QMIX (EPyMARL, share=True)": figures(0.4, 0.1),
                 "Deep CMARL-CD (gamma=0.99)": figures(0.1, 0.3),
                 "VDN (some other setting)": figures(0.9, 0.9),
+                # the design the study's replaced (shares-cold): in no column
+                "Deep CMARL-CD (critic_bootstrap='greedy', critic_form='degrees', "
+                "gamma=0.99)": figures(0.8, 0.8),
             },
             "curves": {
                 "VDN (EPyMARL, share=True)": [[[0, 0.0], [50, 0.2]], [[0, 0.2], [50, 0.6]]],
@@ -47,7 +50,11 @@ REPORT = {
         {
             "game": "simple_spread:N=3,local_ratio=0.5,max_cycles=25",
             "rows": [{"algorithm": "random", "mean_return": -79.3}],
-            "field": {"VDN (EPyMARL, share=True)": figures(-50.0, -60.0)},
+            "field": {
+                "VDN (EPyMARL, share=True)": figures(-50.0, -60.0),
+                "Deep CMARL-CD (critic_bootstrap='greedy', critic_form='degrees', gamma=0.99, "
+                "standardise_rewards=True, step='fused')": figures(-40.0, -70.0),
+            },
             "curves": {},
         },
     ]
@@ -85,9 +92,16 @@ def test_missing_pairs_are_listed() -> None:
         "foraging:8x8-2p-2f-coop: IQL, hysteretic DQN, deep CMARL-CD (shares)"
     )
     assert len(absent) == len(tables.TASKS)
-    assert absent[-1] == (
-        "simple_spread: IQL, hysteretic DQN, QMIX, deep CMARL-CD, deep CMARL-CD (shares)"
-    )
+    assert absent[-1] == "simple_spread: IQL, hysteretic DQN, QMIX, deep CMARL-CD"
+
+
+def test_the_design_column_holds_the_study_s_design_only() -> None:
+    """The shares with standardised rewards fill the design's column; the design they
+    replaced, whose runs stay in the store, fills none."""
+    tasks = tables.study(REPORT)
+    assert "deep CMARL-CD (shares)" not in tasks["foraging:8x8-2p-2f-coop"]["field"]
+    spread = tables.table(tasks, "max_return")[3].split(" | ")
+    assert spread[6] == "**-40.000** [-40.100, -39.900]" and spread[3].startswith("-50.000")
 
 
 def run(*args: str) -> subprocess.CompletedProcess[str]:
@@ -120,7 +134,7 @@ def test_the_page_blocks_are_filled(tmp_path: Path) -> None:
     average = "| 8x8-2p-2f-coop | – | – | 0.200 (2 of 5 seeds) | 0.100 | **0.300** | – | 0.005 |"
     assert average in text
     assert "- simple_spread: IQL, hysteretic DQN, QMIX" in text
-    assert "| simple_spread | – | – | **-50.000** [-50.100, -49.900]" in text
+    assert "| simple_spread | – | – | -50.000 [-50.100, -49.900] | – | – | **-40.000**" in text
     doc.write_text("no blocks here\n")
     done = run("--report", str(report), "--page", str(doc))
     assert done.returncode == 2
@@ -138,8 +152,10 @@ def test_hours_sum_each_tasks_runs_by_learner(tmp_path: Path) -> None:
         ("foraging", "vdn", '{"game": {"task": "8x8-2p-2f-coop"}}', 1800.0),
         ("foraging", "vdn", '{"game": {"task": "8x8-2p-2f-coop"}}', 1800.0),
         ("foraging", "deep-cmarl-cd", '{"game": {"task": "8x8-2p-2f-coop"}}', 3600.0),
-        ("foraging", "deep-cmarl-cd",
-         '{"game": {"task": "8x8-2p-2f-coop"}, "learner": {"critic_form": "degrees"}}', 7200.0),
+        ("foraging", "deep-cmarl-cd", '{"game": {"task": "8x8-2p-2f-coop"}, "learner": '
+         '{"critic_form": "degrees", "standardise_rewards": true}}', 7200.0),
+        ("foraging", "deep-cmarl-cd",  # the design the study's replaced: no column
+         '{"game": {"task": "8x8-2p-2f-coop"}, "learner": {"critic_form": "degrees"}}', 500.0),
         ("simple_spread", "qmix", spread, 900.0),
         ("foraging", "vdn", '{"game": {"task": "5x5-2p-1f"}}', 99.0),  # not the study's
     ]  # fmt: skip
