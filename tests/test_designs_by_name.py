@@ -99,6 +99,14 @@ def test_the_standardised_design_is_the_one_step_design_with_vdns_rewards() -> N
     assert not one_step.standardise_rewards
 
 
+def test_the_thirteenth_design_is_the_standardised_one_acting_as_vdn() -> None:
+    chosen = settings(f"{D}.design=shares-range-shared-refresh-slow-td-standardised")
+    epsilon = settings(f"{D}.design=shares-epsilon-shared-refresh-slow-td-standardised")
+    vdn = {"behaviour": "epsilon-greedy", "epsilon_start": 1.0, "epsilon_end": 0.05,
+           "epsilon_steps": 50_000}  # fmt: skip
+    assert epsilon == replace(chosen, **vdn) and epsilon.standardise_rewards
+
+
 def test_the_epymarl_design_replays_as_the_baselines_do_on_lbf() -> None:
     epymarl = settings(f"{D}.design=shares-range-bootstrap-shared-epymarl")
     # EPyMARL's 32-episode batches and 5,000-episode buffer of 50-step LBF episodes, VDN's

@@ -224,6 +224,16 @@ SHARES_RANGE_BOOTSTRAP_SHARED_EPYMARL_DEEP_CMARLCD = replace(
 SHARES_RANGE_SHARED_REFRESH_SLOW_TD_STANDARDISED_DEEP_CMARLCD = replace(
     SHARES_RANGE_SHARED_REFRESH_SLOW_TD_DEEP_CMARLCD, standardise_rewards=True
 )
+#: ``shares-range-shared-refresh-slow-td-standardised`` acting as VDN does (declared before
+#: its runs, 2026-12-07, the thirteenth round; a diagnostic): ε-greedy on the shares, as
+#: ``shares-epsilon-shared-refresh-slow-td``. With the time left, the standardised design
+#: passed VDN on 8x8-2p-2f-coop, 10x10-3p-3f and simple_spread but stayed below it on the
+#: two tasks with a second food level (2s-8x8-2p-2f-coop 0.624 against 0.847,
+#: 2s-10x10-3p-3f 0.292 against 0.357), its curves level from about 1M steps on where
+#: VDN's still rise: is the behaviour the rest of that gap?
+SHARES_EPSILON_SHARED_REFRESH_SLOW_TD_STANDARDISED_DEEP_CMARLCD = replace(
+    SHARES_EPSILON_SHARED_REFRESH_SLOW_TD_DEEP_CMARLCD, standardise_rewards=True
+)
 
 #: [choice] Its settings on one-step (repeated) games (``cmarl-cd compare``): a game is one
 #: transition, so the DSN's schedule (a step per 200 transitions, batches of 400) would
@@ -309,6 +319,9 @@ DESIGNS: dict[str, DeepCMARLCDConfig] = {
     "shares-epsilon-shared-refresh-slow-td": SHARES_EPSILON_SHARED_REFRESH_SLOW_TD_DEEP_CMARLCD,
     "shares-range-shared-refresh-slow-td-standardised": (
         SHARES_RANGE_SHARED_REFRESH_SLOW_TD_STANDARDISED_DEEP_CMARLCD
+    ),
+    "shares-epsilon-shared-refresh-slow-td-standardised": (
+        SHARES_EPSILON_SHARED_REFRESH_SLOW_TD_STANDARDISED_DEEP_CMARLCD
     ),
 }
 #: The learners with named designs (``LEARNER.design=NAME``), by learner name.
