@@ -45,8 +45,9 @@ def design_figures(store: Path, deep_cmarlcd: bool = True) -> dict[str, dict[str
 
 def table(columns: dict[str, dict[str, dict[str, Any]]], key: str) -> list[str]:
     """Tasks as rows, ``columns`` (name: task: figures) as columns, each row's best in
-    bold."""
-    names = list(columns)
+    bold; a column with no figure on any task (a study's column not computed yet) is left
+    out."""
+    names = [name for name, tasks in columns.items() if tasks]
     lines = ["| task | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
     for task in TASKS:
         held = {n: columns[n][task] for n in names if task in columns[n]}
