@@ -167,6 +167,16 @@ class StoreWriteError(ConfigError):
 Claims = tuple[list[RunKey], list[RunKey]]
 
 
+def _record_provenance(conn: sqlite3.Connection, key: tuple[Any, ...], info: str) -> None:
+    """Record that the run ``key`` was computed where ``info`` (a provenance's JSON text)
+    says, each machine's record kept once, within the caller's transaction."""
+    conn.execute("INSERT INTO provenances (info) VALUES (?) ON CONFLICT DO NOTHING", (info,))
+    conn.execute(
+        "INSERT INTO run_provenance SELECT ?,?,?,?,?, id FROM provenances WHERE info = ?",
+        (*key, info),
+    )
+
+
 @dataclass(frozen=True)
 class MergeCount:
     """What :meth:`ResultStore.merge` did: runs copied, runs the store already held, and
@@ -278,14 +288,8 @@ class ResultStore:
             added = conn.execute(
                 "INSERT INTO runs VALUES (?,?,?,?,?,?,?,?,?) ON CONFLICT DO NOTHING", row
             ).rowcount
-            if added and provenance is not None:  # each machine's record kept once
-                info = json.dumps(dict(provenance), sort_keys=True)
-                conn.execute("INSERT INTO provenances (info) VALUES (?) ON CONFLICT DO NOTHING",
-                             (info,))  # fmt: skip
-                conn.execute(
-                    "INSERT INTO run_provenance SELECT ?,?,?,?,?, id FROM provenances "
-                    "WHERE info = ?", (*key.values(), info),
-                )  # fmt: skip
+            if added and provenance is not None:
+                _record_provenance(conn, key.values(), json.dumps(dict(provenance), sort_keys=True))
             conn.execute(f"DELETE FROM claims WHERE {KEY}", key.values())
         return added == 1
 
@@ -429,12 +433,7 @@ class ResultStore:
                     added += 1
                     conn.execute(f"DELETE FROM claims WHERE {KEY}", key)
                     if info is not None:
-                        conn.execute("INSERT INTO provenances (info) VALUES (?) ON CONFLICT "
-                                     "DO NOTHING", (info,))  # fmt: skip
-                        conn.execute(
-                            "INSERT INTO run_provenance SELECT ?,?,?,?,?, id FROM provenances "
-                            "WHERE info = ?", (*key, info),
-                        )  # fmt: skip
+                        _record_provenance(conn, key, info)
                     continue
                 (kept,) = conn.execute(f"SELECT metrics FROM runs WHERE {KEY}", key).fetchone()
                 differing += json.loads(kept) != json.loads(metrics)
